@@ -1,0 +1,79 @@
+"""Run a matcher over a whole recording: :func:`match`."""
+
+from __future__ import annotations
+
+import os
+import time
+
+import cvstereo
+from calibration_free.registry import create_matcher
+from cvstereo.matches import MatchResult, concat_matches, sort_matches
+from cvstereo.recording import Recording
+
+#: Packet length used to stream a recording through a matcher; the result does not depend on it.
+DEFAULT_PACKET_US = 10_000
+
+
+def match(recording, right=None, *, method: str = "frame", variant: str | None = None,
+          packet_us: int = DEFAULT_PACKET_US, progress: bool = False, **params) -> MatchResult:
+    """Run one matcher over a recording, streaming it packet by packet.
+
+    Parameters
+    ----------
+    recording : Recording or path-like
+        A recording, or a file that :func:`cvstereo.io.read_recording` can read.
+    right : path-like, optional
+        The right camera's file, for formats with one file per camera.
+    method : str, keyword-only
+        ``frame``, ``frame-area``, ``event-time``, ``event-area``, ``event-vector``, ``stereobm``, ``sgbm``.
+    variant : str, optional
+        Variant name (formats.md); default: the method's first.
+    packet_us : int
+        Packet length for streaming.
+    progress : bool
+        Show a progress bar.
+    **params
+        Parameter overrides (field names of the method's parameter dataclass).
+
+    Returns
+    -------
+    MatchResult
+        Time-ordered matches and the meta of formats.md.
+    """
+    source = None
+    if not isinstance(recording, Recording):
+        from cvstereo.io import read_recording
+
+        source = [os.fspath(recording)] + ([os.fspath(right)] if right is not None else [])
+        recording = read_recording(recording, right)
+    matcher = create_matcher(method, variant, resolution=recording.resolution, **params)
+    parts = []
+    bar = _progress_bar(progress, recording, method)
+    start = time.perf_counter()
+    for packet in recording.packets(packet_us):
+        parts.append(matcher.feed(packet.left, packet.right, until=packet.until))
+        if bar is not None:
+            bar.update(packet.left.size + packet.right.size)
+    parts.append(matcher.flush())
+    elapsed = time.perf_counter() - start
+    if bar is not None:
+        bar.close()
+    meta = matcher.describe()
+    meta.update(
+        elapsed_s=elapsed,
+        input_events=int(recording.left.size + recording.right.size),
+        duration_s=recording.duration_s,
+        resolution=list(recording.resolution),
+        version=cvstereo.__version__,
+        input=source if source is not None else recording.meta.get("source", "memory"),
+    )
+    return MatchResult(sort_matches(concat_matches(parts)), meta)
+
+
+def _progress_bar(enabled: bool, recording: Recording, method: str):
+    if not enabled:
+        return None
+    from tqdm.auto import tqdm
+
+    return tqdm(total=recording.left.size + recording.right.size, unit="ev", unit_scale=True, desc=method,
+                leave=False)

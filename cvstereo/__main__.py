@@ -1,0 +1,5 @@
+"""``python -m cvstereo``: the command-line interface."""
+
+from cvstereo.cli import main
+
+raise SystemExit(main())

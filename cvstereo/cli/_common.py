@@ -1,0 +1,54 @@
+"""Options and helpers shared by several subcommands."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_recording_arguments(parser: argparse.ArgumentParser, *, right: bool = True) -> None:
+    """Add ``RECORDING [RIGHT]`` and the format options a file cannot always tell."""
+    parser.add_argument("recording", metavar="RECORDING", help="recording file (or the left camera's file)")
+    if right:
+        parser.add_argument("right", metavar="RIGHT", nargs="?", default=None,
+                            help="the right camera's file, for formats with one file per camera")
+    add_format_options(parser)
+
+
+def add_format_options(parser: argparse.ArgumentParser) -> None:
+    """``--format``, ``--left-retina``, ``--one-based``, ``--resolution``."""
+    from cvstereo.io import FORMATS
+
+    g = parser.add_argument_group("input format (where the file cannot tell)")
+    g.add_argument("--format", choices=FORMATS, default=None, help="input format (default: from the extension)")
+    g.add_argument("--left-retina", type=int, choices=(0, 1), default=None,
+                   help="merged text files: which retina id is the left camera (default: detect from the data)")
+    g.add_argument("--one-based", action=argparse.BooleanOptionalAction, default=None,
+                   help="text files: coordinates count from 1 (default: detect)")
+    g.add_argument("--resolution", type=_resolution, default=None, metavar="WxH",
+                   help="sensor size (default: from the file, else 128x128)")
+
+
+def _resolution(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not WIDTHxHEIGHT, e.g. 128x128") from None
+    return w, h
+
+
+def format_options(args: argparse.Namespace) -> dict:
+    """The format options given on the command line, as keyword arguments for the readers."""
+    opts = {}
+    if getattr(args, "format", None):
+        opts["format"] = args.format
+    for key in ("left_retina", "one_based", "resolution"):
+        if getattr(args, key, None) is not None:
+            opts[key] = getattr(args, key)
+    return opts
+
+
+def load_recording(args: argparse.Namespace, path_attr: str = "recording"):
+    """Read the recording named on the command line with its format options."""
+    from cvstereo.io import read_recording
+
+    return read_recording(getattr(args, path_attr), getattr(args, "right", None), **format_options(args))

@@ -1,0 +1,309 @@
+"""The event model: one dtype for the whole library, validation, time slicing and packet iteration.
+
+An event stream is a numpy structured array of :data:`EVENT_DTYPE`, time-ordered (``t`` non-decreasing):
+
+>>> import numpy as np
+>>> from cvstereo.events import EVENT_DTYPE, as_events
+>>> ev = as_events(np.array([(10, 3, 4, -1)], dtype=[("t", "<i8"), ("x", "<i2"), ("y", "<i2"), ("p", "i1")]))
+>>> ev.dtype == EVENT_DTYPE, int(ev["p"][0])
+(True, 0)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+from typing import NamedTuple
+
+import numpy as np
+
+from cvstereo.errors import EventFormatError
+
+#: The event dtype of formats.md: t (us), x (column, 0 = left), y (row, 0 = top), p (1 = ON, 0 = OFF).
+EVENT_DTYPE = np.dtype([("t", "<i8"), ("x", "<i2"), ("y", "<i2"), ("p", "i1")])
+
+#: Sensor size of the DVS128 / eDVS128, (width, height).
+DEFAULT_RESOLUTION = (128, 128)
+
+_FIELDS = ("t", "x", "y", "p")
+
+
+def empty_events(n: int = 0) -> np.ndarray:
+    """Return a zero-filled event array of length ``n``."""
+    return np.zeros(n, dtype=EVENT_DTYPE)
+
+
+def make_events(t, x, y, p) -> np.ndarray:
+    """Build an event array from four columns (no validation; see :func:`as_events`).
+
+    Parameters
+    ----------
+    t, x, y, p : array_like
+        Columns of equal length; ``p`` is 1/0 (ON/OFF).
+
+    Returns
+    -------
+    (N,) ndarray of EVENT_DTYPE
+    """
+    t = np.asarray(t)
+    out = np.empty(t.shape[0], dtype=EVENT_DTYPE)
+    out["t"] = t
+    out["x"] = x
+    out["y"] = y
+    out["p"] = p
+    return out
+
+
+def as_events(data, *, resolution: tuple[int, int] | None = DEFAULT_RESOLUTION, source: str = "events",
+              index_offset: int = 0) -> np.ndarray:
+    """Convert and validate an event array.
+
+    Accepts a structured array with the fields ``t, x, y, p`` under any widths and order (tonic's
+    ``x, y, t, p`` included), ``p`` as bool, 1/0 or +1/-1. Returns a new array of :data:`EVENT_DTYPE`.
+
+    Parameters
+    ----------
+    data : (N,) structured ndarray
+        The events.
+    resolution : (width, height) or None, keyword-only
+        Coordinates must lie in ``[0, width) x [0, height)``; None skips the range check.
+    source : str, keyword-only
+        Named in error messages (a file name, "left camera", ...).
+    index_offset : int, keyword-only
+        Added to indices in error messages, for arrays that are chunks of a longer stream.
+
+    Returns
+    -------
+    (N,) ndarray of EVENT_DTYPE
+
+    Raises
+    ------
+    EventFormatError
+        Missing fields, non-integer fields, polarity other than 0/1/-1, negative or out-of-range
+        coordinates, timestamps going backwards. The message names the source, field and first index.
+    """
+    arr = np.asarray(data)
+    names = arr.dtype.names
+    if names is None:
+        raise EventFormatError(
+            f"{source}: expected a structured array with fields t, x, y, p; got dtype {arr.dtype}. "
+            "Build one with cvstereo.events.make_events(t, x, y, p)."
+        )
+    missing = [f for f in _FIELDS if f not in names]
+    if missing:
+        raise EventFormatError(
+            f"{source}: missing field(s) {', '.join(missing)}; an event array needs t, x, y, p "
+            f"(it has {', '.join(names)})."
+        )
+    if arr.ndim != 1:
+        raise EventFormatError(f"{source}: expected a 1-D event array, got shape {arr.shape}.")
+    for f in _FIELDS:
+        kind = arr.dtype[f].kind
+        if kind not in "iub" or (kind == "b" and f != "p"):
+            raise EventFormatError(
+                f"{source}: field '{f}' has dtype {arr.dtype[f]}; it must be an integer type "
+                f"(cast it, e.g. events['{f}'].astype('int64'))."
+            )
+    p = arr["p"]
+    if p.dtype.kind == "b":
+        p = p.astype(np.int8)
+    else:
+        bad = np.flatnonzero((p != 0) & (p != 1) & (p != -1))
+        if bad.size:
+            i = int(bad[0])
+            raise EventFormatError(
+                f"{source}: field 'p' at index {i + index_offset} is {int(p[i])}; polarity must be 1/0 or +1/-1."
+            )
+    out = np.empty(arr.shape[0], dtype=EVENT_DTYPE)
+    out["t"] = arr["t"]
+    out["x"] = _checked_int16(arr["x"], "x", source, index_offset)
+    out["y"] = _checked_int16(arr["y"], "y", source, index_offset)
+    out["p"] = p > 0
+    validate_events(out, resolution=resolution, source=source, index_offset=index_offset)
+    return out
+
+
+def _checked_int16(values: np.ndarray, field: str, source: str, index_offset: int) -> np.ndarray:
+    bad = np.flatnonzero((values < -32768) | (values > 32767)) if values.dtype.itemsize > 2 else ()
+    if len(bad):
+        i = int(bad[0])
+        raise EventFormatError(
+            f"{source}: field '{field}' at index {i + index_offset} is {int(values[i])}, beyond int16."
+        )
+    return values
+
+
+def validate_events(events: np.ndarray, *, resolution: tuple[int, int] | None = DEFAULT_RESOLUTION,
+                    source: str = "events", index_offset: int = 0, t_floor: int | None = None) -> None:
+    """Check an array of :data:`EVENT_DTYPE` against the contract; raise on the first violation.
+
+    Parameters
+    ----------
+    events : (N,) ndarray of EVENT_DTYPE
+    resolution : (width, height) or None, keyword-only
+    source : str, keyword-only
+        Named in error messages.
+    index_offset : int, keyword-only
+        Added to indices in error messages.
+    t_floor : int or None, keyword-only
+        The last timestamp of the preceding chunk: the first event must not be earlier.
+
+    Raises
+    ------
+    EventFormatError
+    """
+    if events.dtype != EVENT_DTYPE:
+        raise EventFormatError(f"{source}: dtype {events.dtype} is not EVENT_DTYPE; convert with as_events().")
+    if events.size == 0:
+        return
+    for field in ("x", "y"):
+        bad = np.flatnonzero(events[field] < 0)
+        if bad.size:
+            i = int(bad[0])
+            raise EventFormatError(
+                f"{source}: field '{field}' at index {i + index_offset} is {int(events[field][i])}; "
+                "coordinates must be >= 0 (one-based files need the one-based option)."
+            )
+    if resolution is not None:
+        for field, size in (("x", resolution[0]), ("y", resolution[1])):
+            bad = np.flatnonzero(events[field] >= size)
+            if bad.size:
+                i = int(bad[0])
+                raise EventFormatError(
+                    f"{source}: field '{field}' at index {i + index_offset} is {int(events[field][i])}, outside "
+                    f"the {resolution[0]}x{resolution[1]} sensor (valid 0..{size - 1}); "
+                    "give the right resolution, or the one-based option if the file counts from 1."
+                )
+    t = events["t"]
+    if t_floor is not None and t[0] < t_floor:
+        raise EventFormatError(
+            f"{source}: field 't' at index {index_offset} is {int(t[0])}, earlier than the preceding event "
+            f"({t_floor}); timestamps must not go backwards."
+        )
+    back = np.flatnonzero(np.diff(t) < 0)
+    if back.size:
+        i = int(back[0]) + 1
+        raise EventFormatError(
+            f"{source}: field 't' at index {i + index_offset} is {int(t[i])}, earlier than index "
+            f"{i - 1 + index_offset} ({int(t[i - 1])}); timestamps must not go backwards "
+            "(sort with np.sort(events, order='t', kind='stable') if the order is known to be wrong)."
+        )
+
+
+def time_slice(events: np.ndarray, t_start: int | None = None, t_stop: int | None = None) -> slice:
+    """Return the index slice of the events with ``t_start <= t < t_stop`` (absolute times, us).
+
+    Either bound may be None (open). Uses binary search, so ``events`` must be time-ordered.
+
+    Examples
+    --------
+    >>> ev = make_events([0, 5, 10, 15], [0] * 4, [0] * 4, [1] * 4)
+    >>> ev[time_slice(ev, 5, 15)]["t"].tolist()
+    [5, 10]
+    """
+    t = events["t"]
+    lo = 0 if t_start is None else int(np.searchsorted(t, t_start, side="left"))
+    hi = len(t) if t_stop is None else int(np.searchsorted(t, t_stop, side="left"))
+    return slice(lo, max(lo, hi))
+
+
+def window_indices(events: np.ndarray, window_us: int) -> np.ndarray:
+    """Index ``k`` of the absolute window ``[k*W, (k+1)*W)`` that holds each event."""
+    return events["t"] // int(window_us)
+
+
+class StereoPacket(NamedTuple):
+    """A time slice of both cameras.
+
+    Every event of the stream after this packet has ``t >= until``; events of this packet have ``t < until``.
+    ``left_disparity`` / ``right_disparity`` are the ground truth of the packet's events, or None.
+    """
+
+    left: np.ndarray
+    right: np.ndarray
+    until: int
+    left_disparity: np.ndarray | None = None
+    right_disparity: np.ndarray | None = None
+
+
+class _Side:
+    """Buffered view of one camera's chunk iterator (events and an optional parallel truth array)."""
+
+    def __init__(self, chunks: Iterator):
+        self._chunks = chunks
+        self.events = empty_events()
+        self.truth: np.ndarray | None = None
+        self.done = False
+
+    def fill_until(self, t_stop: int) -> None:
+        # Pull chunks until the buffer holds an event at or past t_stop, so the window is complete.
+        while not self.done and (self.events.size == 0 or self.events["t"][-1] < t_stop):
+            try:
+                item = next(self._chunks)
+            except StopIteration:
+                self.done = True
+                break
+            events, truth = item if isinstance(item, tuple) else (item, None)
+            self.events = np.concatenate([self.events, events])
+            if truth is not None or self.truth is not None:
+                old = self.truth if self.truth is not None else np.full(self.events.size - events.size, np.nan,
+                                                                        np.float32)
+                new = truth if truth is not None else np.full(events.size, np.nan, np.float32)
+                self.truth = np.concatenate([old, np.asarray(new, np.float32)])
+
+    def take_before(self, t_stop: int) -> tuple[np.ndarray, np.ndarray | None]:
+        n = int(np.searchsorted(self.events["t"], t_stop, side="left"))
+        events, self.events = self.events[:n], self.events[n:]
+        truth = None
+        if self.truth is not None:
+            truth, self.truth = self.truth[:n], self.truth[n:]
+        return events, truth
+
+    def first_t(self) -> int | None:
+        return int(self.events["t"][0]) if self.events.size else None
+
+
+def iter_stereo_packets(left: Iterable, right: Iterable, packet_us: int = 10_000) -> Iterator[StereoPacket]:
+    """Cut two time-ordered camera streams into aligned packets on the absolute clock.
+
+    Packets cover ``[k*P, (k+1)*P)``; windows in which neither camera has an event are skipped.
+    Memory stays bounded by the chunk size and the packet length, however long the streams.
+
+    Parameters
+    ----------
+    left, right : iterable
+        Each yields event arrays (chunks, time-ordered across chunks), or ``(events, truth)`` tuples
+        where ``truth`` is a float array of the same length or None. A single array is accepted too.
+    packet_us : int
+        Packet length P in microseconds.
+
+    Yields
+    ------
+    StereoPacket
+    """
+    if packet_us <= 0:
+        raise ValueError(f"packet_us must be positive, got {packet_us}.")
+    sides = [_Side(_as_chunk_iter(left)), _Side(_as_chunk_iter(right))]
+    k: int | None = None
+    while True:
+        for side in sides:
+            side.fill_until(-(2**62) if k is None else k * packet_us)
+        firsts = [t for t in (s.first_t() for s in sides) if t is not None]
+        if not firsts:
+            return
+        # Skip windows in which neither camera has an event.
+        k_first = min(firsts) // packet_us
+        k = k_first if k is None else max(k, k_first)
+        stop = (k + 1) * packet_us
+        for side in sides:
+            side.fill_until(stop)
+        (le, ld), (re, rd) = (s.take_before(stop) for s in sides)
+        yield StereoPacket(le, re, stop, ld, rd)
+        k += 1
+
+
+def _as_chunk_iter(stream) -> Iterator:
+    if isinstance(stream, np.ndarray):
+        return iter([stream])
+    if isinstance(stream, tuple) and len(stream) == 2 and isinstance(stream[0], np.ndarray):
+        return iter([stream])
+    return iter(stream)

@@ -1,0 +1,98 @@
+"""Disparity estimates ("matches") as produced by every matcher, and their metadata (formats.md)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from cvstereo.errors import EventFormatError
+
+#: One disparity estimate anchored at pixel (x, y) of ``camera`` (0 = left, 1 = right) at time t.
+MATCH_DTYPE = np.dtype(
+    [("t", "<i8"), ("x", "<i2"), ("y", "<i2"), ("p", "i1"), ("camera", "u1"), ("disparity", "<f4")]
+)
+
+#: Meta keys every matches file carries (formats.md); more may be added.
+REQUIRED_META = ("method", "variant", "params", "anchor", "window_us")
+
+
+def empty_matches(n: int = 0) -> np.ndarray:
+    """Return a zero-filled matches array of length ``n``."""
+    return np.zeros(n, dtype=MATCH_DTYPE)
+
+
+def make_matches(t, x, y, p, camera, disparity) -> np.ndarray:
+    """Build a matches array from columns (scalars broadcast).
+
+    Parameters
+    ----------
+    t, x, y, p, camera, disparity : array_like or scalar
+
+    Returns
+    -------
+    (N,) ndarray of MATCH_DTYPE
+    """
+    cols = np.broadcast_arrays(*(np.asarray(c) for c in (t, x, y, p, camera, disparity)))
+    out = np.empty(cols[0].shape[0] if cols[0].ndim else 1, dtype=MATCH_DTYPE)
+    for name, col in zip(MATCH_DTYPE.names, cols, strict=True):
+        out[name] = col.ravel()
+    return out
+
+
+def concat_matches(parts) -> np.ndarray:
+    """Concatenate matches arrays (an empty list gives an empty array)."""
+    parts = [p for p in parts if p is not None and p.size]
+    return np.concatenate(parts) if parts else empty_matches()
+
+
+def sort_matches(matches: np.ndarray) -> np.ndarray:
+    """Stable sort by time (the file contract requires time order)."""
+    return matches[np.argsort(matches["t"], kind="stable")]
+
+
+def validate_matches(matches: np.ndarray, *, source: str = "matches") -> None:
+    """Check dtype and time order of a matches array.
+
+    Raises
+    ------
+    EventFormatError
+    """
+    if matches.dtype != MATCH_DTYPE:
+        raise EventFormatError(f"{source}: dtype {matches.dtype} is not MATCH_DTYPE {MATCH_DTYPE}.")
+    back = np.flatnonzero(np.diff(matches["t"]) < 0)
+    if back.size:
+        i = int(back[0]) + 1
+        raise EventFormatError(f"{source}: field 't' at index {i} goes backwards; matches must be time-ordered.")
+    bad = np.flatnonzero(matches["camera"] > 1)
+    if bad.size:
+        raise EventFormatError(f"{source}: field 'camera' at index {int(bad[0])} is not 0 or 1.")
+
+
+@dataclass(eq=False)
+class MatchResult:
+    """A matches array with its metadata: what :func:`calibration_free.match` returns.
+
+    Attributes
+    ----------
+    matches : (N,) ndarray of MATCH_DTYPE
+    meta : dict
+        method, variant, params, anchor, window_us, elapsed_s, input_events, ... (formats.md).
+    """
+
+    matches: np.ndarray
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def disparity(self) -> np.ndarray:
+        """The disparities, px."""
+        return self.matches["disparity"]
+
+    def save(self, path) -> None:
+        """Write to a matches ``.npz`` (atomically)."""
+        from cvstereo.io.npz import write_matches
+
+        write_matches(path, self.matches, self.meta)
+
+    def __len__(self) -> int:
+        return int(self.matches.size)

@@ -1,0 +1,30 @@
+"""Shared fixtures: where the shared data lives, small synthetic streams."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def shared_dir() -> Path:
+    """The shared folder: $CVSTEREO_SHARED, else ../shared beside the repository (design.md)."""
+    return Path(os.environ.get("CVSTEREO_SHARED", REPO.parent / "shared"))
+
+
+@pytest.fixture(scope="session")
+def tum_dir() -> Path:
+    """The real TUM stereo recordings; skips the test when the shared data is absent."""
+    path = shared_dir() / "data" / "tum-stereo"
+    if not (path / "Fan_disp8.dat").exists():
+        pytest.skip(f"shared data not found at {path} (set CVSTEREO_SHARED to the shared folder)")
+    return path
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(0)
