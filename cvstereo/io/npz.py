@@ -150,9 +150,9 @@ def iter_npz_chunks(path: str | os.PathLike, key: str, chunk_rows: int = 1 << 16
         try:
             version = np.lib.format.read_magic(fh)
             if version == (1, 0):
-                shape, fortran, dtype = np.lib.format.read_array_header_1_0(fh)
+                shape, _fortran, dtype = np.lib.format.read_array_header_1_0(fh)
             else:
-                shape, fortran, dtype = np.lib.format.read_array_header_2_0(fh)
+                shape, _fortran, dtype = np.lib.format.read_array_header_2_0(fh)
         except ValueError as exc:
             raise CorruptFileError(f"{path}: key '{key}' has a broken .npy header ({exc}).") from None
         if len(shape) != 1 or dtype.hasobject:

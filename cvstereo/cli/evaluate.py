@@ -1,0 +1,48 @@
+"""``cvstereo evaluate RECORDING MATCHES``: the figures of evaluation.md for one matches file."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from cvstereo.cli._common import add_format_options, format_options
+
+
+def add_parser(sub, name: str) -> argparse.ArgumentParser:
+    p = sub.add_parser(
+        name,
+        help="score a matches file against a recording's ground truth",
+        description="Score a matches file (written by `cvstereo match`) against the recording it came from: "
+        "mean and std of the disparities (the thesis' figures) and, where the recording has ground truth, "
+        "error, bad-pixel rates, false-match rate and coverage (evaluation.md).",
+    )
+    p.add_argument("recording", metavar="RECORDING", help="the recording the matches were computed on")
+    p.add_argument("matches", metavar="MATCHES", help="matches .npz written by `cvstereo match`")
+    p.add_argument("--right", default=None, help="the right camera's file, for one-file-per-camera formats")
+    p.add_argument("--json", action="store_true", help="print a JSON object instead of a table")
+    add_format_options(p)
+    return p
+
+
+def run(args: argparse.Namespace) -> int:
+    from cvstereo.evaluate import FIGURES, evaluate, markdown_table, to_json
+    from cvstereo.io import read_matches, read_recording
+    from cvstereo.thesis import thesis_disparity
+
+    recording = read_recording(args.recording, args.right, **format_options(args))
+    result = read_matches(args.matches)
+    figures = evaluate(recording, result)
+    meta = result.meta
+    if args.json:
+        print(to_json({"recording": str(args.recording), "matches_file": str(args.matches),
+                       "method": meta.get("method"), "variant": meta.get("variant"), "figures": figures},
+                      indent=2))
+        return 0
+    name = Path(args.recording).stem
+    pub = thesis_disparity(str(meta.get("method")), str(meta.get("variant")), name)
+    print(f"method {meta.get('method')} ({meta.get('variant')}), anchor {meta.get('anchor')}, "
+          f"recording {args.recording}" + ("" if recording.has_truth else " (no ground truth: mean/std only)"))
+    print(markdown_table({name: figures}, columns=[f for f in FIGURES if f != "truth_mean"] if recording.has_truth
+                         else ["matches", "mean", "std", "events_per_s", "realtime_x"],
+                         thesis={name: pub} if pub else None))
+    return 0
