@@ -17,6 +17,7 @@ COMMANDS: dict[str, str] = {
     "info": "info",
     "convert": "convert",
     "evaluate": "evaluate",
+    "demo": "demo",
 }
 
 

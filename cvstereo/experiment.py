@@ -1,0 +1,103 @@
+"""The thesis' experiment: every matcher variant on a set of recordings, scored and tabulated.
+
+Used by ``cvstereo demo`` and ``cvstereo bench``. Matchers are looked up by name in the registry of
+:mod:`calibration_free` (imported lazily, so that ``cvstereo`` itself never depends on it).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+
+from cvstereo.evaluate import evaluate, markdown_table
+from cvstereo.recording import Recording
+from cvstereo.thesis import DISPARITY_TABLES
+
+
+@dataclass(frozen=True)
+class Combo:
+    """One matcher configuration: method, variant and parameter overrides."""
+
+    method: str
+    variant: str
+    params: tuple[tuple[str, object], ...] = ()
+
+    @property
+    def label(self) -> str:
+        """``method/variant`` (plus overrides), as tables show it."""
+        extra = ",".join(f"{k}={v}" for k, v in self.params)
+        return f"{self.method}/{self.variant}" + (f" [{extra}]" if extra else "")
+
+
+@dataclass
+class ExperimentResult:
+    """Figures per combo and recording, and the meta of each matches run."""
+
+    figures: dict[Combo, dict[str, dict]] = field(default_factory=dict)
+    meta: dict[Combo, dict[str, dict]] = field(default_factory=dict)
+
+    def add(self, combo: Combo, recording: str, figures: dict, meta: dict) -> None:
+        self.figures.setdefault(combo, {})[recording] = figures
+        self.meta.setdefault(combo, {})[recording] = meta
+
+
+def all_combos(methods: Iterable[str] | None = None) -> list[Combo]:
+    """Every variant of every importable method (or of ``methods``), in registry order."""
+    from calibration_free.registry import available_methods, matcher_class
+
+    names = available_methods() if methods is None else list(methods)
+    return [Combo(m, v) for m in names for v in matcher_class(m).variants]
+
+
+def run_experiment(recordings: Mapping[str, Recording], combos: Iterable[Combo], *,
+                   on_result: Callable[[Combo, str, dict], None] | None = None,
+                   progress: bool = False) -> ExperimentResult:
+    """Run each combo on each recording and evaluate it.
+
+    Parameters
+    ----------
+    recordings : mapping
+        Name -> Recording (with or without ground truth).
+    combos : iterable of Combo
+    on_result : callable, optional
+        Called with (combo, recording name, figures) after each run, e.g. to print progress.
+    progress : bool
+        Show a progress bar over the runs.
+
+    Returns
+    -------
+    ExperimentResult
+    """
+    from calibration_free import match
+
+    combos = list(combos)
+    jobs = [(c, name) for c in combos for name in recordings]
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=len(jobs), unit="run", desc="matching", leave=False)
+    result = ExperimentResult()
+    for combo, name in jobs:
+        if bar is not None:
+            bar.set_postfix_str(f"{combo.label} on {name}")
+        res = match(recordings[name], method=combo.method, variant=combo.variant, **dict(combo.params))
+        figures = evaluate(recordings[name], res)
+        result.add(combo, name, figures, res.meta)
+        if on_result is not None:
+            on_result(combo, name, figures)
+        if bar is not None:
+            bar.update()
+    if bar is not None:
+        bar.close()
+    return result
+
+
+def experiment_markdown(result: ExperimentResult, *, columns=None) -> str:
+    """One thesis-style table per combo: rows are recordings, the thesis' mean/std beside ours."""
+    parts = []
+    for combo, rows in result.figures.items():
+        thesis = DISPARITY_TABLES.get((combo.method, combo.variant))
+        kwargs = {} if columns is None else {"columns": columns}
+        parts.append(f"### {combo.label}\n\n" + markdown_table(rows, thesis=thesis, **kwargs))
+    return "\n\n".join(parts)
