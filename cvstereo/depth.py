@@ -1,0 +1,91 @@
+"""Disparity to distance without a calibration pattern: d = a / Z - c, with a = f*B.
+
+Two or more recordings at measured distances (the thesis used a cord) fit ``a`` and ``c`` by least
+squares; or they come from the rig (focal length in px, baseline in m, axis offset in px).
+
+>>> model = fit_depth_model([0.5, 1.5], [29.0, 8.0])
+>>> round(model.a, 3), round(model.c, 3)
+(15.75, 2.5)
+>>> round(float(model.distance(13.25)), 3)
+1.0
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class DepthModel:
+    """``d = a / Z - c``: disparity d (px) of a point at distance Z (m).
+
+    Attributes
+    ----------
+    a : float
+        f * B, px * m (focal length in px times baseline in m).
+    c : float
+        Offset in px from optical axes that are not exactly parallel.
+    """
+
+    a: float
+    c: float = 0.0
+
+    @classmethod
+    def from_rig(cls, *, focal_px: float, baseline_m: float, offset_px: float = 0.0) -> DepthModel:
+        """The model of a rig with known focal length, baseline and axis offset."""
+        return cls(a=focal_px * baseline_m, c=offset_px)
+
+    def disparity(self, distance_m):
+        """Disparity in px at distance(s) Z in metres."""
+        return self.a / np.asarray(distance_m, dtype=np.float64) - self.c
+
+    def distance(self, disparity_px):
+        """Distance in metres for disparity(ies) in px; inf where ``d + c <= 0`` (at or beyond infinity)."""
+        d = np.asarray(disparity_px, dtype=np.float64) + self.c
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(d > 0, self.a / np.where(d > 0, d, 1.0), np.inf)
+
+    def to_dict(self) -> dict:
+        return {"a": self.a, "c": self.c}
+
+
+def fit_depth_model(distances_m, disparities_px, *, weights=None) -> DepthModel:
+    """Least-squares fit of ``d = a / Z - c`` to disparities measured at known distances.
+
+    Parameters
+    ----------
+    distances_m : (N,) array_like
+        Measured distances, metres (N >= 2, at least two different values).
+    disparities_px : (N,) array_like
+        A disparity per distance, typically the median of a matcher's output on that recording.
+    weights : (N,) array_like, optional
+        Per-point weights (e.g. the number of matches).
+
+    Returns
+    -------
+    DepthModel
+
+    Raises
+    ------
+    ValueError
+        Fewer than two distinct distances, non-positive distances, mismatched lengths, or non-finite values.
+    """
+    z = np.asarray(distances_m, dtype=np.float64).ravel()
+    d = np.asarray(disparities_px, dtype=np.float64).ravel()
+    if z.shape != d.shape:
+        raise ValueError(f"got {z.size} distances and {d.size} disparities; give one disparity per distance.")
+    if not (np.isfinite(z).all() and np.isfinite(d).all()):
+        raise ValueError("distances and disparities must be finite numbers.")
+    if (z <= 0).any():
+        raise ValueError(f"distances must be positive metres, got {z.tolist()}.")
+    if np.unique(z).size < 2:
+        raise ValueError("fitting a and c needs recordings at two or more different distances.")
+    # Linear in (a, c): d = a * (1/Z) - c.
+    design = np.column_stack([1.0 / z, -np.ones_like(z)])
+    if weights is not None:
+        w = np.sqrt(np.asarray(weights, dtype=np.float64).ravel())
+        design, d = design * w[:, None], d * w
+    (a, c), *_ = np.linalg.lstsq(design, d, rcond=None)
+    return DepthModel(a=float(a), c=float(c))
