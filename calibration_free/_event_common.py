@@ -1,0 +1,93 @@
+"""What the event matchers share: the streaming of both cameras in one merged order through their frames.
+
+Event-area and event-vector compare an event's own dynamic frame with the other camera's frame as it stands
+at the event's time, so both cameras' events must be processed in one global order. That order is: by time,
+and at equal times the left camera's events first, each camera's events in their array order **[choice]**.
+Events at the current watermark are held back until the next packet (or flush), because the other camera
+may still deliver events with the same timestamp that come first in that order; this makes the result
+independent of how the stream was cut into packets.
+"""
+
+from __future__ import annotations
+
+import abc
+
+import numpy as np
+
+from cvstereo.dynamic_frames import FrameBank, event_columns
+from cvstereo.events import empty_events
+from cvstereo.matcher import StreamMatcher
+from cvstereo.matches import empty_matches
+
+
+def matches_at(events: tuple[np.ndarray, np.ndarray], cam: np.ndarray, index: np.ndarray,
+               disparity: np.ndarray) -> np.ndarray:
+    """Matches anchored at the events ``events[cam[k]][index[k]]``, in the given order.
+
+    Parameters
+    ----------
+    events : (left, right) event arrays
+    cam, index : (M,) int ndarray
+    disparity : (M,) ndarray
+
+    Returns
+    -------
+    (M,) ndarray of MATCH_DTYPE
+    """
+    if cam.size == 0:
+        return empty_matches()
+    out = empty_matches(cam.size)
+    for c in (0, 1):
+        sel = cam == c
+        if sel.any():
+            anchors = events[c][index[sel]]
+            for name in ("t", "x", "y", "p"):
+                out[name][sel] = anchors[name]
+    out["camera"] = cam
+    out["disparity"] = disparity
+    return out
+
+
+class MergedEventMatcher(StreamMatcher):
+    """Base of the matchers that process both cameras' events in one merged order (one numba kernel call
+    per packet).
+
+    Subclasses implement :meth:`_run_kernel`.
+    """
+
+    def __init__(self, params=None, *, resolution=(128, 128)):
+        super().__init__(params, resolution=resolution)
+        self._bank = FrameBank(2, self.params.frame_params(), resolution=self.resolution)
+        self._held = (empty_events(), empty_events())
+
+    @abc.abstractmethod
+    def _run_kernel(self, columns: tuple, out_cam: np.ndarray, out_index: np.ndarray,
+                    out_disparity: np.ndarray) -> int:
+        """Run the merged events (``columns`` = t, x, y, p of left, then of right) through the numba kernel;
+        write one row per match into the outputs and return the number of matches."""
+
+    def _process(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:
+        n = left.size + right.size
+        if n == 0:
+            return empty_matches()
+        out_cam = np.empty(n, dtype=np.int64)
+        out_index = np.empty(n, dtype=np.int64)
+        out_disparity = np.empty(n)
+        m = self._run_kernel((*event_columns(left), *event_columns(right)), out_cam, out_index, out_disparity)
+        return matches_at((left, right), out_cam[:m], out_index[:m], out_disparity[:m])
+
+    def _feed(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:
+        ready, held = [], []
+        for old, new in zip(self._held, (left, right), strict=True):
+            events = np.concatenate([old, new]) if old.size else new
+            cut = int(np.searchsorted(events["t"], self.watermark, side="left")) if self.watermark is not None \
+                else 0
+            ready.append(events[:cut])
+            held.append(events[cut:])
+        self._held = (held[0], held[1])
+        return self._process(ready[0], ready[1])
+
+    def _flush(self) -> np.ndarray:
+        left, right = self._held
+        self._held = (empty_events(), empty_events())
+        return self._process(left, right)

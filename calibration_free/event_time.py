@@ -1,0 +1,185 @@
+"""Event-time matcher (thesis 3.4, Algorithm 1): pair an event with a near-simultaneous event of the other
+camera in the same row band whose dynamic-frame value is alike.
+
+For each event e1 = (x, y, t, s) of the reference camera, before e1 updates its own dynamic frame D1:
+skip unless ``|D1(x, y)| >= threshold``; candidates are the other camera's events e2 = (x2, y2, t2, s2) with
+``|t2 - t| <= time_window_us``, ``|y2 - y| <= row_tolerance``, ``s2 = s``, ``sign(D2) = s``,
+``|D2| >= threshold`` and ``|D1 - D2| <= value_tolerance``, where D2 is the other frame's value at (x2, y2)
+just after e2's own update **[choice]**. The smallest ``|x2 - x|`` (at most ``max_disparity``) is the
+disparity. With ``restrict_side`` (default) only the geometrically possible side counts (x2 >= x when the
+reference is the right camera, x2 <= x when it is the left); without it Algorithm 1 is reproduced exactly,
+reporting ``|x2 - x|`` whichever the side.
+
+Candidates up to ``time_window_us`` after e1 are waited for: a match is emitted once the stream is complete
+past ``t + time_window_us``, so the output lags the input by 300 us and stays time-ordered.
+
+The reference implementation is :func:`calibration_free.reference.event_time.event_time_reference`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar, Literal
+
+import numpy as np
+from numba import njit
+
+from calibration_free._event_common import matches_at
+from cvstereo.dynamic_frames import DynamicFrameParams, FrameBank, event_columns
+from cvstereo.events import empty_events
+from cvstereo.matcher import StreamMatcher
+from cvstereo.matches import empty_matches
+
+
+@dataclass(frozen=True, kw_only=True)
+class EventTimeParams(DynamicFrameParams):
+    """Parameters of the event-time matcher (thesis defaults), besides those of the dynamic frames.
+
+    Attributes
+    ----------
+    threshold : float
+        Minimum ``|D|`` at the event's pixel, in both frames.
+    value_tolerance : float
+        Maximum ``|D1 - D2|``.
+    time_window_us : int
+        Maximum ``|t2 - t|``.
+    row_tolerance : int
+        Maximum ``|y2 - y|`` (corresponding events may lie one row apart).
+    reference_camera : {0, 1}
+        The camera whose events are matched (0 left, 1 right = the thesis' eDVS1).
+    restrict_side : bool
+        Keep only candidates on the geometrically possible side.
+    max_disparity : int
+        Maximum ``|x2 - x|``.
+    """
+
+    threshold: float = 0.8
+    value_tolerance: float = 0.3
+    time_window_us: int = 300
+    row_tolerance: int = 1
+    reference_camera: Literal[0, 1] = 1
+    restrict_side: bool = True
+    max_disparity: int = 64
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.reference_camera not in (0, 1):
+            raise ValueError(f"reference_camera must be 0 (left) or 1 (right), got {self.reference_camera}.")
+        for name in ("threshold", "value_tolerance", "time_window_us", "row_tolerance", "max_disparity"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}.")
+
+
+@njit(cache=True)
+def _resolve(pt, px, py, pp, pv, n, ct, cx, cy, cp, cv, window, row_tol, value_tol, side, max_d, out):
+    """Disparity of the first ``n`` pending reference events (-1: no candidate).
+
+    Pending events (pt, px, py, pp, pv: time, x, y, p, D1 before the update) and candidates (ct, ... cv:
+    the other camera's events that passed the threshold and sign tests, D2 just after their update) are
+    both time-ordered, so the candidate window is found with a pointer that only moves forward.
+    ``side`` is +1 (x2 >= x), -1 (x2 <= x) or 0 (either side).
+    """
+    lo = 0
+    nc = ct.shape[0]
+    for i in range(n):
+        t = pt[i]
+        while lo < nc and ct[lo] < t - window:
+            lo += 1
+        best = -1
+        j = lo
+        while j < nc and ct[j] <= t + window:
+            if abs(cy[j] - py[i]) <= row_tol and cp[j] == pp[i] and abs(pv[i] - cv[j]) <= value_tol:
+                dx = cx[j] - px[i]
+                if not ((side > 0 and dx < 0) or (side < 0 and dx > 0)):
+                    d = abs(dx)
+                    if d <= max_d and (best < 0 or d < best):
+                        best = d
+            j += 1
+        out[i] = best
+
+
+class EventTimeMatcher(StreamMatcher):
+    """Event-time matcher (thesis Algorithm 1), fast path; streaming, ``feed`` / ``flush``.
+
+    Parameters
+    ----------
+    params : EventTimeParams, optional
+    resolution : (width, height), keyword-only
+
+    Examples
+    --------
+    >>> from cvstereo.events import make_events
+    >>> m = EventTimeMatcher.from_variant("shared")
+    >>> left = make_events([0, 100], [20, 20], [5, 5], [1, 1])
+    >>> right = make_events([20, 60, 120], [17, 17, 17], [5, 5, 5], [1, 1, 1])
+    >>> matches = np.concatenate([m.feed(left, right), m.flush()])
+    >>> matches["disparity"].tolist()
+    [3.0]
+    """
+
+    Params = EventTimeParams
+    variants: ClassVar[dict[str, dict]] = {
+        "shared": {"polarity": "shared"},
+        "separate": {"polarity": "separate"},
+        "on": {"polarity": "on"},
+        "off": {"polarity": "off"},
+    }
+    anchor = "event"
+    method = "event-time"
+
+    def __init__(self, params: EventTimeParams | None = None, *, resolution=(128, 128)):
+        super().__init__(params, resolution=resolution)
+        self._bank = FrameBank(2, self.params.frame_params(), resolution=self.resolution)
+        # Reference events that passed the threshold and await their candidate window; D1 of each.
+        self._pending, self._pending_value = empty_events(), np.empty(0)
+        # Other-camera events that can be candidates (threshold and sign passed); D2 of each.
+        self._cands, self._cand_value = empty_events(), np.empty(0)
+
+    def anchor_cameras(self) -> tuple[int, ...]:
+        return (self.params.reference_camera,)
+
+    def _feed(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:
+        prm = self.params
+        ref = prm.reference_camera
+        packets = (left, right)
+        # Each camera's frame depends on its own events only: no merged order is needed here.
+        v1 = self._bank.process(ref, packets[ref], read="before")
+        keep = np.abs(v1) >= prm.threshold  # NaN (dropped polarity) compares False
+        self._pending = np.concatenate([self._pending, packets[ref][keep]])
+        self._pending_value = np.concatenate([self._pending_value, v1[keep]])
+        other = packets[1 - ref]
+        v2 = self._bank.process(1 - ref, other, read="after")
+        sign = np.where(other["p"] > 0, 1.0, -1.0)
+        keep = (np.abs(v2) >= prm.threshold) & (np.sign(v2) == sign)
+        self._cands = np.concatenate([self._cands, other[keep]])
+        self._cand_value = np.concatenate([self._cand_value, v2[keep]])
+        if self.watermark is None:
+            return empty_matches()
+        # Every later event has t >= watermark: a pending event is final once watermark > t + window.
+        n = int(np.searchsorted(self._pending["t"], self.watermark - prm.time_window_us, side="left"))
+        return self._resolve(n)
+
+    def _flush(self) -> np.ndarray:
+        return self._resolve(self._pending.size)
+
+    def _resolve(self, n: int) -> np.ndarray:
+        prm = self.params
+        if n == 0:
+            return empty_matches()
+        ref = prm.reference_camera
+        side = 0 if not prm.restrict_side else (1 if ref == 1 else -1)
+        out = np.empty(n, dtype=np.int64)
+        _resolve(*event_columns(self._pending[:n]), self._pending_value[:n], n,
+                 *event_columns(self._cands), self._cand_value, int(prm.time_window_us), int(prm.row_tolerance),
+                 float(prm.value_tolerance), side, int(prm.max_disparity), out)
+        found = np.flatnonzero(out >= 0)
+        resolved = self._pending[:n]
+        self._pending, self._pending_value = self._pending[n:], self._pending_value[n:]
+        # Candidates older than any future use: earlier than the next pending event (or the watermark)
+        # minus the window.
+        horizon = self.watermark if self.watermark is not None else 0
+        if self._pending.size:
+            horizon = min(horizon, int(self._pending["t"][0]))
+        drop = int(np.searchsorted(self._cands["t"], horizon - prm.time_window_us, side="left"))
+        self._cands, self._cand_value = self._cands[drop:], self._cand_value[drop:]
+        return matches_at((resolved, resolved), np.full(found.size, ref), found, out[found].astype(np.float64))

@@ -1,0 +1,86 @@
+"""Reference event-time matcher (algorithms.md section 2, thesis Algorithm 1)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from calibration_free.event_time import EventTimeParams
+from calibration_free.reference import sign
+from cvstereo.dynamic_frames import DynamicFrames
+from cvstereo.events import DEFAULT_RESOLUTION
+from cvstereo.matches import empty_matches, make_matches
+
+
+def _frame_values(events: np.ndarray, frames: DynamicFrames, *, after: bool) -> list[float | None]:
+    """The value of each event's own frame at its pixel, before or just after its update (None: dropped)."""
+    values: list[float | None] = []
+    for e in events:
+        t, x, y, p = int(e["t"]), int(e["x"]), int(e["y"]), int(e["p"])
+        slot = frames.slot(p)
+        if slot < 0:
+            values.append(None)
+            continue
+        frames.advance(t)
+        if not after:
+            values.append(frames.value(slot, x, y))
+        frames.add(slot, x, y, 1.0 if p else -1.0)
+        if after:
+            values.append(frames.value(slot, x, y))
+    return values
+
+
+def event_time_reference(left: np.ndarray, right: np.ndarray, params: EventTimeParams | None = None, *,
+                         resolution: tuple[int, int] = DEFAULT_RESOLUTION) -> np.ndarray:
+    """Match a whole stereo stream with the event-time algorithm, one event at a time.
+
+    Parameters
+    ----------
+    left, right : (N,) ndarray of EVENT_DTYPE
+    params : EventTimeParams, optional
+    resolution : (width, height), keyword-only
+
+    Returns
+    -------
+    (M,) ndarray of MATCH_DTYPE
+        One row per matched reference event, time-ordered.
+    """
+    prm = params if params is not None else EventTimeParams()
+    ref = prm.reference_camera
+    events = (left, right)
+    ev1, ev2 = events[ref], events[1 - ref]
+    fp = prm.frame_params()
+    # D1 is read before e1 updates its frame; D2 as the frame stood just after e2's own update.
+    d1 = _frame_values(ev1, DynamicFrames(fp, resolution=resolution), after=False)
+    d2 = _frame_values(ev2, DynamicFrames(fp, resolution=resolution), after=True)
+    t2_all = ev2["t"]
+    rows = []
+    for i, e1 in enumerate(ev1):
+        t, x, y = int(e1["t"]), int(e1["x"]), int(e1["y"])
+        s = 1 if e1["p"] else -1
+        if d1[i] is None or not abs(d1[i]) >= prm.threshold:
+            continue
+        minimum = None
+        lo = int(np.searchsorted(t2_all, t - prm.time_window_us, side="left"))
+        hi = int(np.searchsorted(t2_all, t + prm.time_window_us, side="right"))
+        for j in range(lo, hi):  # events e2 with |t2 - t| <= window
+            e2 = ev2[j]
+            v2 = d2[j]
+            s2 = 1 if e2["p"] else -1
+            if v2 is None:
+                continue
+            if not (abs(v2) >= prm.threshold and sign(v2) == s and s2 == s and abs(d1[i] - v2) <= prm.value_tolerance):
+                continue
+            x2, y2 = int(e2["x"]), int(e2["y"])
+            if abs(y2 - y) > prm.row_tolerance:
+                continue
+            if prm.restrict_side and (x2 < x if ref == 1 else x2 > x):
+                continue
+            if abs(x2 - x) > prm.max_disparity:
+                continue
+            if minimum is None or abs(x2 - x) <= minimum:
+                minimum = abs(x2 - x)
+        if minimum is not None:
+            rows.append((t, x, y, int(e1["p"]), ref, float(minimum)))
+    if not rows:
+        return empty_matches()
+    return make_matches(*zip(*rows, strict=True))

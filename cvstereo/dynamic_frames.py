@@ -1,0 +1,369 @@
+"""Dynamic frames: rolling, decaying per-pixel memories of recent events (thesis 3.4, eq. 3.8-3.9 and 4.1).
+
+Every event matcher (event-time, event-area, event-vector) keeps one dynamic frame per camera (or one per
+camera and polarity) that changes with every event:
+
+* an event at (x, y) with sign s (+1 ON, -1 OFF) adds ``gain * s * G`` centred on (x, y), where G is the
+  ``kernel_size`` x ``kernel_size`` Gaussian of ``kernel_sigma`` from :func:`cv2.getGaussianKernel` (the
+  thesis' 3x3, sigma 1: corner 0.0751, edge 0.1238, centre 0.2042, gain 2), clipped at the sensor border;
+  with ``gaussian=False`` it adds s at (x, y) only (eq. 4.1);
+* on the absolute clock, at every t = k * ``decay_period_us`` (k = 1, 2, ...), all values are multiplied
+  by ``decay`` (0.99 every 250 us). A tick at exactly the time of an event is applied *before* that event;
+* ON and OFF events share one frame, or use one each, or only one polarity is kept (``polarity``).
+
+Decay is lazy: a frame is stored as ``S`` with one scale factor ``c`` per camera, the value being ``S * c``.
+A tick multiplies ``c`` only; an update adds ``w / c``; when ``c`` falls below :data:`RENORM` the frames are
+renormalised (``S *= c; c = 1``). A gap of more than :data:`FORGET_TICKS` ticks (250 s) clears the frames:
+their values would be below 1e-4000 of what they were, i.e. zero in float64. A frame that never received an
+event skips its ticks (it is zero anyway), so that a stream starting at t = 10^12 us costs nothing.
+
+Two implementations do exactly the same float64 operations in the same order, so that they agree bit for
+bit: :class:`DynamicFrames`, plain Python, the reference; and :class:`FrameBank` with numba kernels
+(:func:`advance`, :func:`splat`, :func:`process_events`) that the fast matchers call from their own kernels.
+
+>>> frames = DynamicFrames()
+>>> frames.add_event(t=0, x=5, y=5, p=1)
+>>> round(frames.value(0, 5, 5), 4), round(frames.value(0, 4, 4), 4)
+(0.4084, 0.1502)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Literal
+
+import cv2
+import numpy as np
+from numba import njit
+
+from cvstereo.events import DEFAULT_RESOLUTION
+
+#: Polarity handling: one frame for ON and OFF, one each, ON events only, OFF events only.
+POLARITY_MODES = ("shared", "separate", "on", "off")
+
+#: Renormalise the stored frames when the lazy decay factor falls below this (0.99^22900, about 5.7 s).
+RENORM = 1e-100
+
+#: A gap of more than this many decay ticks clears the frames (0.99^1e6 underflows to zero).
+FORGET_TICKS = 1_000_000
+
+#: Frame slot of an event with p = 0 (OFF) and p = 1 (ON) for each polarity mode; -1: the event is dropped.
+_SLOTS = {"shared": (0, 0), "separate": (0, 1), "on": (-1, 0), "off": (0, -1)}
+
+
+def polarity_slots(mode: str) -> tuple[int, np.ndarray]:
+    """Number of frames per camera and the frame of each polarity under a polarity mode.
+
+    Parameters
+    ----------
+    mode : {"shared", "separate", "on", "off"}
+
+    Returns
+    -------
+    n_frames : int
+        1, or 2 for ``"separate"``.
+    slot_of_p : (2,) int64 ndarray
+        Frame index of an OFF (p = 0) and an ON (p = 1) event; -1 where that polarity is dropped.
+
+    Examples
+    --------
+    >>> polarity_slots("on")[1].tolist()
+    [-1, 0]
+    """
+    if mode not in _SLOTS:
+        raise ValueError(f"polarity must be one of {', '.join(POLARITY_MODES)}; got {mode!r}.")
+    slots = np.array(_SLOTS[mode], dtype=np.int64)
+    return int(slots.max()) + 1, slots
+
+
+@dataclass(frozen=True, kw_only=True)
+class DynamicFrameParams:
+    """Parameters of the dynamic frames, shared by the parameter classes of all event matchers.
+
+    Attributes
+    ----------
+    polarity : {"shared", "separate", "on", "off"}
+        ON and OFF in one frame (thesis default), one frame each, ON events only, OFF events only.
+    gaussian : bool
+        Add ``gaussian_gain * s * G`` (eq. 3.9); False adds s at the event's pixel only (eq. 4.1).
+    kernel_size : int
+        Odd side of the Gaussian G (thesis: 3).
+    kernel_sigma : float
+        Its standard deviation in pixels (thesis: 1).
+    gaussian_gain : float
+        The factor 2 of eq. 3.9.
+    decay : float
+        Factor applied to all values at every tick (thesis: 0.99).
+    decay_period_us : int
+        Tick period on the absolute clock (thesis: 250 us).
+    """
+
+    polarity: Literal["shared", "separate", "on", "off"] = "shared"
+    gaussian: bool = True
+    kernel_size: int = 3
+    kernel_sigma: float = 1.0
+    gaussian_gain: float = 2.0
+    decay: float = 0.99
+    decay_period_us: int = 250
+
+    def __post_init__(self):
+        polarity_slots(self.polarity)
+        if self.kernel_size < 1 or self.kernel_size % 2 == 0:
+            raise ValueError(f"kernel_size must be odd and positive, got {self.kernel_size}.")
+        if not self.kernel_sigma > 0:
+            raise ValueError(f"kernel_sigma must be positive, got {self.kernel_sigma}.")
+        if not 0 < self.decay <= 1:
+            raise ValueError(f"decay must lie in (0, 1], got {self.decay}.")
+        if self.decay_period_us <= 0:
+            raise ValueError(f"decay_period_us must be positive, got {self.decay_period_us}.")
+
+    def frame_params(self) -> DynamicFrameParams:
+        """The dynamic-frame part of a (derived) parameter object."""
+        return DynamicFrameParams(**{f.name: getattr(self, f.name) for f in dataclasses.fields(DynamicFrameParams)})
+
+
+def update_kernel(params: DynamicFrameParams) -> np.ndarray:
+    """The weights an ON event adds around its pixel.
+
+    Returns
+    -------
+    (k, k) float64 ndarray
+        ``gaussian_gain * G`` (G the outer product of :func:`cv2.getGaussianKernel`), or ``[[1.0]]``.
+
+    Examples
+    --------
+    >>> np.round(update_kernel(DynamicFrameParams()) / 2, 4)[1].tolist()
+    [0.1238, 0.2042, 0.1238]
+    """
+    if not params.gaussian:
+        return np.ones((1, 1))
+    g = cv2.getGaussianKernel(params.kernel_size, params.kernel_sigma, ktype=cv2.CV_64F)
+    return np.ascontiguousarray(params.gaussian_gain * (g @ g.T))
+
+
+def _sign(value: float) -> float:
+    return 1.0 if value > 0 else (-1.0 if value < 0 else 0.0)
+
+
+class DynamicFrames:
+    """Reference dynamic frames of one camera: plain Python, one operation at a time.
+
+    Parameters
+    ----------
+    params : DynamicFrameParams, optional
+    resolution : (width, height), keyword-only
+
+    Attributes
+    ----------
+    stored : (n_frames, H, W) float64 ndarray
+        The stored frames S; the values are ``stored * scale``.
+    scale : float
+        The lazy decay factor c.
+    next_tick : int
+        Index k of the next decay tick, due at ``k * decay_period_us``.
+    touched : bool
+        Whether any event has been added since the frames were last clear.
+    """
+
+    def __init__(self, params: DynamicFrameParams | None = None, *,
+                 resolution: tuple[int, int] = DEFAULT_RESOLUTION):
+        self.params = params if params is not None else DynamicFrameParams()
+        self.n_frames, self.slot_of_p = polarity_slots(self.params.polarity)
+        self.kernel = update_kernel(self.params)
+        width, height = resolution
+        self.stored = np.zeros((self.n_frames, height, width))
+        self.scale = 1.0
+        self.next_tick = 0
+        self.touched = False
+
+    def slot(self, p: int) -> int:
+        """Frame index of polarity ``p`` (1 ON, 0 OFF), -1 if that polarity is dropped."""
+        return int(self.slot_of_p[1 if p > 0 else 0])
+
+    def advance(self, t: int) -> None:
+        """Apply every decay tick at ``k * period <= t`` not yet applied (call before an event at t)."""
+        period = self.params.decay_period_us
+        if self.touched and t // period + 1 - self.next_tick > FORGET_TICKS:
+            self.stored[...] = 0.0
+            self.scale = 1.0
+            self.touched = False
+        if not self.touched:
+            # The frames are zero: skip the ticks.
+            self.next_tick = t // period + 1
+            return
+        while self.next_tick * period <= t:
+            self.scale = self.scale * self.params.decay
+            if self.scale < RENORM:
+                self.stored *= self.scale
+                self.scale = 1.0
+            self.next_tick += 1
+
+    def add(self, slot: int, x: int, y: int, sign: float) -> None:
+        """Add ``sign * kernel`` centred on (x, y) to frame ``slot``, clipped at the border."""
+        k = self.kernel.shape[0]
+        r = k // 2
+        _, height, width = self.stored.shape
+        for j in range(k):
+            yy = y + j - r
+            if yy < 0 or yy >= height:
+                continue
+            for i in range(k):
+                xx = x + i - r
+                if xx < 0 or xx >= width:
+                    continue
+                self.stored[slot, yy, xx] += sign * self.kernel[j, i] / self.scale
+        self.touched = True
+
+    def value(self, slot: int, x: int, y: int) -> float:
+        """Current value of frame ``slot`` at (x, y)."""
+        return float(self.stored[slot, y, x] * self.scale)
+
+    def add_event(self, *, t: int, x: int, y: int, p: int) -> None:
+        """Advance to t and add one event (dropped if its polarity is not kept)."""
+        slot = self.slot(p)
+        if slot < 0:
+            return
+        self.advance(t)
+        self.add(slot, x, y, 1.0 if p > 0 else -1.0)
+
+    def values(self) -> np.ndarray:
+        """The current frame values, ``(n_frames, H, W)`` float64."""
+        return self.stored * self.scale
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Fast path: the same operations as DynamicFrames, on state arrays of several cameras, in numba.
+# State of camera ``cam``: stored[cam] (n_frames, H, W), scale[cam], clock[cam] = (next_tick, touched).
+
+
+@njit(cache=True)
+def advance(stored, scale, clock, cam, t, decay, period):
+    """Apply the due decay ticks of camera ``cam`` up to time ``t`` (see :meth:`DynamicFrames.advance`)."""
+    if clock[cam, 1] != 0 and t // period + 1 - clock[cam, 0] > FORGET_TICKS:
+        stored[cam] = 0.0
+        scale[cam] = 1.0
+        clock[cam, 1] = 0
+    if clock[cam, 1] == 0:
+        clock[cam, 0] = t // period + 1
+        return
+    k = clock[cam, 0]
+    while k * period <= t:
+        scale[cam] = scale[cam] * decay
+        if scale[cam] < RENORM:
+            frames = stored[cam]
+            c = scale[cam]
+            for f in range(frames.shape[0]):
+                for yy in range(frames.shape[1]):
+                    for xx in range(frames.shape[2]):
+                        frames[f, yy, xx] *= c
+            scale[cam] = 1.0
+        k += 1
+    clock[cam, 0] = k
+
+
+@njit(cache=True)
+def splat(stored, scale, clock, cam, slot, x, y, sign, kernel):
+    """Add ``sign * kernel`` centred on (x, y) to frame ``slot`` of camera ``cam`` (see :meth:`DynamicFrames.add`)."""
+    k = kernel.shape[0]
+    r = k // 2
+    height = stored.shape[2]
+    width = stored.shape[3]
+    c = scale[cam]
+    for j in range(k):
+        yy = y + j - r
+        if yy < 0 or yy >= height:
+            continue
+        for i in range(k):
+            xx = x + i - r
+            if xx < 0 or xx >= width:
+                continue
+            stored[cam, slot, yy, xx] += sign * kernel[j, i] / c
+    clock[cam, 1] = 1
+
+
+@njit(cache=True)
+def process_events(stored, scale, clock, cam, t, x, y, p, slot_of_p, kernel, decay, period, read_after, out):
+    """Feed one camera's events through its frames, recording the value at each event's pixel.
+
+    ``out[i]`` is the value of the event's own frame at its pixel before (``read_after`` False) or just after
+    its update; NaN for events whose polarity is dropped.
+    """
+    for i in range(t.shape[0]):
+        slot = slot_of_p[1 if p[i] > 0 else 0]
+        if slot < 0:
+            out[i] = np.nan
+            continue
+        advance(stored, scale, clock, cam, t[i], decay, period)
+        if not read_after:
+            out[i] = stored[cam, slot, y[i], x[i]] * scale[cam]
+        splat(stored, scale, clock, cam, slot, x[i], y[i], 1.0 if p[i] > 0 else -1.0, kernel)
+        if read_after:
+            out[i] = stored[cam, slot, y[i], x[i]] * scale[cam]
+
+
+def event_columns(events: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Contiguous int64 columns t, x, y, p of an event array, as the numba kernels take them."""
+    return tuple(np.ascontiguousarray(events[f], dtype=np.int64) for f in ("t", "x", "y", "p"))
+
+
+class FrameBank:
+    """Fast dynamic frames of ``n_cameras`` cameras: state arrays for the numba kernels.
+
+    Parameters
+    ----------
+    n_cameras : int
+    params : DynamicFrameParams
+    resolution : (width, height), keyword-only
+
+    Attributes
+    ----------
+    stored : (n_cameras, n_frames, H, W) float64 ndarray
+    scale : (n_cameras,) float64 ndarray
+    clock : (n_cameras, 2) int64 ndarray
+        Per camera: index of the next decay tick, and 1 once touched.
+    kernel : (k, k) float64 ndarray
+    slot_of_p : (2,) int64 ndarray
+    """
+
+    def __init__(self, n_cameras: int, params: DynamicFrameParams, *,
+                 resolution: tuple[int, int] = DEFAULT_RESOLUTION):
+        self.params = params
+        self.n_frames, self.slot_of_p = polarity_slots(params.polarity)
+        self.kernel = update_kernel(params)
+        width, height = resolution
+        self.stored = np.zeros((n_cameras, self.n_frames, height, width))
+        self.scale = np.ones(n_cameras)
+        self.clock = np.zeros((n_cameras, 2), dtype=np.int64)
+
+    @property
+    def decay_args(self) -> tuple[float, int]:
+        """(decay, period) as the kernels take them."""
+        return float(self.params.decay), int(self.params.decay_period_us)
+
+    def process(self, cam: int, events: np.ndarray, *, read: Literal["before", "after"] = "before") -> np.ndarray:
+        """Feed camera ``cam``'s events (time-ordered, after all earlier ones) through its frames.
+
+        Returns
+        -------
+        (N,) float64 ndarray
+            The value of each event's own frame at its pixel, before or just after its own update; NaN for
+            dropped polarities.
+        """
+        if read not in ("before", "after"):
+            raise ValueError(f"read must be 'before' or 'after', got {read!r}.")
+        out = np.empty(events.size)
+        process_events(self.stored, self.scale, self.clock, cam, *event_columns(events), self.slot_of_p,
+                       self.kernel, *self.decay_args, read == "after", out)
+        return out
+
+    def values(self, cam: int, t: int | None = None) -> np.ndarray:
+        """The frame values of camera ``cam`` (decayed to time ``t`` if given), ``(n_frames, H, W)``.
+
+        Reads a copy: the state itself is not advanced.
+        """
+        stored, scale, clock = self.stored[cam:cam + 1].copy(), self.scale[cam:cam + 1].copy(), \
+            self.clock[cam:cam + 1].copy()
+        if t is not None:
+            advance(stored, scale, clock, 0, int(t), *self.decay_args)
+        return stored[0] * scale[0]
