@@ -1,0 +1,63 @@
+"""``cvstereo convert IN... -o OUT...``: rewrite a recording in another format (atomically)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from cvstereo.cli._common import add_format_options, format_options
+
+
+def add_parser(sub, name: str) -> argparse.ArgumentParser:
+    from cvstereo.io import FORMATS
+
+    p = sub.add_parser(
+        name,
+        help="convert a recording between formats (npz, eDVS text, merged text, AEDAT 2.0)",
+        description="Read a recording in any supported format and write it in another. The output format "
+        "comes from --to or the output name: .npz, .aedat, a text name (.txt/.dat) for a merged five-column "
+        "file, or two text names (left, right) for one file per camera. Outputs appear only once complete. "
+        "Ground truth is kept by .npz only.",
+    )
+    p.add_argument("inputs", metavar="IN", nargs="+",
+                   help="the recording, or the left and right camera's files")
+    p.add_argument("-o", "--output", metavar="OUT", nargs="+", required=True,
+                   help="output file, or the left and right output files for --to edvs-text")
+    p.add_argument("--to", choices=FORMATS, default=None, help="output format (default: from the output name)")
+    p.add_argument("--out-left-retina", type=int, choices=(0, 1), default=0,
+                   help="merged text output: the retina id written for the left camera (default 0)")
+    add_format_options(p)
+    return p
+
+
+def run(args: argparse.Namespace) -> int:
+    from cvstereo.io import open_recording, write_recording
+    from cvstereo.recording import Recording
+
+    to = args.to or ("edvs-text" if len(args.output) == 2 else None)
+    if len(args.inputs) > 2 or len(args.output) > 2:
+        return _usage("give at most two inputs (left, right) and two outputs (left, right)")
+    if (to == "edvs-text") != (len(args.output) == 2):
+        return _usage("--to edvs-text writes two files: give -o LEFT RIGHT (and only then two outputs)")
+    stream = open_recording(args.inputs[0], args.inputs[1] if len(args.inputs) == 2 else None,
+                            **format_options(args))
+    rec = stream.read()
+    # The reader's decisions (left retina, one-based, ...) stay in meta, marked as the source's.
+    meta = {**rec.meta, "converted_from": {"format": stream.format, "files": list(stream.files)}}
+    rec = Recording(rec.left, rec.right, rec.left_disparity, rec.right_disparity, rec.resolution, meta)
+    write_recording(args.output[0], rec, format=to, right=args.output[1] if len(args.output) == 2 else None,
+                    left_retina=args.out_left_retina)
+    print(f"wrote {' and '.join(args.output)}: {rec.left.size:,} left and {rec.right.size:,} right events"
+          + (" (ground truth dropped: only .npz keeps it)" if rec.has_truth and not _is_npz(to, args.output[0])
+             else ""))
+    return 0
+
+
+def _is_npz(to: str | None, path: str) -> bool:
+    return to == "npz" or (to is None and path.lower().endswith(".npz"))
+
+
+def _usage(message: str) -> int:
+    # Wrong argument counts are usage errors (exit 2, like argparse's), not bad input (exit 1).
+    print(f"cvstereo convert: error: {message}", file=sys.stderr)
+    return 2

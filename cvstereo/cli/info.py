@@ -1,0 +1,106 @@
+"""``cvstereo info FILE...``: what a recording holds, per camera, read as a stream (bounded memory)."""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from cvstereo.cli._common import add_format_options, format_options
+
+
+def add_parser(sub, name: str) -> argparse.ArgumentParser:
+    p = sub.add_parser(
+        name,
+        help="events, ON/OFF counts, duration, rate and resolution of recordings",
+        description="Describe each file: per camera the number of events, ON and OFF events, duration and "
+        "event rate; the resolution; whether ground truth is present (and for how many events); and, for "
+        "formats that cannot say, which retina was taken as left and whether coordinates count from 1, "
+        "with how that was decided. A file holding one camera is described on its own.",
+    )
+    p.add_argument("files", metavar="FILE", nargs="+", help="recording files (.npz, .txt/.dat, .aedat)")
+    add_format_options(p)
+    return p
+
+
+def run(args: argparse.Namespace) -> int:
+    from cvstereo.io import open_recording
+
+    options = format_options(args)
+    for k, path in enumerate(args.files):
+        stream = open_recording(path, **options)
+        if k:
+            print()
+        print("\n".join(describe(stream)))
+    return 0
+
+
+def describe(stream) -> list[str]:
+    """Lines describing a :class:`~cvstereo.io.stream.RecordingStream` (header lines, then a table)."""
+    meta = stream.meta
+    width, height = stream.resolution
+    lines = [f"{', '.join(stream.files)}: {stream.format}, {width}x{height}"
+             + (f" ({_FROM[meta['resolution_from']]})" if "resolution_from" in meta else "")
+             + (", ground truth" if stream.has_truth else ", no ground truth")
+             + ("" if stream.is_stereo else ", one camera")]
+    indent = "  "
+    if "converted_from" in meta:
+        source = meta["converted_from"]
+        lines.append(f"  converted from {', '.join(source.get('files', []))} ({source.get('format', '?')}):")
+        indent = "    "  # what follows describes how that source was read
+    if "left_retina" in meta:
+        how = meta["left_retina_from"]
+        if how == "detected":
+            how = (f"detected: the retinas' event images overlay best {meta['overlay_shift_px']} px apart, "
+                   f"correlation {meta['overlay_score']:.2f}")
+        else:
+            how = _FROM[how]
+        left = meta["left_retina"]
+        lines.append(f"{indent}left camera = retina {left} ({how}); right = retina {1 - left}")
+    if "one_based" in meta:
+        start = 1 if meta["one_based"] else 0
+        lines.append(f"{indent}coordinates count from {start} ({_FROM[meta['one_based_from']]})")
+    if "special_events" in meta:
+        lines.append(f"  special (sync) events skipped: {meta['special_events']:,}")
+    rows = [_camera_stats(name, stream) for name in stream.cameras]
+    lines.extend("  " + line for line in _table(rows, truth=stream.has_truth))
+    return lines
+
+
+_FROM = {"given": "given", "header": "from the file's header", "default": "default", "detected": "detected"}
+
+
+def _camera_stats(name: str, stream) -> dict:
+    n = on = finite = 0
+    first = last = None
+    for events, truth in stream.chunks(name):
+        if not events.size:
+            continue
+        n += events.size
+        on += int(np.count_nonzero(events["p"]))
+        first = int(events["t"][0]) if first is None else first
+        last = int(events["t"][-1])
+        if truth is not None:
+            finite += int(np.count_nonzero(np.isfinite(truth)))
+    duration = 0.0 if first is None else (last - first) / 1e6
+    return {"camera": name, "events": n, "on": on, "off": n - on, "duration": duration, "truth": finite}
+
+
+def _table(rows: list[dict], *, truth: bool) -> list[str]:
+    head = ["camera", "events", "ON", "OFF", "duration", "rate"] + (["with truth"] if truth else [])
+    body = []
+    for r in rows:
+        n = r["events"]
+        cells = [r["camera"], f"{n:,}", _share(r["on"], n), _share(r["off"], n), f"{r['duration']:.3f} s",
+                 f"{n / r['duration']:,.0f} ev/s" if r["duration"] > 0 else "-"]
+        if truth:
+            cells.append(_share(r["truth"], n))
+        body.append(cells)
+    widths = [max(len(row[i]) for row in [head, *body]) for i in range(len(head))]
+    # Names left-aligned, numbers right-aligned, so that digits line up.
+    return ["  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(row, widths, strict=True)))
+            for row in [head, *body]]
+
+
+def _share(k: int, n: int) -> str:
+    return f"{k:,} ({100 * k / n:.1f}%)" if n else "0"
