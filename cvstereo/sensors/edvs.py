@@ -1,0 +1,283 @@
+"""One eDVS128 board over pyserial: open, configure, start/stop, and a reader thread feeding a bounded queue.
+
+>>> # with hardware (or a VirtualEDVS port):
+>>> # with EDVS("/dev/ttyUSB0") as cam:
+>>> #     cam.configure(); cam.start(); chunk = cam.queue.get(timeout=1.0)
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from typing import NamedTuple
+
+import numpy as np
+import serial
+
+from cvstereo.errors import SensorError
+from cvstereo.sensors.decoder import StreamDecoder
+from cvstereo.sensors.protocol import DEFAULT_BAUD, ProtocolSettings
+
+#: Seconds without a byte after which a streaming sensor counts as silent (the issue: "about a second").
+DEFAULT_SILENCE_S = 1.0
+
+#: Pause after which events held for confirmation are released, so a quiet sensor does not hold them.
+RELEASE_AFTER_S = 0.02
+
+
+class Chunk(NamedTuple):
+    """Events decoded from one read, and the host time (``time.monotonic_ns() // 1000``) they arrived."""
+
+    events: np.ndarray
+    arrival_us: int
+
+
+def host_us() -> int:
+    """The host clock used for arrival times, microseconds."""
+    return time.monotonic_ns() // 1000
+
+
+class EDVS:
+    """One eDVS128 board on a serial port.
+
+    Parameters
+    ----------
+    port : str
+        Serial device (``/dev/ttyUSB0``, ``COM5``, a VirtualEDVS pty).
+    baud : int, keyword-only
+    settings : ProtocolSettings, keyword-only
+    name : str, keyword-only
+        Used in messages ("left", "right").
+    queue_size : int, keyword-only
+        Chunks the queue holds; a full queue makes the reader wait (the device is then throttled by
+        RTS/CTS flow control rather than losing events).
+    silence_s : float, keyword-only
+        A streaming sensor that sends nothing for this long is reported silent.
+    rtscts : bool, keyword-only
+        Hardware flow control (on for the eDVS).
+
+    Attributes
+    ----------
+    queue : queue.Queue of Chunk
+    silent : bool
+        No byte for ``silence_s`` while streaming.
+    error : BaseException or None
+        Why the reader stopped (unplugged cable, ...).
+    """
+
+    def __init__(self, port: str, *, baud: int = DEFAULT_BAUD, settings: ProtocolSettings | None = None,
+                 name: str = "sensor", queue_size: int = 1024, silence_s: float = DEFAULT_SILENCE_S,
+                 rtscts: bool = True):
+        self.port = str(port)
+        self.baud = int(baud)
+        self.settings = settings or ProtocolSettings()
+        self.name = name
+        self.silence_s = float(silence_s)
+        self.rtscts = rtscts
+        self.queue: queue.Queue[Chunk] = queue.Queue(maxsize=queue_size)
+        self.decoder = StreamDecoder(self.settings)
+        self.silent = False
+        self.silences = 0
+        self.error: BaseException | None = None
+        self.bytes_received = 0
+        self.last_byte_us: int | None = None
+        self._serial: serial.Serial | None = None
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._lock = threading.Lock()
+
+    # -- connection -------------------------------------------------------------------------------
+    def open(self) -> EDVS:
+        """Open the port.
+
+        Raises
+        ------
+        SensorError
+            The port does not exist, is unplugged or busy; the message names the port.
+        """
+        try:
+            self._serial = serial.Serial(self.port, self.baud, timeout=0.02, write_timeout=2.0,
+                                         rtscts=self.rtscts)
+        except (serial.SerialException, OSError, ValueError) as exc:
+            reason = " ".join(str(exc).split()) or type(exc).__name__
+            raise SensorError(
+                f"{self.name} sensor: cannot open serial port {self.port} ({reason}); check that the eDVS is "
+                "plugged in and the port name is right (ls /dev/ttyUSB* /dev/ttyACM*)."
+            ) from None
+        return self
+
+    def close(self) -> None:
+        """Stop the reader (if running) and close the port."""
+        self.stop()
+        if self._serial is not None:
+            try:
+                self._serial.close()
+            except OSError:
+                pass
+            self._serial = None
+
+    def __enter__(self) -> EDVS:
+        if self._serial is None:
+            self.open()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _write(self, text: str) -> None:
+        if self._serial is None:
+            raise SensorError(f"{self.name} sensor ({self.port}) is not open; call open() first.")
+        try:
+            self._serial.write(self.settings.line(text))
+            self._serial.flush()
+        except (serial.SerialException, OSError) as exc:
+            raise SensorError(f"{self.name} sensor ({self.port}): write failed ({exc}); is it unplugged?") from None
+
+    def command(self, text: str) -> None:
+        """Send one command line (no reply is read)."""
+        self._write(text)
+
+    def _read_reply(self, timeout_s: float, until: str | None = None) -> str:
+        assert self._serial is not None
+        deadline = time.monotonic() + timeout_s
+        got = bytearray()
+        while time.monotonic() < deadline:
+            try:
+                data = self._serial.read(self._serial.in_waiting or 1)
+            except (serial.SerialException, OSError) as exc:
+                raise SensorError(f"{self.name} sensor ({self.port}): read failed ({exc}).") from None
+            got += data
+            if until is not None and until.encode() in got:
+                # Let the rest of the line arrive, then stop.
+                time.sleep(0.01)
+                got += self._serial.read(self._serial.in_waiting)
+                break
+        return got.decode("ascii", "replace")
+
+    def reset(self, timeout_s: float = 2.0) -> str:
+        """Reset the board (``R``) and return its banner.
+
+        Raises
+        ------
+        SensorError
+            No reply containing the banner text (not an eDVS, wrong baud rate, or powered off).
+        """
+        if self._serial is None:
+            self.open()
+        self._serial.reset_input_buffer()
+        self._write(self.settings.commands.reset)
+        reply = self._read_reply(timeout_s, self.settings.commands.banner)
+        if self.settings.commands.banner not in reply:
+            raise SensorError(
+                f"{self.name} sensor ({self.port}): no eDVS answered the reset within {timeout_s:g} s "
+                f"(got {reply[:40]!r}); check the baud rate ({self.baud}) and that the board is powered."
+            )
+        return reply.strip()
+
+    def configure(self, *, biases: dict[int, int] | None = None, reset: bool = True) -> None:
+        """Reset (optional), echo off, event format, biases; leaves the input buffer empty."""
+        if reset:
+            self.reset()
+        cmds = [self.settings.commands.echo_off, self.settings.format_command()]
+        for index, value in (biases or {}).items():
+            cmds.append(self.settings.bias_command(index, value))
+        if biases:
+            cmds.append(self.settings.commands.flush_biases)
+        for c in cmds:
+            self._write(c)
+        self.drain()
+
+    def drain(self, settle_s: float = 0.05) -> None:
+        """Discard replies still arriving (command echoes, help text)."""
+        assert self._serial is not None
+        time.sleep(settle_s)
+        self._serial.reset_input_buffer()
+
+    # -- streaming --------------------------------------------------------------------------------
+    def start(self, *, send_start: bool = True) -> None:
+        """Start the reader thread, then streaming (``E+``)."""
+        if self._thread is not None:
+            return
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._run, name=f"edvs-{self.name}", daemon=True)
+        self.last_byte_us = host_us()
+        self._thread.start()
+        if send_start:
+            self._write(self.settings.commands.start)
+
+    def stop(self, *, send_stop: bool = True) -> None:
+        """Stop streaming (``E-``, unless the port is gone) and join the reader thread."""
+        if self._thread is None:
+            return
+        if send_stop and self.error is None and self._serial is not None:
+            try:
+                self._write(self.settings.commands.stop)
+            except SensorError:
+                pass
+        self._stop.set()
+        self._thread.join(timeout=5.0)
+        self._thread = None
+
+    @property
+    def running(self) -> bool:
+        """The reader thread is alive (not stopped, not failed)."""
+        return self._thread is not None and self._thread.is_alive()
+
+    def _put(self, chunk: Chunk) -> None:
+        # Block while the consumer is behind (flow control), but never past a stop request.
+        while not self._stop.is_set():
+            try:
+                self.queue.put(chunk, timeout=0.1)
+                return
+            except queue.Full:
+                continue
+
+    def _run(self) -> None:
+        ser = self._serial
+        assert ser is not None
+        held = False
+        try:
+            while not self._stop.is_set():
+                data = ser.read(max(1, min(ser.in_waiting, 1 << 16)))
+                now = host_us()
+                if data:
+                    self.bytes_received += len(data)
+                    self.last_byte_us = now
+                    if self.silent:
+                        self.silent = False
+                    ev = self.decoder.decode(data, host_t=now)
+                    held = self.decoder.pending_bytes > 0
+                    if ev.size:
+                        self._put(Chunk(ev, now))
+                    continue
+                quiet_s = (now - (self.last_byte_us or now)) / 1e6
+                if held and quiet_s >= RELEASE_AFTER_S:
+                    ev = self.decoder.flush(host_t=now, final=False)
+                    held = False
+                    if ev.size:
+                        self._put(Chunk(ev, now))
+                if not self.silent and quiet_s >= self.silence_s:
+                    self.silent = True
+                    self.silences += 1
+        except (serial.SerialException, OSError, TypeError) as exc:
+            # pyserial raises SerialException (or TypeError from a closed fd) when the device vanishes.
+            self.error = SensorError(f"{self.name} sensor ({self.port}) disconnected: {exc}")
+        ev = self.decoder.flush(host_t=host_us(), final=False)
+        if ev.size:
+            try:
+                self.queue.put_nowait(Chunk(ev, host_us()))
+            except queue.Full:
+                pass
+
+    def status(self) -> dict:
+        """Counters for reports: bytes, events, corrupt bytes, silences, error."""
+        return {
+            "port": self.port,
+            "bytes": self.bytes_received,
+            "events": self.decoder.events_decoded,
+            "corrupt_bytes": self.decoder.corrupt_bytes,
+            "silences": self.silences,
+            "silent": self.silent,
+            "error": None if self.error is None else str(self.error),
+        }

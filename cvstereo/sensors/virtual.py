@@ -1,0 +1,257 @@
+"""A virtual eDVS128 on a pseudo-terminal, for tests, samples and ``--simulate``.
+
+It answers the commands of :mod:`cvstereo.sensors.protocol`, streams a recording's events in the chosen
+format, paced by their timestamps (times a speed factor) and by the baud rate (10 bit times per byte),
+and on request injects garbage bytes, stalls, or disconnects. It runs in its own thread.
+
+>>> from cvstereo.events import make_events
+>>> ev = make_events([0, 1000, 2000], [1, 2, 3], [4, 5, 6], [1, 0, 1])
+>>> with VirtualEDVS(ev) as port:  # doctest: +SKIP
+...     cam = EDVS(port).open()
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import select
+import threading
+import time
+import tty
+
+import numpy as np
+
+from cvstereo.sensors.protocol import DEFAULT_BAUD, FORMAT_NUMBERS, ProtocolSettings, encode_events
+
+#: Banner sent after ``R`` (contains "EDVS", as the real board's does).
+BANNER = "EDVS128 virtual board (cvstereo), 1us timestamps"
+
+#: Longest the device thread sleeps between looks at its port, s.
+TICK_S = 0.002
+
+
+class VirtualEDVS:
+    """A virtual eDVS128 streaming ``events`` on a pty; a context manager yielding the port path.
+
+    Parameters
+    ----------
+    events : (N,) ndarray of EVENT_DTYPE
+        What the sensor "sees"; event k is sent ``(t_k - t_0) / speed`` seconds after ``E+``.
+    baud : int, keyword-only
+        Link speed: at most ``baud / 10`` bytes per second (times ``speed``).
+    speed : float, keyword-only
+        Stream time per wall time (1 = real time).
+    settings : ProtocolSettings, keyword-only
+        Sync-bit polarity, polarity sense, numbering of the firmware simulated. The event format is
+        whatever the host asks for with ``!Ex`` (initially ``settings.event_format``).
+    clock_offset_us : int, keyword-only
+        Device time of the first event before any timestamp synchronisation (a free-running board).
+    reset_jitter_us : int, keyword-only
+        Device clock after ``!ET0``, simulating two boards reset a little apart.
+    echo : bool, keyword-only
+        Echo command lines until ``!U0`` (as the firmware does).
+    """
+
+    def __init__(self, events: np.ndarray, *, baud: int = DEFAULT_BAUD, speed: float = 1.0,
+                 settings: ProtocolSettings | None = None, clock_offset_us: int = 0, reset_jitter_us: int = 0,
+                 echo: bool = True):
+        self.events = events
+        self.baud = int(baud)
+        self.speed = float(speed)
+        self.settings = settings or ProtocolSettings()
+        self.format = self.settings.event_format
+        self.clock_offset_us = int(clock_offset_us)
+        self.reset_jitter_us = int(reset_jitter_us)
+        self.echo = echo
+        self.biases: dict[int, int] = {}
+        self.commands: list[str] = []
+        self.streaming = False
+        self.sent_events = 0
+        self.sent_bytes = 0
+        self.garbage_bytes = 0
+        self.port: str | None = None
+        self._master: int | None = None
+        self._slave: int | None = None
+        self._thread: threading.Thread | None = None
+        self._quit = threading.Event()
+        self._lock = threading.Lock()
+        self._garbage: list[bytes] = []
+        self._stall_until = 0.0
+        self._disconnect = False
+        self._pending = b""
+        self._t0 = int(events["t"][0]) if events.size else 0
+        self._stream_start = 0.0
+        self._next = 0
+        self._t_prev = 0
+
+    # -- life cycle -------------------------------------------------------------------------------
+    def start(self) -> str:
+        """Create the pty and start the device thread; return the port path."""
+        self._master, self._slave = os.openpty()
+        # Raw mode: no echo, no line editing, no CR/LF translation by the tty layer itself.
+        tty.setraw(self._slave)
+        os.set_blocking(self._master, False)
+        self.port = os.ttyname(self._slave)
+        self._thread = threading.Thread(target=self._run, name=f"virtual-edvs-{self.port}", daemon=True)
+        self._thread.start()
+        return self.port
+
+    def close(self) -> None:
+        """Stop the thread and close the pty."""
+        self._quit.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+            self._thread = None
+        self._close_fds()
+
+    def _close_fds(self) -> None:
+        for name in ("_master", "_slave"):
+            fd = getattr(self, name)
+            if fd is not None:
+                with contextlib.suppress(OSError):
+                    os.close(fd)
+                setattr(self, name, None)
+
+    def __enter__(self) -> str:
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # -- fault injection --------------------------------------------------------------------------
+    def inject_garbage(self, data: bytes) -> None:
+        """Send ``data`` between two events (as soon as the stream is at an event boundary)."""
+        with self._lock:
+            self._garbage.append(bytes(data))
+
+    def stall(self, seconds: float) -> None:
+        """Send nothing for ``seconds`` (events due meanwhile follow afterwards); ``inf`` = go silent."""
+        self._stall_until = time.monotonic() + seconds
+
+    def disconnect(self) -> None:
+        """Vanish as an unplugged board does: the pty is closed and reads on it fail."""
+        self._disconnect = True
+
+    @property
+    def done(self) -> bool:
+        """Every event of the recording has been sent."""
+        return self._next >= self.events.size and not self._pending
+
+    # -- device thread ----------------------------------------------------------------------------
+    def _reply(self, text: str) -> None:
+        self._pending += (text + "\r\n").encode("ascii")
+
+    def _handle(self, line: str) -> None:
+        cmd = line.strip()
+        if not cmd:
+            return
+        self.commands.append(cmd)
+        if self.echo:
+            self._reply(cmd)
+        c = self.settings.commands
+        if cmd == c.reset or cmd == "r":
+            self.streaming = False
+            self.echo = True
+            self._reply(BANNER)
+        elif cmd in (c.start, "+"):
+            self.streaming = True
+            self._stream_start = time.monotonic() - self._stream_time_s()
+        elif cmd in (c.stop, "-"):
+            self.streaming = False
+        elif cmd == c.echo_off:
+            self.echo = False
+        elif cmd in (c.timestamp_reset, "!ET", "!ET=0"):
+            self.clock_offset_us = self.reset_jitter_us
+        elif cmd in (c.master_arm, c.master_run, c.slave):
+            # Master and slave share the master's clock: the offset of a free-running board vanishes.
+            self.clock_offset_us = 0
+        elif cmd.startswith("!E") and cmd[2:].isdigit():
+            number = int(cmd[2:])
+            names = {v: k for k, v in FORMAT_NUMBERS[self.settings.numbering].items()}
+            if number in names:
+                self.format = names[number]
+            else:
+                self._reply(f"unknown event format {cmd}")
+        elif cmd.startswith("!B") and "=" in cmd:
+            key, _, value = cmd[2:].partition("=")
+            with contextlib.suppress(ValueError):
+                self.biases[int(key)] = int(value)
+        elif cmd == c.flush_biases:
+            pass
+        elif cmd == c.help:
+            self._reply("E+/- start/stop events; !Ex event format; !Bx=y bias; !BF flush biases; R reset")
+        else:
+            self._reply(f"?? {cmd}")
+
+    def _stream_time_s(self) -> float:
+        if self._next >= self.events.size:
+            return 0.0
+        return (int(self.events["t"][self._next]) - self._t0) / 1e6 / self.speed
+
+    def _due_events(self, now: float, budget: int) -> bytes:
+        """Encode the events due by ``now`` (at most ``budget`` bytes), with garbage at a boundary."""
+        if not self.streaming or now < self._stall_until or self._next >= self.events.size:
+            with self._lock:
+                garbage, self._garbage = b"".join(self._garbage), []
+            self.garbage_bytes += len(garbage)
+            return garbage if self.streaming else b""
+        fmt_size = ProtocolSettings(event_format=self.format).format.max_size
+        t_due = self._t0 + (now - self._stream_start) * self.speed * 1e6
+        hi = int(np.searchsorted(self.events["t"], t_due, side="right"))
+        hi = min(hi, self._next + max(1, budget // fmt_size))
+        out = b""
+        with self._lock:
+            garbage, self._garbage = b"".join(self._garbage), []
+        if hi > self._next:
+            chunk = self.events[self._next:hi].copy()
+            chunk["t"] = chunk["t"] - self._t0 + self.clock_offset_us
+            s = ProtocolSettings(event_format=self.format, sync_bit_set=self.settings.sync_bit_set,
+                                 off_bit_set=self.settings.off_bit_set, numbering=self.settings.numbering)
+            out = encode_events(chunk, s, t_prev=self._t_prev)
+            self._t_prev = int(chunk["t"][-1])
+            self.sent_events += hi - self._next
+            self._next = hi
+        self.garbage_bytes += len(garbage)
+        return garbage + out
+
+    def _run(self) -> None:
+        rate = self.baud / 10 * self.speed  # bytes per second the link carries
+        line = b""
+        credit_t = time.monotonic()
+        try:
+            while not self._quit.is_set():
+                if self._disconnect:
+                    self._close_fds()
+                    return
+                r, _, _ = select.select([self._master], [], [], TICK_S)
+                if r:
+                    try:
+                        data = os.read(self._master, 4096)
+                    except OSError:
+                        data = b""
+                    line += data
+                    while True:
+                        cut = min((i for i in (line.find(b"\n"), line.find(b"\r")) if i >= 0), default=-1)
+                        if cut < 0:
+                            break
+                        self._handle(line[:cut].decode("ascii", "replace"))
+                        line = line[cut + 1:]
+                now = time.monotonic()
+                # The link never carries more than `rate` bytes per second.
+                budget = int((now - credit_t) * rate)
+                if budget <= 0:
+                    continue
+                if len(self._pending) < budget:
+                    self._pending += self._due_events(now, budget - len(self._pending))
+                if not self._pending:
+                    credit_t = now
+                    continue
+                try:
+                    n = os.write(self._master, self._pending[:budget])
+                except BlockingIOError:
+                    n = 0
+                self._pending = self._pending[n:]
+                self.sent_bytes += n
+                credit_t = max(credit_t + n / rate, now - 0.01)
+        except OSError:
+            return
