@@ -1,0 +1,317 @@
+"""The frame-based cluster matcher (thesis 3.3; algorithms.md section 1).
+
+Per 40 ms window and camera: a signed frame (sum of event signs per pixel), a 5x5 Gaussian of sigma 1,
+a threshold on the magnitude. Each row then becomes a list of clusters, the maximal runs of kept pixels of one
+sign (the thesis' 3xN "comparison array": sign, left edge, right edge). Row y of the two frames is matched only
+if both list the same number of clusters with the same signs in the same order; cluster i pairs with cluster
+i if the widths differ by at most 30 %, and the disparity is the difference of the centres.
+
+Everything is vectorised over the whole frame: runs come from comparing each pixel with its row neighbours,
+rows are compared through per-row run counts (``np.bincount``), so no Python loop visits pixels or rows.
+
+>>> from cvstereo.events import make_events
+>>> ys, xs = np.mgrid[10:14, 40:46].reshape(2, -1).repeat(3, axis=1)   # 3 OFF events at each pixel of a patch
+>>> left = make_events(np.zeros(xs.size, int), xs, ys, 0)
+>>> right = make_events(np.zeros(xs.size, int), xs - 7, ys, 0)        # the same patch 7 px further left
+>>> m = FrameClusterMatcher()
+>>> out = np.concatenate([m.feed(left, right), m.flush()])
+>>> sorted(set(out["disparity"].tolist())), int(out["t"][0]), int(out["camera"][0])
+([7.0], 40000, 0)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar, Literal, NamedTuple
+
+import numpy as np
+
+from cvstereo.frames import (
+    FrameMatcher,
+    Polarity,
+    Window,
+    check_filter_params,
+    check_window_us,
+    event_mask,
+    gaussian_filter,
+    polarity_counts,
+    polarity_frames,
+)
+from cvstereo.matches import empty_matches, make_matches
+
+# Comparisons of integer widths against a float fraction: tolerate the rounding of 0.3 * w, so that the
+# rule holds exactly at its edge (|10 - 7| <= 0.3 * 10 must pass although 0.3 * 10 may round below 3).
+_EDGE_EPS = 1e-9
+
+
+@dataclass(frozen=True, kw_only=True)
+class FrameClusterParams:
+    """Parameters of the frame-based cluster matcher (thesis defaults; algorithms.md section 1).
+
+    Attributes
+    ----------
+    window_us : int
+        Window length, us; windows ``[k*W, (k+1)*W)`` on the absolute clock.
+    polarity : {"shared", "separate", "on", "off"}
+        ON and OFF events in one frame (sum of signs), in two frames matched each on its own, ON only, OFF only.
+    gaussian : bool
+        Filter the frames with the Gaussian (the thesis always does).
+    sigma : float
+        Standard deviation of the Gaussian, px.
+    kernel_size : int
+        Odd side of the Gaussian kernel.
+    threshold : float
+        Pixels with ``|filtered value| >= threshold`` form clusters (eq. 3.7, on the magnitude).
+    width_tolerance : float
+        Paired clusters count only if ``|wL - wR| <= width_tolerance * max(wL, wR)``.
+    max_disparity : int
+        Pairs with disparity outside ``[0, max_disparity]`` are dropped, px.
+    anchor_camera : {0, 1}
+        The camera whose cluster pixels carry the results (0 = left, 1 = right).
+    """
+
+    window_us: int = 40_000
+    polarity: Polarity = "shared"
+    gaussian: bool = True
+    sigma: float = 1.0
+    kernel_size: int = 5
+    threshold: float = 1.2
+    width_tolerance: float = 0.3
+    max_disparity: int = 64
+    anchor_camera: Literal[0, 1] = 0
+
+    def __post_init__(self):
+        where = type(self).__name__
+        check_window_us(self.window_us, where)
+        check_filter_params(self.sigma, self.kernel_size, where)
+        if self.polarity not in ("shared", "separate", "on", "off"):
+            raise ValueError(f"{where}: polarity must be one of shared, separate, on, off; got '{self.polarity}'.")
+        if not self.threshold > 0:
+            raise ValueError(f"{where}: threshold must be > 0 (the thesis uses 1.2), got {self.threshold}.")
+        if not self.width_tolerance >= 0:
+            raise ValueError(f"{where}: width_tolerance must be >= 0 (the thesis uses 0.3), "
+                             f"got {self.width_tolerance}.")
+        if not self.max_disparity >= 0:
+            raise ValueError(f"{where}: max_disparity must be >= 0 (e.g. 64), got {self.max_disparity}.")
+        if self.anchor_camera not in (0, 1):
+            raise ValueError(f"{where}: anchor_camera must be 0 (left) or 1 (right), got {self.anchor_camera}.")
+
+
+class Runs(NamedTuple):
+    """Clusters of a frame: maximal runs of equal nonzero sign within one row, in row-major order.
+
+    All fields are (K,) arrays: ``row``, ``left`` and ``right`` (inclusive edges, px), ``sign`` (+1/-1).
+    """
+
+    row: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+    sign: np.ndarray
+
+
+def row_runs(signs: np.ndarray) -> Runs:
+    """List the clusters of each row of a sign image (the thesis' comparison arrays, for all rows at once).
+
+    Parameters
+    ----------
+    signs : (height, width) int ndarray
+        +1, -1 or 0 (pixel not kept).
+
+    Returns
+    -------
+    Runs
+        Sorted by row, then by left edge.
+
+    Examples
+    --------
+    >>> r = row_runs(np.array([[1, 1, -1, 0, -1], [0, 0, 0, 0, 0], [0, 1, 1, 1, 0]]))
+    >>> r.row.tolist(), r.left.tolist(), r.right.tolist(), r.sign.tolist()
+    ([0, 0, 0, 2], [0, 2, 4, 1], [1, 2, 4, 3], [1, -1, -1, 1])
+    """
+    s = np.asarray(signs, dtype=np.int8)
+    h, w = s.shape
+    pad = np.zeros((h, w + 2), dtype=np.int8)
+    pad[:, 1:-1] = s
+    kept = s != 0
+    # A run starts where the sign differs from the left neighbour and ends where it differs from the right one;
+    # the zero padding closes runs at the sensor edges. Starts and ends come out in the same row-major order,
+    # so the k-th start and the k-th end belong to the same run.
+    starts = kept & (s != pad[:, :-2])
+    ends = kept & (s != pad[:, 2:])
+    # flatnonzero + divmod: faster than the 2-D nonzero.
+    row, left = np.divmod(np.flatnonzero(starts), w)
+    right = np.flatnonzero(ends) % w
+    return Runs(row, left, right, s[row, left])
+
+
+class Pairs(NamedTuple):
+    """Matched cluster pairs: the anchor camera's cluster (row, left, right, sign) and its disparity."""
+
+    row: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+    sign: np.ndarray
+    disparity: np.ndarray
+
+
+def match_runs(left: Runs, right: Runs, *, height: int, width_tolerance: float = 0.3,
+               max_disparity: int = 64, anchor_camera: int = 0) -> Pairs:
+    """Pair the clusters of the left and right frame row by row (algorithms.md section 1, steps 5-6).
+
+    Parameters
+    ----------
+    left, right : Runs
+        Clusters of the left and right frame (from :func:`row_runs`).
+    height : int, keyword-only
+        Number of rows of the frames.
+    width_tolerance, max_disparity : float, keyword-only
+        See :class:`FrameClusterParams`.
+    anchor_camera : {0, 1}, keyword-only
+        Whose cluster is returned with each pair.
+
+    Returns
+    -------
+    Pairs
+        ``disparity = centre_left - centre_right``, within ``[0, max_disparity]``.
+    """
+    count_l = np.bincount(left.row, minlength=height)
+    count_r = np.bincount(right.row, minlength=height)
+    same_count = (count_l == count_r) & (count_l > 0)
+    # In rows with equal counts the runs of both frames line up one to one, in row-major order.
+    sel_l = same_count[left.row]
+    sel_r = same_count[right.row]
+    rl = Runs(*(a[sel_l] for a in left))
+    rr = Runs(*(a[sel_r] for a in right))
+    sign_differs = np.bincount(rl.row, weights=rl.sign != rr.sign, minlength=height) > 0
+    ok = ~sign_differs[rl.row]
+    width_l = rl.right - rl.left + 1
+    width_r = rr.right - rr.left + 1
+    ok &= np.abs(width_l - width_r) <= width_tolerance * np.maximum(width_l, width_r) + _EDGE_EPS
+    disparity = (rl.left + rl.right - rr.left - rr.right) / 2.0
+    ok &= (disparity >= 0) & (disparity <= max_disparity)
+    anchor = rl if anchor_camera == 0 else rr
+    return Pairs(anchor.row[ok], anchor.left[ok], anchor.right[ok], anchor.sign[ok], disparity[ok])
+
+
+def cluster_signs(frame: np.ndarray, *, threshold: float) -> np.ndarray:
+    """Sign of the pixels with ``|frame| >= threshold``, 0 elsewhere, as an (height, width) int8 array."""
+    return (frame >= threshold).view(np.int8) - (frame <= -threshold).view(np.int8)
+
+
+class FrameClusterMatcher(FrameMatcher):
+    """Frame-based cluster matcher (thesis 3.3) as a streaming object.
+
+    Results: one row per pixel of each matched anchor cluster that holds events of the anchor camera in the
+    window (of the cluster's frame: ON events for an ON frame), ``t`` = the window's end, ``p`` = the cluster's
+    polarity, ``disparity`` = centre_left - centre_right (may be a half pixel).
+
+    Parameters
+    ----------
+    params : FrameClusterParams, optional
+    resolution : (width, height), keyword-only
+    """
+
+    Params = FrameClusterParams
+    variants: ClassVar[dict[str, dict]] = {
+        "shared": {"polarity": "shared"},
+        "separate": {"polarity": "separate"},
+        "on": {"polarity": "on"},
+        "off": {"polarity": "off"},
+    }
+    method = "frame"
+
+    def anchor_cameras(self) -> tuple[int, ...]:
+        return (self.params.anchor_camera,)
+
+    def match_window(self, window: Window) -> np.ndarray:
+        p = self.params
+        if not (window.left.size and window.right.size):
+            return empty_matches()  # a frame without events has no clusters, so no row can match
+        counts = [polarity_counts(ev, resolution=self.resolution) for ev in (window.left, window.right)]
+        frames = [polarity_frames(c, polarity=p.polarity) for c in counts]
+        channels = [channel for channel, _ in frames[0]]
+        height = self.resolution[1]
+        # All frames of the window (cameras x channels) go through filter, threshold and run extraction as one
+        # stacked image: same result as one by one (see match_frame_pair), half the numpy calls or fewer.
+        gap = p.kernel_size // 2 if p.gaussian else 0
+        stack = _stack([f for cam in frames for _, f in cam], gap)
+        if p.gaussian:
+            stack = gaussian_filter(stack, sigma=p.sigma, kernel_size=p.kernel_size)
+        signs = cluster_signs(stack, threshold=p.threshold)
+        if gap:
+            signs.reshape(-1, height + gap, signs.shape[1])[:, height:] = 0  # the blur spills into the gaps
+        runs = row_runs(signs)
+        block, y = np.divmod(runs.row, height + gap)
+        # Row key = channel * height + y, the same for both cameras, so that match_runs pairs row y of channel c.
+        n_ch = len(channels)
+        key = (block % n_ch) * height + y
+        cams = [block < n_ch, block >= n_ch]
+        left, right = (Runs(key[c], runs.left[c], runs.right[c], runs.sign[c]) for c in cams)
+        pairs = match_runs(left, right, height=n_ch * height, width_tolerance=p.width_tolerance,
+                           max_disparity=p.max_disparity, anchor_camera=p.anchor_camera)
+        seen = np.concatenate([event_mask(counts[p.anchor_camera], channel=c) for c in channels])
+        return _pixel_order(_cluster_pixels(pairs, seen, window.t_end, p.anchor_camera, height))
+
+
+def match_frame_pair(left: np.ndarray, right: np.ndarray, *, threshold: float = 1.2, width_tolerance: float = 0.3,
+                     max_disparity: float = 64, anchor_camera: int = 0) -> Pairs:
+    """Match the clusters of one pair of (filtered) frames: steps 3-5 of algorithms.md section 1.
+
+    The readable form of what :class:`FrameClusterMatcher` does for all frames of a window at once.
+
+    Parameters
+    ----------
+    left, right : (height, width) float ndarray
+        Filtered frames of the left and right camera.
+    threshold, width_tolerance, max_disparity, anchor_camera : keyword-only
+        See :class:`FrameClusterParams`.
+
+    Returns
+    -------
+    Pairs
+        The anchor camera's matched clusters and their disparities.
+
+    Examples
+    --------
+    >>> row = np.array([[0, 2, 2, 2, 0, 0, -2, -2, 0, 0, 0, 0]], float)
+    >>> pairs = match_frame_pair(np.roll(row, 3, axis=1), row)
+    >>> pairs.disparity.tolist(), pairs.sign.tolist()
+    ([3.0, 3.0], [1, -1])
+    """
+    return match_runs(row_runs(cluster_signs(left, threshold=threshold)),
+                      row_runs(cluster_signs(right, threshold=threshold)), height=left.shape[0],
+                      width_tolerance=width_tolerance, max_disparity=max_disparity, anchor_camera=anchor_camera)
+
+
+def _stack(frames: list[np.ndarray], gap: int) -> np.ndarray:
+    """Frames one above the other, each followed by ``gap`` zero rows (what BORDER_CONSTANT pads with)."""
+    h, w = frames[0].shape
+    out = np.zeros((len(frames), h + gap, w), dtype=np.float32)
+    for i, f in enumerate(frames):
+        out[i, :h] = f
+    return out.reshape(-1, w)
+
+
+def _cluster_pixels(pairs: Pairs, seen: np.ndarray, t: int, camera: int, height: int) -> np.ndarray:
+    """Expand each pair to the pixels of its anchor cluster that saw events; one match per pixel.
+
+    ``pairs.row`` and the rows of ``seen`` are row keys ``channel * height + y``.
+    """
+    widths = pairs.right - pairs.left + 1
+    total = int(widths.sum())
+    if total == 0:
+        return empty_matches()
+    which = np.repeat(np.arange(widths.size), widths)
+    starts = np.cumsum(widths) - widths
+    x = pairs.left[which] + (np.arange(total) - starts[which])
+    key = pairs.row[which]
+    keep = seen[key, x]
+    which, x, y = which[keep], x[keep], key[keep] % height
+    return make_matches(t, x, y, (pairs.sign[which] > 0).astype(np.int8), camera, pairs.disparity[which])
+
+
+def _pixel_order(matches: np.ndarray) -> np.ndarray:
+    """Sort one window's matches by (y, x, p), so that the output order does not depend on the variant."""
+    if matches.size < 2:
+        return matches
+    return matches[np.lexsort((matches["p"], matches["x"], matches["y"]))]
