@@ -18,6 +18,8 @@ COMMANDS: dict[str, str] = {
     "convert": "convert",
     "evaluate": "evaluate",
     "demo": "demo",
+    "record": "record",
+    "live": "live",
 }
 
 
