@@ -18,6 +18,7 @@ COMMANDS: dict[str, str] = {
     "convert": "convert",
     "evaluate": "evaluate",
     "demo": "demo",
+    "match": "match",
     "record": "record",
     "live": "live",
 }

@@ -1,0 +1,280 @@
+"""OpenCV's StereoBM and StereoSGBM on the same 40 ms frames as the thesis' frame matchers.
+
+So that a user can compare the calibration-free matchers with OpenCV on equal terms, the baselines see the same
+windows (``[k*W, (k+1)*W)`` on the absolute clock), the same signed, Gaussian-filtered frames, and report in the
+same matches format: at the left camera's pixels that saw events in the window and got a valid disparity,
+stamped with the window's end.
+
+Image mapping. OpenCV's block matchers take 8-bit images, so each filtered frame ``F`` (sum of event signs,
+Gaussian, as in thesis 3.3) becomes ``clip(128 + gain * F, 0, 255)``: mid-grey where nothing happened, brighter for
+ON activity, darker for OFF activity (gain 32: a filtered value of +-4, about 8 events of one sign on a spot,
+saturates). With ``image="count"`` it is ``clip(gain * (ON + OFF count), 0, 255)`` instead, blind to polarity.
+
+OpenCV computes disparities on the left image (its convention: ``x_right = x_left - d``), which is also ours
+(``d = x_left - x_right``). Its left strip of ``num_disparities`` columns has no result, because the search would
+leave the right image; with ``pad=True`` (default) both images get that many mid-grey columns on the left, so the
+whole sensor gets results. OpenCV returns fixed-point disparities (``int16``, 4 fractional bits); the ``/16``
+is applied here and nowhere else.
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass
+from typing import ClassVar, Literal
+
+import cv2
+import numpy as np
+
+from cvstereo.frames import (
+    FrameMatcher,
+    Window,
+    check_filter_params,
+    check_window_us,
+    event_mask,
+    gaussian_filter,
+    polarity_counts,
+    polarity_frames,
+)
+from cvstereo.matches import empty_matches, make_matches
+
+#: OpenCV's fixed-point disparity scale (4 fractional bits).
+DISP_SCALE = 16
+#: Grey value of "no events" in the ``filtered`` image mapping.
+MID_GREY = 128
+
+
+@dataclass(frozen=True, kw_only=True)
+class _OpenCVParams:
+    """Parameters common to both baselines (see the module docstring for the image mapping).
+
+    Attributes
+    ----------
+    window_us : int
+        Window length, us.
+    image : {"filtered", "count"}
+        Image mapping: signed Gaussian-filtered frame around mid-grey, or event count.
+    gain : float
+        Grey levels per unit of frame value.
+    gaussian : bool
+        Filter the frames with the thesis' Gaussian before mapping them.
+    sigma, kernel_size :
+        The Gaussian (sigma px, odd kernel side).
+    min_disparity : int
+        Smallest disparity searched, px.
+    num_disparities : int
+        Number of disparities searched (a positive multiple of 16, OpenCV's rule).
+    block_size : int
+        Odd matching block side, px.
+    uniqueness_ratio : int
+        OpenCV's uniquenessRatio, percent (0 disables the check).
+    speckle_window_size, speckle_range : int
+        OpenCV's speckle filter (0: off).
+    pad : bool
+        Pad both images on the left with ``num_disparities`` mid-grey columns, so that the left strip gets results.
+    """
+
+    window_us: int = 40_000
+    image: Literal["filtered", "count"] = "filtered"
+    gain: float = 32.0
+    gaussian: bool = True
+    sigma: float = 1.0
+    kernel_size: int = 5
+    min_disparity: int = 0
+    num_disparities: int = 64
+    block_size: int = 9
+    uniqueness_ratio: int = 10
+    speckle_window_size: int = 0
+    speckle_range: int = 0
+    pad: bool = True
+
+    def __post_init__(self):
+        where = type(self).__name__
+        check_window_us(self.window_us, where)
+        check_filter_params(self.sigma, self.kernel_size, where)
+        if self.image not in ("filtered", "count"):
+            raise ValueError(f"{where}: image must be 'filtered' or 'count', got '{self.image}'.")
+        if not self.gain > 0:
+            raise ValueError(f"{where}: gain must be > 0 (e.g. 32), got {self.gain}.")
+        if self.num_disparities <= 0 or self.num_disparities % 16:
+            raise ValueError(f"{where}: num_disparities must be a positive multiple of 16 (OpenCV's rule), "
+                             f"e.g. 48 or 64; got {self.num_disparities}.")
+        if self.block_size < 1 or self.block_size % 2 == 0:
+            raise ValueError(f"{where}: block_size must be a positive odd number (e.g. 9), got {self.block_size}.")
+        if self.uniqueness_ratio < 0:
+            raise ValueError(f"{where}: uniqueness_ratio must be >= 0, got {self.uniqueness_ratio}.")
+
+
+@dataclass(frozen=True, kw_only=True)
+class StereoBMParams(_OpenCVParams):
+    """Parameters of :class:`StereoBMMatcher`: the common ones (see ``_OpenCVParams``) and BM's own.
+
+    Attributes
+    ----------
+    texture_threshold : int
+        OpenCV's textureThreshold: blocks with less texture get no result.
+    prefilter_cap : int
+        OpenCV's preFilterCap (1..63).
+    """
+
+    texture_threshold: int = 10
+    prefilter_cap: int = 31
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.block_size < 5:
+            raise ValueError(f"StereoBMParams: block_size must be an odd number >= 5 for StereoBM, "
+                             f"got {self.block_size}.")
+        if not 1 <= self.prefilter_cap <= 63:
+            raise ValueError(f"StereoBMParams: prefilter_cap must be in 1..63, got {self.prefilter_cap}.")
+
+
+@dataclass(frozen=True, kw_only=True)
+class StereoSGBMParams(_OpenCVParams):
+    """Parameters of :class:`StereoSGBMMatcher`: the common ones (see ``_OpenCVParams``) and SGBM's own.
+
+    Attributes
+    ----------
+    block_size : int
+        Odd block side (SGBM works with small blocks; default 5).
+    p1, p2 : int
+        Smoothness penalties; 0 chooses OpenCV's usual ``8 * block_size**2`` and ``32 * block_size**2``.
+    disp12_max_diff : int
+        Left-right consistency tolerance, px (-1: off).
+    mode : {"sgbm", "hh", "3way"}
+        OpenCV's mode (5-direction SGBM, full 8-direction, 3-way).
+    """
+
+    block_size: int = 5
+    p1: int = 0
+    p2: int = 0
+    disp12_max_diff: int = 1
+    mode: Literal["sgbm", "hh", "3way"] = "sgbm"
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.p1 and self.p2 and self.p2 <= self.p1:
+            raise ValueError(f"StereoSGBMParams: p2 must exceed p1 (OpenCV's rule), got p1={self.p1}, p2={self.p2}.")
+
+
+class _OpenCVMatcher(FrameMatcher):
+    """Common part of the baselines: frames -> 8-bit images -> OpenCV -> matches at left event pixels."""
+
+    variants: ClassVar[dict[str, dict]] = {"default": {}}
+
+    def __init__(self, params=None, *, resolution=(128, 128)):
+        super().__init__(params, resolution=resolution)
+        self._stereo = self._create()
+
+    def anchor_cameras(self) -> tuple[int, ...]:
+        return (0,)
+
+    @abc.abstractmethod
+    def _create(self):
+        """The configured OpenCV matcher object."""
+
+    def image(self, counts: np.ndarray) -> np.ndarray:
+        """The 8-bit image OpenCV sees for one camera's window (see the module docstring).
+
+        Parameters
+        ----------
+        counts : (2, height, width) int ndarray
+            ON and OFF counts (:func:`cvstereo.frames.polarity_counts`).
+
+        Returns
+        -------
+        (height, width) uint8 ndarray
+        """
+        p = self.params
+        if p.image == "count":
+            frame, offset = (counts[0] + counts[1]).astype(np.float32), 0.0
+        else:
+            ((_, frame),) = polarity_frames(counts, polarity="shared")
+            offset = MID_GREY
+        if p.gaussian:
+            frame = gaussian_filter(frame, sigma=p.sigma, kernel_size=p.kernel_size)
+        return np.clip(np.rint(offset + p.gain * frame), 0, 255).astype(np.uint8)
+
+    def disparity_map(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:
+        """Run OpenCV on a pair of 8-bit images.
+
+        Parameters
+        ----------
+        left, right : (height, width) uint8 ndarray
+
+        Returns
+        -------
+        (height, width) float32 ndarray
+            Disparity ``x_left - x_right`` at the left image's pixels, px; NaN where OpenCV found none.
+        """
+        p = self.params
+        pad = p.num_disparities if p.pad else 0
+        fill = MID_GREY if p.image == "filtered" else 0
+        if pad:
+            left, right = (cv2.copyMakeBorder(im, 0, 0, pad, 0, cv2.BORDER_CONSTANT, value=fill)
+                           for im in (left, right))
+        raw = self._stereo.compute(left, right)[:, pad:]
+        # OpenCV marks "no disparity" with (min_disparity - 1) * 16; everything at or above min_disparity is valid.
+        valid = raw >= p.min_disparity * DISP_SCALE
+        return np.where(valid, raw.astype(np.float32) / DISP_SCALE, np.float32(np.nan))
+
+    def match_window(self, window: Window) -> np.ndarray:
+        if not (window.left.size and window.right.size):
+            return empty_matches()
+        counts = [polarity_counts(ev, resolution=self.resolution) for ev in (window.left, window.right)]
+        disp = self.disparity_map(self.image(counts[0]), self.image(counts[1]))
+        y, x = np.nonzero(event_mask(counts[0]) & ~np.isnan(disp))
+        # Polarity of a pixel: the sign of its sum of event signs (ties count as ON).
+        pol = (counts[0][0, y, x] >= counts[0][1, y, x]).astype(np.int8)
+        return make_matches(window.t_end, x, y, pol, 0, disp[y, x])
+
+
+class StereoBMMatcher(_OpenCVMatcher):
+    """OpenCV ``StereoBM`` on the thesis' 40 ms frames (method ``stereobm``).
+
+    Parameters
+    ----------
+    params : StereoBMParams, optional
+    resolution : (width, height), keyword-only
+    """
+
+    Params = StereoBMParams
+    method = "stereobm"
+
+    def _create(self):
+        p = self.params
+        bm = cv2.StereoBM_create(numDisparities=p.num_disparities, blockSize=p.block_size)
+        bm.setMinDisparity(p.min_disparity)
+        bm.setUniquenessRatio(p.uniqueness_ratio)
+        bm.setTextureThreshold(p.texture_threshold)
+        bm.setPreFilterCap(p.prefilter_cap)
+        bm.setSpeckleWindowSize(p.speckle_window_size)
+        bm.setSpeckleRange(p.speckle_range)
+        return bm
+
+
+_SGBM_MODES = {"sgbm": cv2.STEREO_SGBM_MODE_SGBM, "hh": cv2.STEREO_SGBM_MODE_HH,
+               "3way": cv2.STEREO_SGBM_MODE_SGBM_3WAY}
+
+
+class StereoSGBMMatcher(_OpenCVMatcher):
+    """OpenCV ``StereoSGBM`` on the thesis' 40 ms frames (method ``sgbm``).
+
+    Parameters
+    ----------
+    params : StereoSGBMParams, optional
+    resolution : (width, height), keyword-only
+    """
+
+    Params = StereoSGBMParams
+    method = "sgbm"
+
+    def _create(self):
+        p = self.params
+        area = p.block_size * p.block_size
+        return cv2.StereoSGBM_create(
+            minDisparity=p.min_disparity, numDisparities=p.num_disparities, blockSize=p.block_size,
+            P1=p.p1 or 8 * area, P2=p.p2 or 32 * area, disp12MaxDiff=p.disp12_max_diff,
+            uniquenessRatio=p.uniqueness_ratio, speckleWindowSize=p.speckle_window_size,
+            speckleRange=p.speckle_range, mode=_SGBM_MODES[p.mode],
+        )

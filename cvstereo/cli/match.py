@@ -1,0 +1,111 @@
+"""``cvstereo match RECORDING [RIGHT] --method M [--variant V] [--param key=value ...] -o MATCHES.npz``.
+
+Runs one matcher over a recording (through :func:`calibration_free.match`, so the file holds exactly what
+``match()`` returns) and writes the matches file of formats.md. ``--list-methods`` prints every registered
+method with its variants and parameters.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+import typing
+
+from cvstereo.cli._common import add_format_options, format_options
+
+
+def add_parser(sub, name: str) -> argparse.ArgumentParser:
+    p = sub.add_parser(
+        name,
+        help="run a stereo matcher over a recording and write a matches file",
+        description="Run a stereo matcher (the thesis' frame and event matchers, or OpenCV's StereoBM/SGBM on "
+        "the same frames) over a recording and write the matches file (.npz). "
+        "`cvstereo match --list-methods` lists methods, variants and parameters with their defaults.",
+    )
+    p.add_argument("recording", metavar="RECORDING", nargs="?", default=None,
+                   help="recording file (or the left camera's file)")
+    p.add_argument("right", metavar="RIGHT", nargs="?", default=None,
+                   help="the right camera's file, for formats with one file per camera")
+    p.add_argument("--method", "-m", default="frame", help="matcher name (default: frame; see --list-methods)")
+    p.add_argument("--variant", default=None, help="variant name (default: the method's first; see --list-methods)")
+    p.add_argument("--param", "-p", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a parameter (repeatable); names as in --list-methods")
+    p.add_argument("-o", "--output", metavar="MATCHES.npz", default=None, help="matches file to write")
+    p.add_argument("--packet-us", type=int, default=None, metavar="US",
+                   help="stream the recording in packets of this length (the result does not depend on it)")
+    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                   help="show a progress bar (default: when stderr is a terminal)")
+    p.add_argument("--list-methods", action="store_true", help="list methods, variants and parameters, then exit")
+    add_format_options(p)
+    p.set_defaults(_parser=p)
+    return p
+
+
+def run(args: argparse.Namespace) -> int:
+    from calibration_free.registry import matcher_class, parse_param_strings
+
+    if args.list_methods:
+        print(list_methods())
+        return 0
+    if args.recording is None or args.output is None:
+        args._parser.error("RECORDING and -o MATCHES.npz are required (or give --list-methods)")
+    cls = matcher_class(args.method)  # ValueError listing the known methods
+    overrides = parse_param_strings(cls.Params, args.param)  # ValueError listing the allowed names
+    # Validate variant and values before reading a possibly long recording.
+    cls.make_params(args.variant, **overrides)
+    from calibration_free.run import DEFAULT_PACKET_US, match
+    from cvstereo.cli._common import load_recording
+
+    recording = load_recording(args)
+    progress = sys.stderr.isatty() if args.progress is None else args.progress
+    result = match(recording, method=args.method, variant=args.variant, progress=progress,
+                   packet_us=args.packet_us or DEFAULT_PACKET_US, **overrides)
+    result.meta["input"] = [args.recording] + ([args.right] if args.right else [])
+    result.meta["format_options"] = {k: list(v) if isinstance(v, tuple) else v
+                                     for k, v in format_options(args).items()}
+    result.save(args.output)
+    m = result.meta
+    print(f"{len(result)} matches from {m['input_events']} events ({args.method}, {m['variant']}) in "
+          f"{m['elapsed_s']:.2f} s -> {args.output}")
+    return 0
+
+
+def list_methods() -> str:
+    """Every registered method with its variants and parameters (defaults, types), as text.
+
+    Methods whose module cannot be imported here are listed as unavailable, with the reason.
+    """
+    from calibration_free.registry import METHODS, matcher_class
+
+    lines = []
+    for name in METHODS:
+        try:
+            cls = matcher_class(name)
+        except ImportError as exc:
+            lines.append(f"{name}: unavailable ({type(exc).__name__}: {exc})")
+            lines.append("")
+            continue
+        variants = list(cls.variants)
+        lines.append(f"{name}: {(cls.__doc__ or '').strip().splitlines()[0]}")
+        lines.append("  variants: " + ", ".join(f"{v} (default)" if i == 0 else v for i, v in enumerate(variants)))
+        for v in variants[1:]:
+            if cls.variants[v]:
+                lines.append(f"    {v}: " + ", ".join(f"{k}={_text(x)}" for k, x in cls.variants[v].items()))
+        lines.append("  parameters (--param key=value):")
+        hints = typing.get_type_hints(cls.Params)
+        defaults = cls.Params()
+        for f in dataclasses.fields(cls.Params):
+            lines.append(f"    {f.name} = {_text(getattr(defaults, f.name))}  ({_type_text(hints[f.name])})")
+        lines.append("")
+    return "\n".join(lines).rstrip()
+
+
+def _text(value) -> str:
+    return str(value).lower() if isinstance(value, bool) else str(value)
+
+
+def _type_text(hint) -> str:
+    if typing.get_origin(hint) is typing.Literal:
+        return "one of " + "|".join(map(str, typing.get_args(hint)))
+    return getattr(hint, "__name__", str(hint))

@@ -1,0 +1,103 @@
+"""``cvstereo match``: the same matches and parameters as ``calibration_free.match``; errors exit 1."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from calibration_free import METHODS, match
+from cvstereo.cli import main
+from cvstereo.events import make_events
+from cvstereo.io import read_matches, write_recording
+from cvstereo.recording import Recording
+
+W = 40_000
+
+
+@pytest.fixture(scope="module")
+def recording_file(tmp_path_factory):
+    rng = np.random.default_rng(0)
+    xs, ys, ps, ts = [], [], [], []
+    for k in range(4):  # four windows of textured blobs
+        for _ in range(12):
+            yy, xx = np.mgrid[0:4, 0:5]
+            x0, y0 = rng.integers(20, 120), rng.integers(3, 120)
+            n = xx.size * 3
+            xs.append(np.repeat((xx + x0).ravel(), 3))
+            ys.append(np.repeat((yy + y0).ravel(), 3))
+            ps.append(np.full(n, rng.integers(0, 2)))
+            ts.append(rng.integers(k * W, (k + 1) * W, n))
+    x, y, p, t = (np.concatenate(a) for a in (xs, ys, ps, ts))
+    order = np.argsort(t, kind="stable")
+    x, y, p, t = x[order], y[order], p[order], t[order]
+    rec = Recording(make_events(t, x, y, p), make_events(t, x - 13, y, p))
+    path = tmp_path_factory.mktemp("rec") / "blobs.npz"
+    write_recording(path, rec)
+    return path
+
+
+@pytest.mark.parametrize(("method", "variant", "params"), [
+    ("frame", "separate", {"threshold": 1.5}),
+    ("frame-area", "no-gaussian", {"reference_camera": 0, "threshold": 3}),
+    ("stereobm", None, {"num_disparities": 32}),
+])
+def test_cli_equals_match(tmp_path, recording_file, method, variant, params):
+    out = tmp_path / "m.npz"
+    argv = ["match", str(recording_file), "--method", method, "-o", str(out)]
+    argv += ["--variant", variant] if variant else []
+    for k, v in params.items():
+        argv += ["--param", f"{k}={v}"]
+    assert main(argv) == 0
+    got = read_matches(out)
+    expected = match(recording_file, method=method, variant=variant, **params)
+    assert got.matches.size > 0
+    np.testing.assert_array_equal(got.matches, expected.matches)
+    for key in ("method", "variant", "params", "anchor", "window_us", "input_events", "version"):
+        assert got.meta[key] == expected.meta[key], key
+    assert got.meta["elapsed_s"] >= 0 and got.meta["input"] == [str(recording_file)]
+
+
+def test_cli_as_a_subprocess(tmp_path, recording_file):
+    out = tmp_path / "m.npz"
+    proc = subprocess.run([sys.executable, "-m", "cvstereo", "match", str(recording_file), "-o", str(out),
+                           "--no-progress"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "matches" in proc.stdout
+    np.testing.assert_array_equal(read_matches(out).matches, match(recording_file).matches)
+
+
+def test_list_methods(capsys):
+    assert main(["match", "--list-methods"]) == 0
+    text = capsys.readouterr().out
+    for name in METHODS:
+        assert f"{name}:" in text
+    for expected in ("shared (default), separate, on, off", "gaussian (default), no-gaussian",
+                     "width_tolerance = 0.3", "threshold = 1.2", "reference_camera = 1", "num_disparities = 64",
+                     "no-gaussian: gaussian=false, threshold=4.0"):
+        assert expected in text
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--method", "frames"], "choose one of: frame, frame-area"),
+    (["--variant", "both"], "shared, separate, on, off"),
+    (["--param", "treshold=2"], "allowed: anchor_camera"),
+    (["--param", "threshold=high"], "needs a float"),
+    (["--param", "threshold=-1"], "threshold must be > 0"),
+    (["--param", "polarity=both"], "must be one of shared, separate, on, off"),
+    (["--method", "stereobm", "--param", "num_disparities=40"], "multiple of 16"),
+])
+def test_invalid_input_exits_1_listing_the_allowed(tmp_path, recording_file, capsys, args, message):
+    out = tmp_path / "m.npz"
+    assert main(["match", str(recording_file), "-o", str(out), *args]) == 1
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+    assert not out.exists()
+
+
+def test_missing_output_is_a_usage_error(recording_file):
+    with pytest.raises(SystemExit) as exc:
+        main(["match", str(recording_file)])
+    assert exc.value.code == 2
