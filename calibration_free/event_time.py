@@ -71,30 +71,44 @@ class EventTimeParams(DynamicFrameParams):
 
 
 @njit(cache=True)
-def _resolve(pt, px, py, pp, pv, n, ct, cx, cy, cp, cv, window, row_tol, value_tol, side, max_d, out):
+def _resolve(pt, px, py, pp, pv, n, ct, cx, cy, cp, cv, height, window, row_tol, value_tol, side, max_d, out):
     """Disparity of the first ``n`` pending reference events (-1: no candidate).
 
     Pending events (pt, px, py, pp, pv: time, x, y, p, D1 before the update) and candidates (ct, ... cv:
     the other camera's events that passed the threshold and sign tests, D2 just after their update) are
-    both time-ordered, so the candidate window is found with a pointer that only moves forward.
+    both time-ordered. Candidates are bucketed by row (a stable counting sort keeps each row time-ordered),
+    so each pending event scans only rows y - row_tol .. y + row_tol, from a per-row pointer that only moves
+    forward. The winner, the smallest distance, does not depend on the scan order.
     ``side`` is +1 (x2 >= x), -1 (x2 <= x) or 0 (either side).
     """
-    lo = 0
     nc = ct.shape[0]
+    start = np.zeros(height + 1, dtype=np.int64)
+    for j in range(nc):
+        start[cy[j] + 1] += 1
+    for r in range(height):
+        start[r + 1] += start[r]
+    fill = start[:height].copy()
+    order = np.empty(nc, dtype=np.int64)
+    for j in range(nc):
+        order[fill[cy[j]]] = j
+        fill[cy[j]] += 1
+    lo = start[:height].copy()
     for i in range(n):
         t = pt[i]
-        while lo < nc and ct[lo] < t - window:
-            lo += 1
         best = -1
-        j = lo
-        while j < nc and ct[j] <= t + window:
-            if abs(cy[j] - py[i]) <= row_tol and cp[j] == pp[i] and abs(pv[i] - cv[j]) <= value_tol:
-                dx = cx[j] - px[i]
-                if not ((side > 0 and dx < 0) or (side < 0 and dx > 0)):
-                    d = abs(dx)
-                    if d <= max_d and (best < 0 or d < best):
-                        best = d
-            j += 1
+        for r in range(max(0, py[i] - row_tol), min(height - 1, py[i] + row_tol) + 1):
+            while lo[r] < start[r + 1] and ct[order[lo[r]]] < t - window:
+                lo[r] += 1
+            k = lo[r]
+            while k < start[r + 1] and ct[order[k]] <= t + window:
+                j = order[k]
+                k += 1
+                if cp[j] == pp[i] and abs(pv[i] - cv[j]) <= value_tol:
+                    dx = cx[j] - px[i]
+                    if not ((side > 0 and dx < 0) or (side < 0 and dx > 0)):
+                        d = abs(dx)
+                        if d <= max_d and (best < 0 or d < best):
+                            best = d
         out[i] = best
 
 
@@ -169,8 +183,8 @@ class EventTimeMatcher(StreamMatcher):
         ref = prm.reference_camera
         side = 0 if not prm.restrict_side else (1 if ref == 1 else -1)
         out = np.empty(n, dtype=np.int64)
-        _resolve(*event_columns(self._pending[:n]), self._pending_value[:n], n,
-                 *event_columns(self._cands), self._cand_value, int(prm.time_window_us), int(prm.row_tolerance),
+        _resolve(*event_columns(self._pending[:n]), self._pending_value[:n], n, *event_columns(self._cands),
+                 self._cand_value, self.resolution[1], int(prm.time_window_us), int(prm.row_tolerance),
                  float(prm.value_tolerance), side, int(prm.max_disparity), out)
         found = np.flatnonzero(out >= 0)
         resolved = self._pending[:n]

@@ -1,0 +1,156 @@
+"""Dynamic frames: hand-computed values, the decay clock, polarity modes, fast == reference."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cvstereo.dynamic_frames import (
+    FORGET_TICKS,
+    POLARITY_MODES,
+    DynamicFrameParams,
+    DynamicFrames,
+    FrameBank,
+    polarity_slots,
+    update_kernel,
+)
+from cvstereo.events import make_events
+
+# Thesis eq. 3.8, to the four digits it prints.
+G3 = np.array([[0.0751, 0.1238, 0.0751], [0.1238, 0.2042, 0.1238], [0.0751, 0.1238, 0.0751]])
+
+
+def test_kernel_is_twice_the_thesis_gaussian():
+    np.testing.assert_allclose(update_kernel(DynamicFrameParams()), 2 * G3, atol=2e-4)
+    assert update_kernel(DynamicFrameParams(gaussian=False)).tolist() == [[1.0]]
+
+
+def test_single_event_values_by_hand():
+    frames = DynamicFrames()
+    frames.add_event(t=0, x=10, y=20, p=1)
+    v = frames.values()[0]
+    assert v[20, 10] == pytest.approx(2 * 0.2042, abs=2e-4)
+    assert v[20, 11] == pytest.approx(2 * 0.1238, abs=2e-4)
+    assert v[19, 10] == pytest.approx(2 * 0.1238, abs=2e-4)
+    assert v[21, 11] == pytest.approx(2 * 0.0751, abs=2e-4)
+    assert np.count_nonzero(v) == 9
+    frames.add_event(t=0, x=10, y=20, p=0)  # an OFF event at the same pixel and time cancels it
+    assert np.abs(frames.values()).max() < 1e-15
+
+
+def test_update_clipped_at_the_border():
+    frames = DynamicFrames()
+    frames.add_event(t=0, x=0, y=127, p=0)
+    v = frames.values()[0]
+    assert np.count_nonzero(v) == 4
+    assert v[127, 0] == pytest.approx(-2 * 0.2042, abs=2e-4)
+    assert v[126, 1] == pytest.approx(-2 * 0.0751, abs=2e-4)
+
+
+def test_single_pixel_update_adds_the_sign():
+    frames = DynamicFrames(DynamicFrameParams(gaussian=False))
+    frames.add_event(t=0, x=3, y=4, p=1)
+    frames.add_event(t=0, x=3, y=4, p=1)
+    frames.add_event(t=0, x=5, y=4, p=0)
+    v = frames.values()[0]
+    assert v[4, 3] == 2.0 and v[4, 5] == -1.0 and np.count_nonzero(v) == 2
+
+
+def test_decay_after_40ms_without_events():
+    frames = DynamicFrames()
+    frames.add_event(t=0, x=10, y=10, p=1)
+    before = frames.value(0, 10, 10)
+    frames.advance(40_000)  # ticks at 250, 500, ..., 40000: 160 of them
+    assert frames.value(0, 10, 10) == pytest.approx(before * 0.99**160, rel=1e-12)
+    assert 0.99**160 == pytest.approx(0.2, abs=0.001)  # "drops to 20 percent in 40 ms"
+
+
+def test_decay_clock_is_absolute_and_a_tick_at_the_event_time_comes_first():
+    frames = DynamicFrames()
+    frames.add_event(t=249, x=10, y=10, p=1)
+    v0 = frames.value(0, 10, 10)
+    frames.advance(249)
+    assert frames.value(0, 10, 10) == v0  # no tick yet
+    frames.advance(250)  # the tick at exactly t = 250 applies before an event at 250
+    assert frames.value(0, 10, 10) == pytest.approx(v0 * 0.99, rel=1e-15)
+    frames.advance(499)
+    assert frames.value(0, 10, 10) == pytest.approx(v0 * 0.99, rel=1e-15)
+
+
+def test_untouched_frames_skip_their_ticks():
+    frames = DynamicFrames()
+    frames.advance(10**12)
+    frames.add_event(t=10**12, x=1, y=1, p=1)
+    assert frames.scale == 1.0 and frames.value(0, 1, 1) == pytest.approx(2 * 0.2042, abs=2e-4)
+
+
+@pytest.mark.parametrize(("mode", "slots"), [("shared", [0, 0]), ("separate", [0, 1]), ("on", [-1, 0]),
+                                             ("off", [0, -1])])
+def test_polarity_modes(mode, slots):
+    n, slot_of_p = polarity_slots(mode)
+    assert slot_of_p.tolist() == slots and n == max(slots) + 1
+    frames = DynamicFrames(DynamicFrameParams(polarity=mode))
+    frames.add_event(t=0, x=5, y=5, p=1)
+    frames.add_event(t=0, x=5, y=5, p=0)
+    v = frames.values()
+    if mode == "shared":
+        assert np.abs(v).max() < 1e-15
+    elif mode == "separate":
+        assert v[1, 5, 5] > 0.4 and v[0, 5, 5] < -0.4
+    else:
+        assert v.shape[0] == 1 and (v[0, 5, 5] > 0.4 if mode == "on" else v[0, 5, 5] < -0.4)
+
+
+def test_invalid_parameters_are_rejected():
+    with pytest.raises(ValueError, match="polarity"):
+        DynamicFrameParams(polarity="both")
+    with pytest.raises(ValueError, match="kernel_size"):
+        DynamicFrameParams(kernel_size=4)
+    with pytest.raises(ValueError, match="decay"):
+        DynamicFrameParams(decay=1.5)
+
+
+def _reference_values(events, params, *, read_after):
+    frames = DynamicFrames(params, resolution=(24, 6))
+    out = []
+    for e in events:
+        t, x, y, p = (int(e[f]) for f in ("t", "x", "y", "p"))
+        slot = frames.slot(p)
+        if slot < 0:
+            out.append(np.nan)
+            continue
+        frames.advance(t)
+        if not read_after:
+            out.append(frames.value(slot, x, y))
+        frames.add(slot, x, y, 1.0 if p else -1.0)
+        if read_after:
+            out.append(frames.value(slot, x, y))
+    return np.array(out), frames
+
+
+@settings(max_examples=15, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), mode=st.sampled_from(POLARITY_MODES), gaussian=st.booleans(),
+       decay=st.sampled_from([0.99, 0.5]), read_after=st.booleans(), gap=st.booleans())
+def test_fast_equals_reference(seed, mode, gaussian, decay, read_after, gap):
+    # decay 0.5 renormalises the lazy scale every ~83 ms; a gap beyond FORGET_TICKS clears the frames.
+    rng = np.random.default_rng(seed)
+    n = 400
+    t = np.sort(rng.integers(0, 300_000, n))
+    if gap:
+        t[n // 2:] += (FORGET_TICKS + 5) * 250
+    events = make_events(t, rng.integers(0, 24, n), rng.integers(0, 6, n), rng.integers(0, 2, n))
+    params = DynamicFrameParams(polarity=mode, gaussian=gaussian, decay=decay)
+    expected, ref = _reference_values(events, params, read_after=read_after)
+    bank = FrameBank(1, params, resolution=(24, 6))
+    cut = int(rng.integers(0, n))  # two calls: state carries over
+    got = np.concatenate([bank.process(0, events[:cut], read="after" if read_after else "before"),
+                          bank.process(0, events[cut:], read="after" if read_after else "before")])
+    np.testing.assert_array_equal(got, expected)  # bit for bit, NaN where dropped
+    np.testing.assert_array_equal(bank.values(0), ref.values())
+    later = int(t[-1]) + 10_000
+    clock, scale = bank.clock.copy(), bank.scale.copy()
+    ref.advance(later)
+    np.testing.assert_array_equal(bank.values(0, later), ref.values())
+    assert np.array_equal(bank.clock, clock) and np.array_equal(bank.scale, scale)  # values() reads a copy
