@@ -10,7 +10,8 @@ Two layouts (formats.md):
 
 Columns are separated by whitespace or commas; ``t`` is integer microseconds; ``p`` is 1/0 or +1/-1;
 lines starting with ``#`` are comments. Header comments before the first event may say
-``# resolution W H`` and (merged files) ``# left_retina R``; the writers put both there.
+``# resolution W H``, ``# fields t x y p [retina]`` (tells the layout of a file without events) and
+(merged files) ``# left_retina R``; the writers put all three there.
 
 What a file cannot say is detected, and the decision is recorded in the stream's ``meta``:
 
@@ -62,7 +63,8 @@ class TextHeader:
     Attributes
     ----------
     columns : int or None
-        Column count of the first event line (4 single camera, 5 merged); None for a file without events.
+        Column count of the first event line (4 single camera, 5 merged), else of the ``# fields``
+        header; None for a file without either.
     resolution : (width, height) or None
         From ``# resolution W H``.
     left_retina : int or None
@@ -81,7 +83,7 @@ def read_text_header(path: str | os.PathLike) -> TextHeader:
     ------
     FileNotFoundError, CorruptFileError
     """
-    resolution = left_retina = None
+    resolution = left_retina = fields = None
     with _open(path) as fh:
         for lineno, line in enumerate(fh, 1):
             stripped = line.strip()
@@ -98,6 +100,8 @@ def read_text_header(path: str | os.PathLike) -> TextHeader:
                     resolution = (int(words[1]), int(words[2]))
                     if min(resolution) <= 0:
                         raise ValueError
+                elif key == b"fields":
+                    fields = len(words) - 1
                 elif key == b"left_retina":
                     left_retina = int(words[1])
                     if left_retina not in (0, 1):
@@ -107,7 +111,7 @@ def read_text_header(path: str | os.PathLike) -> TextHeader:
                     f"{path}, line {lineno}: header '{_show(line)}' is malformed; write '# resolution W H' "
                     "(positive integers) or '# left_retina 0|1'."
                 ) from None
-    return TextHeader(None, resolution, left_retina)
+    return TextHeader(fields, resolution, left_retina)
 
 
 class _Block(NamedTuple):
@@ -580,7 +584,7 @@ def write_edvs_text(path: str | os.PathLike, events: np.ndarray, *,
         Stated in the ``# resolution`` header.
     """
     validate_events(events, resolution=resolution, source=f"writing {path}")
-    _write_rows(path, ["t x y p (t in microseconds, p 1 = ON, 0 = OFF)", _resolution_line(resolution)],
+    _write_rows(path, ["fields t x y p", "t in microseconds, p 1 = ON, 0 = OFF", _resolution_line(resolution)],
                 [events["t"], events["x"], events["y"], events["p"]])
 
 
@@ -607,7 +611,7 @@ def write_edvs_merged(path: str | os.PathLike, recording: Recording, *, left_ret
     retina = np.repeat(np.array([left_retina, 1 - left_retina], np.int8), [recording.left.size, recording.right.size])
     order = np.argsort(both["t"], kind="stable")
     both, retina = both[order], retina[order]
-    _write_rows(path, ["t x y p retina (t in microseconds, p 1 = ON, 0 = OFF, retina = camera id)",
+    _write_rows(path, ["fields t x y p retina", "t in microseconds, p 1 = ON, 0 = OFF, retina = camera id",
                        _resolution_line(recording.resolution), f"left_retina {left_retina}"],
                 [both["t"], both["x"], both["y"], both["p"], retina])
 

@@ -42,6 +42,9 @@ def _open_npz(path: str | os.PathLike):
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such file.")
+    if not zipfile.is_zipfile(path):
+        # Checked first because np.load leaks its file handle when the zip directory is unreadable.
+        raise CorruptFileError(f"{path}: not a readable .npz archive (no zip directory: truncated or not an .npz).")
     try:
         return np.load(path, allow_pickle=False)
     except (zipfile.BadZipFile, EOFError, OSError, ValueError) as exc:

@@ -1,0 +1,41 @@
+"""Random valid event streams and recordings for the I/O tests (plain numpy and hypothesis strategies)."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import strategies as st
+
+from cvstereo.events import make_events
+from cvstereo.recording import Recording
+
+
+def random_events(rng: np.random.Generator, n: int, resolution=(128, 128), *, t0: int = 0,
+                  max_step: int = 50) -> np.ndarray:
+    """``n`` valid, time-ordered events (repeated timestamps included) of EVENT_DTYPE."""
+    t = t0 + np.cumsum(rng.integers(0, max_step, n))
+    return make_events(t, rng.integers(0, resolution[0], n), rng.integers(0, resolution[1], n), rng.integers(0, 2, n))
+
+
+def random_recording(rng: np.random.Generator, n_left: int, n_right: int, resolution=(128, 128), *,
+                     truth: bool = False, meta: dict | None = None) -> Recording:
+    """A recording of random events; with ``truth``, disparities with some NaN."""
+    left, right = random_events(rng, n_left, resolution), random_events(rng, n_right, resolution)
+    ld = rd = None
+    if truth:
+        ld, rd = (np.where(rng.random(n) < 0.3, np.nan, rng.uniform(0, 30, n)).astype(np.float32)
+                  for n in (n_left, n_right))
+    return Recording(left, right, ld, rd, resolution, meta or {})
+
+
+@st.composite
+def recordings(draw, *, resolution=(128, 128), truth: bool = False, max_events: int = 200) -> Recording:
+    """Hypothesis strategy: a random valid recording (either camera may be empty)."""
+    seed = draw(st.integers(0, 2**32 - 1))
+    n_left, n_right = draw(st.integers(0, max_events)), draw(st.integers(0, max_events))
+    return random_recording(np.random.default_rng(seed), n_left, n_right, resolution, truth=truth)
+
+
+def assert_same_events(a: np.ndarray, b: np.ndarray) -> None:
+    """Equal event arrays (dtype and every field)."""
+    assert a.dtype == b.dtype
+    np.testing.assert_array_equal(a, b)
