@@ -19,8 +19,11 @@ COMMANDS: dict[str, str] = {
     "evaluate": "evaluate",
     "demo": "demo",
     "match": "match",
+    "plot": "plot",
+    "video": "video",
     "record": "record",
     "live": "live",
+    "rigcheck": "rigcheck",
 }
 
 

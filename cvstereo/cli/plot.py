@@ -1,0 +1,139 @@
+"""``cvstereo plot KIND RECORDING [MATCHES] -o OUT.png``: the thesis' pictures of a recording and its matches.
+
+Needs the ``viz`` extra (matplotlib). ``KIND all`` writes every picture the inputs allow into the folder ``-o``.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from cvstereo.cli._common import add_format_options, format_options
+
+#: Picture kind (also its file name under ``all``) -> (needs matches, what it shows).
+KINDS: dict[str, tuple[bool, str]] = {
+    "events": (False, "both cameras' events of one window, ON green, OFF red (thesis fig. 3.2)"),
+    "filtered": (False, "Gaussian-filtered signed frames and the pixels above threshold (fig. 3.3)"),
+    "dynamic": (False, "the decaying dynamic frames at the end of the window (fig. 3.5)"),
+    "disparity-time": (True, "every match's disparity over time with the ground truth (figs. 4.4, 4.5)"),
+    "disparity-map": (True, "colour-coded disparity at the anchor pixels per window (figs. 4.3, 4.6)"),
+    "error-hist": (True, "histogram of the error against ground truth, with MAE and bad1"),
+}
+
+
+def add_parser(sub, name: str) -> argparse.ArgumentParser:
+    kinds = "\n".join(f"  {k:15s} {desc}{' (needs MATCHES)' if needs else ''}" for k, (needs, desc) in KINDS.items())
+    p = sub.add_parser(
+        name,
+        help="draw the thesis' figures of a recording and a matches file (extra: viz)",
+        description="Draw a picture of a recording and, for the disparity pictures, of a matches file written by "
+        f"`cvstereo match`. Kinds:\n{kinds}\n  all             every picture the inputs allow, into the folder -o",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("kind", metavar="KIND", choices=[*KINDS, "all"], help=f"one of: {', '.join(KINDS)}, all")
+    p.add_argument("recording", metavar="RECORDING", help="the recording (the one the matches were computed on)")
+    p.add_argument("matches", metavar="MATCHES", nargs="?", default=None, help="matches .npz from `cvstereo match`")
+    p.add_argument("-o", "--output", required=True, metavar="OUT",
+                   help="picture to write (.png, .pdf, .svg); for KIND all, a folder (created if missing)")
+    p.add_argument("--right", default=None, help="the right camera's file, for one-file-per-camera formats")
+    p.add_argument("--t-start-ms", type=float, default=None, metavar="MS",
+                   help="start of the window shown (default: the window with the most events); disparity-map: "
+                   "the first of --windows consecutive windows (default: windows spread over the matches)")
+    p.add_argument("--window-ms", type=float, default=40.0, metavar="MS",
+                   help="window length (default: %(default)g, the thesis'; frame matchers' own window for "
+                   "their matches)")
+    p.add_argument("--windows", type=int, default=3, metavar="N", help="disparity-map: number of windows (rows)")
+    add_depth_options(p)
+    p.add_argument("--dpi", type=float, default=None, help="resolution of raster pictures (default: 120)")
+    add_format_options(p)
+    return p
+
+
+def add_depth_options(p: argparse.ArgumentParser) -> None:
+    """``--depth A C`` and ``--metres/--no-metres``: a distance axis from d = A/Z - C."""
+    g = p.add_argument_group("distance in metres (d = A/Z - C)")
+    g.add_argument("--depth", type=float, nargs=2, default=None, metavar=("A", "C"),
+                   help="A = focal length (px) x baseline (m) and C (px), e.g. from `cvstereo depth-fit` "
+                   "(default: from the recording's rig, where it has one)")
+    g.add_argument("--metres", action=argparse.BooleanOptionalAction, default=True,
+                   help="show distances where a depth model is known (default: yes)")
+
+
+def depth_model(args: argparse.Namespace, recording):
+    """The DepthModel the options ask for, or None."""
+    from cvstereo.depth import DepthModel
+    from cvstereo.viz import depth_from_meta
+
+    if not args.metres:
+        return None
+    if args.depth is not None:
+        return DepthModel(a=args.depth[0], c=args.depth[1])
+    return depth_from_meta(recording.meta)
+
+
+def _ms_to_us(ms: float | None) -> int | None:
+    return None if ms is None else round(ms * 1000)
+
+
+def run(args: argparse.Namespace) -> int:
+    from cvstereo.viz._mpl import require_matplotlib
+
+    require_matplotlib()  # before reading anything: a missing extra is said at once
+    if args.window_ms <= 0:
+        raise ValueError(f"--window-ms must be > 0, got {args.window_ms:g}.")
+    if args.windows < 1:
+        raise ValueError(f"--windows must be >= 1, got {args.windows}.")
+    if args.kind != "all" and KINDS[args.kind][0] and args.matches is None:
+        raise ValueError(f"plot {args.kind} shows matches: give the MATCHES file written by `cvstereo match` "
+                         f"after RECORDING (e.g. cvstereo plot {args.kind} rec.npz matches.npz -o out.png).")
+    from cvstereo.io import read_matches, read_recording
+    from cvstereo.viz import save_figure
+
+    recording = read_recording(args.recording, args.right, **format_options(args))
+    result = read_matches(args.matches) if args.matches is not None else None
+    depth = depth_model(args, recording)
+    if args.kind != "all":
+        save_figure(make_figure(args.kind, recording, result, args, depth), args.output, dpi=args.dpi)
+        print(f"{args.kind} -> {args.output}")
+        return 0
+    folder = Path(args.output)
+    folder.mkdir(parents=True, exist_ok=True)
+    for kind, (needs_matches, _) in KINDS.items():
+        if needs_matches and result is None:
+            print(f"{kind}: skipped (no MATCHES given)")
+            continue
+        if kind == "error-hist" and not recording.has_truth:
+            print(f"{kind}: skipped (the recording has no ground truth)")
+            continue
+        path = folder / f"{kind}.png"
+        save_figure(make_figure(kind, recording, result, args, depth), path, dpi=args.dpi)
+        print(f"{kind} -> {path}")
+    return 0
+
+
+def make_figure(kind: str, recording, result, args: argparse.Namespace, depth):
+    """The figure of one kind, with the command line's window options."""
+    from cvstereo import viz
+
+    window_us = _ms_to_us(args.window_ms)
+    t_start = _ms_to_us(args.t_start_ms)
+    if kind == "events":
+        return viz.plot_event_frames(recording, t_start, window_us=window_us)
+    if kind == "filtered":
+        return viz.plot_filtered_frames(recording, t_start, window_us=window_us)
+    if kind == "dynamic":
+        t = None if t_start is None else t_start + window_us
+        return viz.plot_dynamic_frames(recording, t)
+    if kind == "disparity-time":
+        return viz.plot_disparity_over_time(recording, result, window_us=window_us, depth=depth)
+    if kind == "disparity-map":
+        anchor, own = result.meta.get("anchor"), int(result.meta.get("window_us", 0) or 0)
+        w = own if anchor == "window" and own > 0 else window_us
+        # A frame matcher's windows lie on the absolute grid: show the one holding t_start, not a shifted one.
+        first = None if t_start is None else (t_start - t_start % w if anchor == "window" else t_start)
+        ends = None if first is None else [first + w * (i + 1) for i in range(args.windows)]
+        return viz.plot_disparity_map(recording, result, ends, n_windows=args.windows, window_us=window_us,
+                                      depth=depth)
+    if kind == "error-hist":
+        return viz.plot_error_histogram(recording, result)
+    raise ValueError(f"unknown picture kind {kind!r}; choose one of: {', '.join(KINDS)}, all.")

@@ -1,0 +1,43 @@
+"""``cvstereo video RECORDING [MATCHES] -o OUT.mp4``: an MP4 of the events and, given matches, their disparities.
+
+One video frame per window (40 ms: real time at 25 fps): both cameras' events, ON green and OFF red, and the
+colour-coded disparity at each anchor pixel, with time, median disparity and distance written on top.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from cvstereo.cli._common import add_format_options, format_options
+from cvstereo.cli.plot import add_depth_options, depth_model
+
+
+def add_parser(sub, name: str) -> argparse.ArgumentParser:
+    p = sub.add_parser(name, help="write an MP4 of a recording with its disparities",
+                       description=__doc__.split("\n\n")[1])
+    p.add_argument("recording", metavar="RECORDING", help="the recording (the one the matches were computed on)")
+    p.add_argument("matches", metavar="MATCHES", nargs="?", default=None, help="matches .npz from `cvstereo match`")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.mp4", help="video file to write")
+    p.add_argument("--right", default=None, help="the right camera's file, for one-file-per-camera formats")
+    p.add_argument("--fps", type=float, default=25.0, help="frames per second (default: %(default)g)")
+    p.add_argument("--scale", type=int, default=4, help="video pixels per sensor pixel (default: %(default)d)")
+    p.add_argument("--seconds", type=float, default=None, help="only the first SECONDS of the recording")
+    p.add_argument("--window-ms", type=float, default=40.0, metavar="MS",
+                   help="time per video frame (default: %(default)g)")
+    add_depth_options(p)
+    add_format_options(p)
+    return p
+
+
+def run(args: argparse.Namespace) -> int:
+    from cvstereo.io import read_matches, read_recording
+    from cvstereo.viz import write_video
+
+    if args.window_ms <= 0:
+        raise ValueError(f"--window-ms must be > 0, got {args.window_ms:g}.")
+    recording = read_recording(args.recording, args.right, **format_options(args))
+    result = read_matches(args.matches) if args.matches is not None else None
+    n = write_video(recording, args.output, result, fps=args.fps, window_us=round(args.window_ms * 1000),
+                    scale=args.scale, seconds=args.seconds, depth=depth_model(args, recording))
+    print(f"{n} frames ({n / args.fps:.1f} s at {args.fps:g} fps) -> {args.output}")
+    return 0

@@ -1,0 +1,232 @@
+"""The images every picture and the video are drawn from: plain numpy and OpenCV, no matplotlib.
+
+Keeping the data step apart from the drawing lets the plots (matplotlib) and the video (OpenCV) show exactly
+the same pixels, and lets tests check the data without rendering anything.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import cv2
+import numpy as np
+
+from cvstereo.depth import DepthModel
+from cvstereo.events import time_slice
+from cvstereo.matches import MatchResult
+from cvstereo.recording import Recording
+
+#: Window length of the thesis' frames (40 ms), us.
+DEFAULT_WINDOW_US = 40_000
+
+#: Colours of the event frames (thesis fig. 3.1/3.2): ON green, OFF red, on black. A pixel that saw both in one
+#: window gets both channels, i.e. yellow.
+ON_RGB = (0, 255, 0)
+OFF_RGB = (255, 0, 0)
+
+#: Colour of pixels without a disparity in the colour-coded maps (not colour 0 of the map, which is a value).
+NO_DATA_RGB = (0, 0, 0)
+
+CAMERA_NAMES = ("left", "right")
+
+
+def _shape(resolution: tuple[int, int]) -> tuple[int, int]:
+    return int(resolution[1]), int(resolution[0])
+
+
+def event_frame_rgb(events: np.ndarray, *, resolution: tuple[int, int]) -> np.ndarray:
+    """Pixels that saw ON events green, OFF events red, both yellow, none black (thesis fig. 3.2).
+
+    Parameters
+    ----------
+    events : (N,) ndarray of EVENT_DTYPE
+        The events of one camera in one window.
+    resolution : (width, height), keyword-only
+
+    Returns
+    -------
+    (height, width, 3) uint8 ndarray
+        RGB.
+
+    Examples
+    --------
+    >>> from cvstereo.events import make_events
+    >>> img = event_frame_rgb(make_events([0, 1], [0, 1], [0, 0], [1, 0]), resolution=(2, 1))
+    >>> img[0].tolist()
+    [[0, 255, 0], [255, 0, 0]]
+    """
+    h, w = _shape(resolution)
+    idx = events["y"].astype(np.intp) * w + events["x"].astype(np.intp)
+    img = np.zeros((h * w, 3), dtype=np.uint8)
+    for polarity, rgb in ((1, ON_RGB), (0, OFF_RGB)):
+        seen = np.unique(idx[events["p"] == polarity])
+        img[seen] |= np.array(rgb, dtype=np.uint8)
+    return img.reshape(h, w, 3)
+
+
+def pixel_mean(x: np.ndarray, y: np.ndarray, values: np.ndarray, *, resolution: tuple[int, int]) -> np.ndarray:
+    """Mean of the finite ``values`` at each pixel, NaN where a pixel has none.
+
+    Parameters
+    ----------
+    x, y : (N,) int ndarray
+        Pixel of each value.
+    values : (N,) float ndarray
+    resolution : (width, height), keyword-only
+
+    Returns
+    -------
+    (height, width) float64 ndarray
+
+    Examples
+    --------
+    >>> pixel_mean(np.array([0, 0, 1]), np.array([0, 0, 0]), np.array([2.0, 4.0, np.nan]), resolution=(2, 1))
+    array([[ 3., nan]])
+    """
+    h, w = _shape(resolution)
+    values = np.asarray(values, dtype=np.float64)
+    finite = np.isfinite(values)
+    idx = np.asarray(y, np.intp)[finite] * w + np.asarray(x, np.intp)[finite]
+    sums = np.bincount(idx, weights=values[finite], minlength=h * w)
+    counts = np.bincount(idx, minlength=h * w)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = np.where(counts > 0, sums / np.maximum(counts, 1), np.nan)
+    return out.reshape(h, w)
+
+
+def match_window_slice(matches: np.ndarray, t_start: int, t_stop: int, *, anchor: str) -> slice:
+    """The matches that belong to the window ``[t_start, t_stop)``.
+
+    Event-anchored matches carry their event's time, so they belong when ``t_start <= t < t_stop``. Window-anchored
+    matches carry their window's *end* (formats.md), so they belong when ``t_start < t <= t_stop``.
+
+    Parameters
+    ----------
+    matches : (N,) ndarray of MATCH_DTYPE
+        Time-ordered.
+    t_start, t_stop : int
+        The window, us.
+    anchor : {"event", "window"}, keyword-only
+
+    Returns
+    -------
+    slice
+    """
+    side = "right" if anchor == "window" else "left"
+    lo, hi = np.searchsorted(matches["t"], [t_start, t_stop], side=side)
+    return slice(int(lo), int(max(lo, hi)))
+
+
+def anchor_of(result: MatchResult) -> tuple[str, int]:
+    """(anchor, window_us) from a matches file's meta; event anchors when the meta does not say."""
+    anchor = str(result.meta.get("anchor", "event"))
+    if anchor not in ("event", "window"):
+        raise ValueError(f"matches meta: anchor must be 'event' or 'window', got {anchor!r} (formats.md).")
+    return anchor, int(result.meta.get("window_us", 0) or 0)
+
+
+def anchor_cameras(result: MatchResult) -> list[int]:
+    """The cameras the matches are anchored on (0 = left, 1 = right), from the meta or the matches."""
+    cams = result.meta.get("anchor_cameras")
+    if cams is None:
+        cams = np.unique(result.matches["camera"]).tolist() or [0]
+    return sorted(int(c) for c in cams)
+
+
+def window_grid(recording: Recording, window_us: int) -> np.ndarray:
+    """Start times of the windows ``[k*W, (k+1)*W)`` on the absolute clock from the first to the last event."""
+    first, last = recording.t_start // window_us, recording.t_end // window_us
+    return np.arange(first, last + 1, dtype=np.int64) * window_us
+
+
+def busiest_window(recording: Recording, window_us: int = DEFAULT_WINDOW_US) -> int:
+    """Start (us) of the absolute window holding the most events of both cameras (a good default to show)."""
+    starts = window_grid(recording, window_us)
+    counts = np.zeros(starts.size, dtype=np.int64)
+    for ev in (recording.left, recording.right):
+        k = (ev["t"] // window_us - starts[0] // window_us).astype(np.intp)
+        counts += np.bincount(k, minlength=starts.size)
+    return int(starts[int(np.argmax(counts))])
+
+
+def truth_image(recording: Recording, camera: int, t_start: int, t_stop: int) -> np.ndarray:
+    """Mean true disparity of camera ``camera``'s events in ``[t_start, t_stop)`` at each pixel (NaN: none).
+
+    Raises
+    ------
+    ValueError
+        The recording has no ground truth.
+    """
+    truth = recording.truth(camera)
+    if truth is None:
+        raise ValueError("the recording has no ground truth (left_disparity/right_disparity).")
+    ev = recording.events(camera)
+    sl = time_slice(ev, t_start, t_stop)
+    return pixel_mean(ev["x"][sl], ev["y"][sl], truth[sl], resolution=recording.resolution)
+
+
+def disparity_image(matches: np.ndarray, camera: int, *, resolution: tuple[int, int]) -> np.ndarray:
+    """Mean disparity of the matches anchored on camera ``camera`` at each pixel (NaN: no match)."""
+    sel = matches["camera"] == camera
+    m = matches[sel]
+    return pixel_mean(m["x"], m["y"], m["disparity"], resolution=resolution)
+
+
+def disparity_range(*arrays: np.ndarray) -> tuple[float, float]:
+    """A colour range for disparities: from min(0, 1st percentile) to the 99th percentile of all values.
+
+    Percentiles rather than extremes, so that a few wild matches do not wash out the colours of the rest.
+    """
+    # 1st/99th percentiles: the outliers of a matcher are a small minority; these ignore them for the colour scale.
+    values = np.concatenate([np.asarray(a, np.float64).ravel() for a in arrays] or [np.empty(0)])
+    values = values[np.isfinite(values)]
+    if values.size == 0:
+        return 0.0, 1.0
+    lo = min(0.0, float(np.percentile(values, 1)))
+    hi = float(np.percentile(values, 99))
+    return lo, hi if hi > lo else lo + 1.0
+
+
+def colorize(image: np.ndarray, vmin: float, vmax: float) -> np.ndarray:
+    """Colour-code a disparity image with the turbo map (OpenCV's ``COLORMAP_TURBO``); NaN becomes black.
+
+    Parameters
+    ----------
+    image : (H, W) float ndarray
+    vmin, vmax : float
+        Values mapped to the ends of the map (clipped beyond).
+
+    Returns
+    -------
+    (H, W, 3) uint8 ndarray
+        RGB.
+    """
+    finite = np.isfinite(image)
+    scaled = np.clip((np.where(finite, image, vmin) - vmin) / (vmax - vmin), 0.0, 1.0)
+    levels = np.round(scaled * 255).astype(np.uint8)
+    rgb = cv2.applyColorMap(levels, cv2.COLORMAP_TURBO)[..., ::-1]
+    rgb = np.ascontiguousarray(rgb)
+    rgb[~finite] = NO_DATA_RGB
+    return rgb
+
+
+def depth_from_meta(meta: Mapping) -> DepthModel | None:
+    """The disparity-to-distance model a recording's meta implies, or None.
+
+    Uses ``meta["depth"] = {"a": ..., "c": ...}`` when present, else the rig's ``focal_px`` and ``baseline_m``
+    (and ``axis_offset_px`` as c), as the simulator writes them.
+    """
+    depth = meta.get("depth")
+    if isinstance(depth, Mapping) and "a" in depth:
+        return DepthModel(a=float(depth["a"]), c=float(depth.get("c", 0.0)))
+    rig = meta.get("rig")
+    if isinstance(rig, Mapping) and "focal_px" in rig and "baseline_m" in rig and float(rig["baseline_m"]) > 0:
+        return DepthModel.from_rig(focal_px=float(rig["focal_px"]), baseline_m=float(rig["baseline_m"]),
+                                   offset_px=float(rig.get("axis_offset_px", rig.get("offset_px", 0.0))))
+    return None
+
+
+def format_distance(metres: float) -> str:
+    """A distance for labels: ``"0.98 m"``, ``"inf"`` beyond the model's range."""
+    return f"{metres:.2f} m" if math.isfinite(metres) else "inf"
