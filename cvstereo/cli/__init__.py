@@ -23,7 +23,6 @@ COMMANDS: dict[str, str] = {
     "video": "video",
     "record": "record",
     "live": "live",
-    "rigcheck": "rigcheck",
 }
 
 
