@@ -251,7 +251,13 @@ class _Side:
                 self.truth = np.concatenate([old, np.asarray(new, np.float32)])
 
     def take_before(self, t_stop: int) -> tuple[np.ndarray, np.ndarray | None]:
-        n = int(np.searchsorted(self.events["t"], t_stop, side="left"))
+        t = self.events["t"]
+        # searchsorted copies a strided field view whole, which made streaming a long in-memory recording
+        # quadratic; search a prefix that grows until it holds t_stop (packets are short).
+        hi = 4096
+        while hi < t.size and t[hi - 1] < t_stop:
+            hi *= 4
+        n = int(np.searchsorted(t[:hi], t_stop, side="left"))
         events, self.events = self.events[:n], self.events[n:]
         truth = None
         if self.truth is not None:
