@@ -1,12 +1,21 @@
 """Live eDVS128 sensors: serial protocol, streaming decoder, one board, two boards on one clock, a virtual
 board on a pseudo-terminal, and an append-only journal for recording."""
 
-from cvstereo.sensors.decoder import StreamDecoder
-from cvstereo.sensors.edvs import EDVS, Chunk
-from cvstereo.sensors.journal import Journal, read_journal
-from cvstereo.sensors.protocol import FORMATS, Commands, ProtocolSettings, encode_events, link_event_rate
-from cvstereo.sensors.stereo import StereoEDVS, StereoSettings
-from cvstereo.sensors.virtual import VirtualEDVS
+import importlib
+
+# Submodules are imported on first use, so that `cvstereo --help` does not load numba for the decoder.
+_EXPORTS = {
+    "StreamDecoder": "decoder", "EDVS": "edvs", "Chunk": "edvs", "Journal": "journal", "read_journal": "journal",
+    "FORMATS": "protocol", "Commands": "protocol", "ProtocolSettings": "protocol", "encode_events": "protocol",
+    "link_event_rate": "protocol", "StereoEDVS": "stereo", "StereoSettings": "stereo", "VirtualEDVS": "virtual",
+}
+
+
+def __getattr__(name: str):
+    if name in _EXPORTS:
+        return getattr(importlib.import_module(f"cvstereo.sensors.{_EXPORTS[name]}"), name)
+    raise AttributeError(f"module 'cvstereo.sensors' has no attribute {name!r}")
+
 
 __all__ = [
     "EDVS", "FORMATS", "Chunk", "Commands", "Journal", "ProtocolSettings", "StereoEDVS", "StereoSettings",

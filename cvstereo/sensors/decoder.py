@@ -77,7 +77,7 @@ class _Scan:
         return _Scan(self.starts[:k], self.y[:k], self.x[:k], self.pbit[:k], self.ts[:k], stop, False)
 
 
-@numba.njit(cache=False, nogil=True)
+@numba.njit(cache=True, nogil=True)
 def _cut_delta(buf, pos, sync, max_groups):  # pragma: no cover - compiled
     # E1: [sync|y] [p|x] then 1..max_groups bytes of 7-bit delta, bit 7 set on the last one only.
     n = buf.shape[0]

@@ -8,10 +8,13 @@ import contextlib
 import signal
 import threading
 from collections.abc import Iterator
+from typing import TYPE_CHECKING
 
 from cvstereo.sensors.protocol import DEFAULT_BAUD, FORMATS, ProtocolSettings
-from cvstereo.sensors.stereo import StereoEDVS, StereoSettings
-from cvstereo.sensors.virtual import VirtualEDVS
+
+if TYPE_CHECKING:  # the boards' modules load numba; the CLI imports them only when it runs
+    from cvstereo.sensors.stereo import StereoEDVS
+    from cvstereo.sensors.virtual import VirtualEDVS
 
 
 def add_rig_arguments(parser: argparse.ArgumentParser) -> None:
@@ -45,6 +48,9 @@ def protocol_settings(args: argparse.Namespace) -> ProtocolSettings:
 @contextlib.contextmanager
 def open_rig(args: argparse.Namespace) -> Iterator[tuple[StereoEDVS, list[VirtualEDVS]]]:
     """Open the two boards named on the command line (or two virtual ones with --simulate)."""
+    from cvstereo.sensors.stereo import StereoEDVS, StereoSettings
+    from cvstereo.sensors.virtual import VirtualEDVS
+
     settings = protocol_settings(args)
     devices: list[VirtualEDVS] = []
     with contextlib.ExitStack() as stack:
