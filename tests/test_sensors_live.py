@@ -138,7 +138,13 @@ def test_sigterm_during_record_leaves_a_valid_recording(tmp_path, rng):
     out = tmp_path / "out.npz"
     proc = subprocess.Popen([sys.executable, "-m", "cvstereo", "record", "--simulate", str(src), "-o", str(out)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    time.sleep(4.0)
+    # Signal only once recording has begun (the journal has data): a loaded machine may take seconds to
+    # start Python, and SIGTERM before the handler is installed would test nothing.
+    journal = tmp_path / "out.npz.journal"
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and not (journal.exists() and journal.stat().st_size > 20_000):
+        time.sleep(0.2)
+    time.sleep(1.0)
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 0, err

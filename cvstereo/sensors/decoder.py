@@ -24,11 +24,11 @@ Examples
 >>> from cvstereo.events import make_events
 >>> from cvstereo.sensors.protocol import ProtocolSettings, encode_events
 >>> s = ProtocolSettings(event_format="E2")
->>> ev = make_events([10, 20, 70_000], [1, 2, 3], [4, 5, 6], [1, 0, 1])
+>>> ev = make_events([10, 20, 60_000], [1, 2, 3], [4, 5, 6], [1, 0, 1])
 >>> dec = StreamDecoder(s)
 >>> out = np.concatenate([dec.decode(encode_events(ev, s)), dec.flush()])
 >>> out["t"].tolist(), out["x"].tolist(), out["p"].tolist()
-([10, 20, 70000], [1, 2, 3], [1, 0, 1])
+([10, 20, 60000], [1, 2, 3], [1, 0, 1])
 """
 
 from __future__ import annotations
