@@ -15,7 +15,8 @@ DEFAULT_PACKET_US = 10_000
 
 
 def match(recording, right=None, *, method: str = "frame", variant: str | None = None,
-          packet_us: int = DEFAULT_PACKET_US, progress: bool = False, **params) -> MatchResult:
+          packet_us: int = DEFAULT_PACKET_US, progress: bool = False, row_offset: float = 0,
+          time_offset_us: int = 0, **params) -> MatchResult:
     """Run one matcher over a recording, streaming it packet by packet.
 
     Parameters
@@ -32,6 +33,10 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         Packet length for streaming.
     progress : bool
         Show a progress bar.
+    row_offset, time_offset_us : keyword-only
+        The rig's offsets (:mod:`cvstereo.rigcorrect`): the right camera's rows are shifted by ``row_offset``
+        and its times by ``-time_offset_us`` before matching, and right-anchored matches are mapped back;
+        recorded in meta under ``rig_correction``. :func:`cvstereo.rigcheck.check_rig` estimates both.
     **params
         Parameter overrides (field names of the method's parameter dataclass).
 
@@ -50,7 +55,14 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
     parts = []
     bar = _progress_bar(progress, recording, method)
     start = time.perf_counter()
-    for packet in recording.packets(packet_us):
+    packets = recording.packets(packet_us)
+    correction = None
+    if row_offset or time_offset_us:
+        from cvstereo.rigcorrect import RigCorrection
+
+        correction = RigCorrection(row_offset, int(time_offset_us), recording.resolution)
+        packets = correction.stream(packets)
+    for packet in packets:
         parts.append(matcher.feed(packet.left, packet.right, until=packet.until))
         if bar is not None:
             bar.update(packet.left.size + packet.right.size)
@@ -67,7 +79,12 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         version=cvstereo.__version__,
         input=source if source is not None else recording.meta.get("source", "memory"),
     )
-    return MatchResult(sort_matches(concat_matches(parts)), meta)
+    matches = concat_matches(parts)
+    if correction is not None:
+        matches = correction.restore(matches)
+        meta["rig_correction"] = {**correction.describe(), "dropped_events": packets.dropped_rows +
+                                  packets.dropped_times}
+    return MatchResult(sort_matches(matches), meta)
 
 
 def _progress_bar(enabled: bool, recording: Recording, method: str):

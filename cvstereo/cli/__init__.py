@@ -23,6 +23,7 @@ COMMANDS: dict[str, str] = {
     "video": "video",
     "record": "record",
     "live": "live",
+    "rigcheck": "rigcheck",
 }
 
 

@@ -37,6 +37,14 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
                    help="show a progress bar (default: when stderr is a terminal)")
     p.add_argument("--list-methods", action="store_true", help="list methods, variants and parameters, then exit")
+    g = p.add_argument_group("rig correction (cvstereo rigcheck)")
+    g.add_argument("--auto", action="store_true",
+                   help="run the rig check first; swap the cameras and remove row/time offsets it finds (printed, "
+                   "and stored in the matches file's meta under 'rigcheck')")
+    g.add_argument("--row-offset", type=int, default=None, metavar="ROWS",
+                   help="add ROWS to the right camera's y before matching (overrides --auto's estimate)")
+    g.add_argument("--time-offset-us", type=int, default=None, metavar="US",
+                   help="the right camera stamps US later: subtract it from its t (overrides --auto's estimate)")
     add_format_options(p)
     p.set_defaults(_parser=p)
     return p
@@ -58,9 +66,12 @@ def run(args: argparse.Namespace) -> int:
     from cvstereo.cli._common import load_recording
 
     recording = load_recording(args)
+    recording, rig, offsets = _rig_correction(args, recording)
     progress = sys.stderr.isatty() if args.progress is None else args.progress
     result = match(recording, method=args.method, variant=args.variant, progress=progress,
-                   packet_us=args.packet_us or DEFAULT_PACKET_US, **overrides)
+                   packet_us=args.packet_us or DEFAULT_PACKET_US, **offsets, **overrides)
+    if rig is not None:
+        result.meta["rigcheck"] = rig
     result.meta["input"] = [args.recording] + ([args.right] if args.right else [])
     result.meta["format_options"] = {k: list(v) if isinstance(v, tuple) else v
                                      for k, v in format_options(args).items()}
@@ -69,6 +80,28 @@ def run(args: argparse.Namespace) -> int:
     print(f"{len(result)} matches from {m['input_events']} events ({args.method}, {m['variant']}) in "
           f"{m['elapsed_s']:.2f} s -> {args.output}")
     return 0
+
+
+def _rig_correction(args: argparse.Namespace, recording):
+    """``--auto`` / ``--row-offset`` / ``--time-offset-us``: (recording to match, rigcheck meta or None, offsets)."""
+    rig, offsets = None, {}
+    if args.auto:
+        from cvstereo.rigcheck import check_rig
+
+        report = check_rig(recording)
+        print(report.summary())
+        prepared = report.prepare(recording)
+        swap, recording = prepared is not recording, prepared
+        offsets = report.match_kwargs()
+        rig = {**report.to_dict(), "applied": {"swap": swap, **offsets}}
+    for key in ("row_offset", "time_offset_us"):
+        if getattr(args, key) is not None:
+            offsets[key] = getattr(args, key)
+    if rig is not None:
+        rig["applied"].update(offsets)
+        print(f"applied: {'swapped cameras, ' if rig['applied']['swap'] else ''}row offset "
+              f"{offsets.get('row_offset', 0)}, time offset {offsets.get('time_offset_us', 0)} us")
+    return recording, rig, offsets
 
 
 def list_methods() -> str:

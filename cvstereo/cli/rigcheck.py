@@ -1,0 +1,43 @@
+"""``cvstereo rigcheck RECORDING [RIGHT] [--json]``: what a calibration would have told, from the events.
+
+Prints which camera is left, the row and time offset between the sensors, the disparity range, the ON/OFF
+and event-rate imbalance and the noise rate, each with a confidence (:func:`cvstereo.rigcheck.check_rig`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from cvstereo.cli._common import add_recording_arguments, load_recording
+
+
+def add_parser(sub, name: str) -> argparse.ArgumentParser:
+    p = sub.add_parser(
+        name,
+        help="estimate the rig (left/right, row and time offset, disparity range, imbalance, noise) from a recording",
+        description="Estimate from the events alone which camera is left, the vertical (row) offset between the "
+        "sensors, the time offset between the streams, the disparity range present, the ON/OFF and event-rate "
+        "imbalance and the noise rate, each with a confidence in [0, 1]. `cvstereo match --auto` applies the "
+        "findings.",
+    )
+    add_recording_arguments(p)
+    p.add_argument("--max-disparity", type=int, default=64, metavar="PX", help="largest disparity searched")
+    p.add_argument("--max-row-offset", type=int, default=8, metavar="ROWS", help="largest row offset searched")
+    p.add_argument("--max-time-offset-ms", type=float, default=20.0, metavar="MS",
+                   help="largest time offset searched")
+    p.add_argument("--json", action="store_true", help="print the report as a JSON object")
+    return p
+
+
+def run(args: argparse.Namespace) -> int:
+    from cvstereo.rigcheck import check_rig
+
+    recording = load_recording(args)
+    report = check_rig(recording, max_disparity=args.max_disparity, max_row_offset=args.max_row_offset,
+                       max_time_offset_us=round(args.max_time_offset_ms * 1000))
+    if args.json:
+        print(json.dumps(report.to_dict(), indent=2))
+    else:
+        print(report.summary())
+    return 0

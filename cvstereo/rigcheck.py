@@ -1,0 +1,629 @@
+"""Rig self-check: learn from the events alone what a calibration would have told.
+
+The thesis' matchers need no calibration, but they assume a rig that real recordings do not always give:
+the camera called "left" may be the right one, the sensors' rows may be a few rows apart, and the two
+streams may be offset in time. :func:`check_rig` estimates, from the events of a :class:`Recording`:
+
+- **swap**: whether the camera given as left is really the right one (the left camera sees a scene point at
+  the larger x), from the sign of the horizontal shift that best overlays short accumulated frames;
+- **row offset** ``r``: rows to add to the right camera's ``y`` so that it lines up with the left
+  (``y_left ~ y_right + r``), fractional, also per horizontal band of the image;
+- **time offset** ``tau``: how much later the right camera stamps the same scene change
+  (``t_right ~ t_left + tau``, microseconds), fractional;
+- **disparity range**: percentiles of the disparities (``x_left - x_right``) that overlay best locally,
+  the dominant disparity and the peaks of the global overlay profile;
+- **imbalance**: event-rate ratio right/left (overall and in 5 ms bursts) and ON share per camera;
+- **noise**: events with no event at any of the 8 neighbouring pixels within a few ms, per second.
+
+Each estimate carries a confidence in [0, 1]. Row and time offset come from one joint cross-correlation of
+per-row event-rate signals (a row x time histogram per camera, high-passed), searched over row shifts and
+time lags: it integrates x out, so it does not depend on the disparity, and it is sharp in time because the
+same edge crosses a row at the same moment in both cameras. The disparity stage then works on the streams
+with those offsets removed.
+
+Reported offsets and disparities refer to the recording *as it should be used*: after exchanging the
+cameras when ``swap`` is True (:meth:`RigReport.prepare` does that), so that ``row_offset`` and
+``time_offset_us`` can go straight to :func:`calibration_free.match` (see :meth:`RigReport.match_kwargs`).
+
+>>> import numpy as np
+>>> from cvstereo.recording import Recording
+>>> from cvstereo.events import make_events
+>>> rng = np.random.default_rng(0)
+>>> t = np.sort(rng.integers(0, 1_000_000, 4000)); x = rng.integers(20, 100, 4000); y = rng.integers(0, 128, 4000)
+>>> ev = make_events(t, x, y, rng.integers(0, 2, 4000))
+>>> report = check_rig(Recording(ev, ev))
+>>> report.swap, round(report.row_offset), round(report.time_offset_us)
+(False, 0, 0)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from cvstereo.events import time_slice
+from cvstereo.recording import Recording
+
+#: Percentiles of the local disparities that are reported.
+DISPARITY_PERCENTILES = (5, 25, 50, 75, 95)
+
+#: Events per camera that an automatic disparity-stage window aims at: enough to overlay shapes, few enough
+#: that moving things do not smear across many pixels.
+WINDOW_EVENTS = 300
+
+#: Below this many events per camera no estimate is meaningful.
+MIN_EVENTS = 50
+
+
+@dataclass(frozen=True)
+class RigReport:
+    """What :func:`check_rig` found. Offsets and disparities refer to the recording after :meth:`prepare`.
+
+    Attributes
+    ----------
+    swap : bool
+        True when the camera given as left is the right one: exchange them (``Recording.swapped()``).
+    swap_confidence : float
+    row_offset : float
+        Rows to add to the right camera's y to line it up with the left (``y_left ~ y_right + row_offset``).
+    row_offset_confidence : float
+    row_offset_bands : tuple of float
+        The same per horizontal band of the image (``band_rows`` gives each band's left-camera rows).
+    band_rows : tuple of (int, int)
+        ``[start, stop)`` rows of each band.
+    row_offset_band_confidence : tuple of float
+    row_offset_varies : bool
+        True when confident bands disagree by more than one row.
+    time_offset_us : float
+        How much later the right camera stamps the same change (``t_right ~ t_left + time_offset_us``).
+    time_offset_confidence : float
+    disparity_peak : float
+        The disparity that overlays the most events (sub-pixel), px.
+    disparity_peaks : tuple of float
+        Local maxima of the global overlay profile that stand out from its background, strongest first.
+    disparity_percentiles : dict
+        Percentile (int) -> disparity (px) of the local best overlays (:data:`DISPARITY_PERCENTILES`).
+    disparity_range : (float, float)
+        5th and 95th percentile.
+    disparity_confidence : float
+        Share of the local overlays that agree in sign with the decision (1 = all on the possible side).
+    events : (int, int)
+        Events of the left and right camera.
+    rate_ratio : float
+        Right / left event count.
+    rate_ratio_confidence : float
+    burst_ratio_p95 : float
+        95th percentile, over 5 ms windows with events in both cameras, of the larger camera's count over the
+        smaller's (the thesis saw up to 3x).
+    on_fraction : (float, float)
+        Share of ON events, left and right.
+    on_fraction_confidence : float
+    noise_rate_hz : (float, float)
+        Isolated events per second, left and right.
+    noise_fraction : (float, float)
+        Share of isolated events.
+    noise_confidence : float
+    duration_s : float
+        Seconds analysed.
+    settings : dict
+        The options :func:`check_rig` ran with.
+    """
+
+    swap: bool
+    swap_confidence: float
+    row_offset: float
+    row_offset_confidence: float
+    row_offset_bands: tuple[float, ...]
+    band_rows: tuple[tuple[int, int], ...]
+    row_offset_band_confidence: tuple[float, ...]
+    row_offset_varies: bool
+    time_offset_us: float
+    time_offset_confidence: float
+    disparity_peak: float
+    disparity_peaks: tuple[float, ...]
+    disparity_percentiles: dict
+    disparity_range: tuple[float, float]
+    disparity_confidence: float
+    events: tuple[int, int]
+    rate_ratio: float
+    rate_ratio_confidence: float
+    burst_ratio_p95: float
+    on_fraction: tuple[float, float]
+    on_fraction_confidence: float
+    noise_rate_hz: tuple[float, float]
+    noise_fraction: tuple[float, float]
+    noise_confidence: float
+    duration_s: float
+    settings: dict
+
+    def prepare(self, recording: Recording, *, min_confidence: float = 0.3) -> Recording:
+        """The recording with the cameras exchanged if :attr:`swap` (with at least ``min_confidence``)."""
+        return recording.swapped() if self.swap and self.swap_confidence >= min_confidence else recording
+
+    def match_kwargs(self, *, min_confidence: float = 0.3) -> dict:
+        """``row_offset`` and ``time_offset_us`` for :func:`calibration_free.match`.
+
+        An offset whose confidence is below ``min_confidence`` is left at 0; the row offset is rounded
+        (matchers work on whole rows), the time offset to whole microseconds.
+        """
+        row = round(self.row_offset) if self.row_offset_confidence >= min_confidence else 0
+        dt = round(self.time_offset_us) if self.time_offset_confidence >= min_confidence else 0
+        return {"row_offset": int(row), "time_offset_us": int(dt)}
+
+    def to_dict(self) -> dict:
+        """A JSON-serialisable dict of every field."""
+        out = dataclasses.asdict(self)
+        out["disparity_percentiles"] = {str(k): v for k, v in self.disparity_percentiles.items()}
+        return json.loads(json.dumps(out, default=_json_default))
+
+    def summary(self) -> str:
+        """A short human report, one finding per line."""
+        def c(v):
+            return f"(confidence {v:.2f})"
+
+        side = ("SWAP: the camera given as right is the left one" if self.swap
+                else "cameras in the given order: left is left")
+        bands = ", ".join(f"{a}-{b - 1}: {v:+.1f}" for (a, b), v in zip(self.band_rows, self.row_offset_bands,
+                                                                        strict=True))
+        pct = self.disparity_percentiles
+        lines = [
+            f"rig check of {self.duration_s:.1f} s, {self.events[0]} + {self.events[1]} events",
+            f"  left/right:    {side} {c(self.swap_confidence)}",
+            f"  row offset:    {self.row_offset:+.2f} rows (add to the right camera's y) "
+            f"{c(self.row_offset_confidence)}",
+            f"    per band:    {bands}" + ("  -> varies across the image" if self.row_offset_varies else ""),
+            f"  time offset:   {self.time_offset_us / 1000:+.2f} ms (right camera later) "
+            f"{c(self.time_offset_confidence)}",
+            f"  disparity:     peak {self.disparity_peak:.1f} px, 5-95 % {pct[5]:.0f}..{pct[95]:.0f} px, "
+            f"median {pct[50]:.0f} px, profile peaks "
+            + (", ".join(f"{d:.1f}" for d in self.disparity_peaks) or "none")
+            + f" {c(self.disparity_confidence)}",
+            f"  event rate:    right/left {self.rate_ratio:.2f}, 5 ms bursts up to {self.burst_ratio_p95:.1f}x (p95) "
+            f"{c(self.rate_ratio_confidence)}",
+            f"  ON share:      left {self.on_fraction[0]:.0%}, right {self.on_fraction[1]:.0%} "
+            f"{c(self.on_fraction_confidence)}",
+            f"  noise:         left {self.noise_rate_hz[0]:.0f}/s ({self.noise_fraction[0]:.0%}), right "
+            f"{self.noise_rate_hz[1]:.0f}/s ({self.noise_fraction[1]:.0%}) isolated {c(self.noise_confidence)}",
+        ]
+        return "\n".join(lines)
+
+
+def check_rig(recording: Recording, *, max_disparity: int = 64, max_row_offset: int = 8,
+              max_time_offset_us: int = 20_000, time_bin_us: int = 200, n_bands: int = 4,
+              window_us: int | None = None, max_windows: int = 100, block: tuple[int, int] = (9, 5),
+              min_ncc: float = 0.5, noise_window_us: int = 5_000, max_seconds: float | None = 60.0) -> RigReport:
+    """Estimate the rig's imperfections from the events of a recording.
+
+    Parameters
+    ----------
+    recording : Recording
+        Both cameras, in the order believed (left first).
+    max_disparity : int, keyword-only
+        Largest |disparity| searched, px.
+    max_row_offset : int, keyword-only
+        Largest |row offset| searched.
+    max_time_offset_us : int, keyword-only
+        Largest |time offset| searched, us.
+    time_bin_us : int, keyword-only
+        Bin of the event-rate signals; the estimate is interpolated below it.
+    n_bands : int, keyword-only
+        Horizontal bands of the image for which the row offset is estimated separately.
+    window_us : int or None, keyword-only
+        Accumulation window of the frames for the disparity stage; None: long enough for about
+        :data:`WINDOW_EVENTS` events per camera (between 10 ms and 1 s).
+    max_windows : int, keyword-only
+        At most this many windows (evenly spread over the recording) enter the disparity stage.
+    block : (width, height), keyword-only
+        Block over which local overlays are scored (normalised cross-correlation of signed frames).
+    min_ncc : float, keyword-only
+        A local overlay counts when its best normalised cross-correlation reaches this.
+    noise_window_us : int, keyword-only
+        An event is noise when no neighbouring pixel fired within this time either side.
+    max_seconds : float or None, keyword-only
+        Analyse at most this many seconds from the start (bounds time and memory); None: everything.
+
+    Returns
+    -------
+    RigReport
+
+    Raises
+    ------
+    ValueError
+        Too few events in a camera, or options out of range.
+    """
+    settings = {k: v for k, v in locals().items() if k != "recording"}
+    settings["block"] = list(block)
+    for name in ("max_disparity", "max_row_offset", "max_time_offset_us", "time_bin_us", "n_bands", "max_windows",
+                 "noise_window_us") + (("window_us",) if window_us is not None else ()):
+        if int(settings[name]) < (0 if name == "max_row_offset" else 1):
+            raise ValueError(f"check_rig: {name}={settings[name]} is out of range; give a positive value.")
+    if max_seconds is not None:
+        recording = recording.slice_time(recording.t_start, recording.t_start + int(max_seconds * 1e6))
+    for name, ev in (("left", recording.left), ("right", recording.right)):
+        if ev.size < MIN_EVENTS:
+            raise ValueError(
+                f"check_rig: the {name} camera has {ev.size} events; at least {MIN_EVENTS} per camera are needed "
+                "(give a longer recording, or check that both cameras were read)."
+            )
+    width, height = recording.resolution
+    left, right = recording.left, recording.right
+    if window_us is None:
+        rate = min(left.size, right.size) / max(recording.duration_s, 1e-3)
+        window_us = int(np.clip(WINDOW_EVENTS / rate * 1e6, 10_000, 1_000_000))
+        settings["window_us"] = window_us
+
+    # 1. Row and time offset, jointly, from per-row event-rate signals (independent of the disparity).
+    yt = _row_time_offsets(left, right, height=height, max_row_offset=min(max_row_offset, height - 1),
+                           max_lag_us=max_time_offset_us, bin_us=time_bin_us, n_bands=n_bands)
+    row_offset, row_conf, band_offsets, band_conf, band_rows, time_offset, time_conf = yt
+
+    # 2. Disparity on the streams with those offsets removed (whole rows; the time offset to the microsecond).
+    corrected = right.copy()
+    corrected["y"] = right["y"] + round(row_offset)
+    corrected["t"] = right["t"] - round(time_offset)
+    keep = (corrected["y"] >= 0) & (corrected["y"] < height)
+    corrected = corrected[keep]
+    corrected = corrected[np.argsort(corrected["t"], kind="stable")]
+    profile, local = _disparity_overlays(left, corrected, resolution=(width, height), max_disparity=max_disparity,
+                                         window_us=window_us, max_windows=max_windows, block=block, min_ncc=min_ncc)
+    swap, swap_conf = _decide_side(profile, max_disparity)
+    sign = -1 if swap else 1
+    peak = sign * _subsample_peak(profile, int(np.argmax(profile))) - sign * max_disparity
+    peaks = tuple(sign * (s - max_disparity) for s in _profile_peaks(profile))
+    peaks = tuple(float(p) for p in peaks if p >= 0)
+    oriented = sign * local
+    possible = oriented[oriented >= 0]
+    disp_conf = float(possible.size / local.size) if local.size else 0.0
+    if possible.size:
+        pct = {q: float(v) for q, v in zip(DISPARITY_PERCENTILES, np.percentile(possible, DISPARITY_PERCENTILES),
+                                           strict=True)}
+    else:
+        pct = {q: float("nan") for q in DISPARITY_PERCENTILES}
+        disp_conf = 0.0
+
+    # 3. Counts, in the orientation the report speaks of.
+    if swap:
+        left, right = right, left
+        row_offset, time_offset = -row_offset, -time_offset
+        band_offsets = tuple(-b for b in band_offsets)
+    n_l, n_r = int(left.size), int(right.size)
+    duration_s = max(recording.duration_s, 1e-6)
+    rate_ratio = n_r / n_l
+    rate_conf = _clip01(1.0 - np.sqrt(1.0 / n_l + 1.0 / n_r) / 0.1)
+    on = (float(left["p"].mean()), float(right["p"].mean()))
+    on_conf = _clip01(1.0 - max(np.sqrt(f * (1 - f) / n) for f, n in zip(on, (n_l, n_r), strict=True)) / 0.05)
+    burst = _burst_ratio(left, right, window_us=5_000)
+    iso = [_isolated(ev, window_us=noise_window_us, resolution=(width, height)) for ev in (left, right)]
+    noise_rate = (iso[0] / duration_s, iso[1] / duration_s)
+    noise_frac = (iso[0] / n_l, iso[1] / n_r)
+    noise_conf = _clip01(1.0 - 1.0 / np.sqrt(1.0 + min(iso)))
+    confident = [b for b, c in zip(band_offsets, band_conf, strict=True) if c >= 0.3]
+    varies = bool(len(confident) >= 2 and max(confident) - min(confident) > 1.0)
+    return RigReport(
+        swap=bool(swap), swap_confidence=swap_conf,
+        row_offset=float(row_offset), row_offset_confidence=row_conf,
+        row_offset_bands=tuple(float(b) for b in band_offsets), band_rows=band_rows,
+        row_offset_band_confidence=tuple(band_conf), row_offset_varies=varies,
+        time_offset_us=float(time_offset), time_offset_confidence=time_conf,
+        disparity_peak=float(peak), disparity_peaks=peaks, disparity_percentiles=pct,
+        disparity_range=(pct[5], pct[95]), disparity_confidence=disp_conf,
+        events=(n_l, n_r), rate_ratio=float(rate_ratio), rate_ratio_confidence=rate_conf,
+        burst_ratio_p95=burst, on_fraction=on, on_fraction_confidence=on_conf,
+        noise_rate_hz=(float(noise_rate[0]), float(noise_rate[1])),
+        noise_fraction=(float(noise_frac[0]), float(noise_frac[1])), noise_confidence=noise_conf,
+        duration_s=float(duration_s), settings=settings,
+    )
+
+
+# --------------------------------------------------------------------------------------------------------------
+# Row and time offset
+
+
+def _row_time_offsets(left, right, *, height, max_row_offset, max_lag_us, bin_us, n_bands):
+    """Joint search over row shifts r and time lags of per-row event-rate signals.
+
+    Returns ``(row_offset, confidence, band_offsets, band_confidences, band_rows, time_offset_us, confidence)``.
+    """
+    t0 = min(int(left["t"][0]), int(right["t"][0]))
+    t1 = max(int(left["t"][-1]), int(right["t"][-1])) + 1
+    n_bins = (t1 - t0) // bin_us + 1
+    lag = int(np.ceil(max_lag_us / bin_us))
+    # High-pass: remove each row's slow rate changes (slower than 10 ms, or twice the largest lag) that would
+    # widen the peak without telling anything about the lag; what stays is when edges cross the row.
+    smooth = max(2 * lag, round(10_000 / bin_us))
+    hl = _highpass(_row_time_histogram(left, t0, n_bins, bin_us, height), smooth)
+    hr = _highpass(_row_time_histogram(right, t0, n_bins, bin_us, height), smooth)
+    bands = _bands(left["y"], height, n_bands)
+    shifts = np.arange(-max_row_offset, max_row_offset + 1)
+    corr = np.zeros((n_bands, shifts.size, 2 * lag + 1))
+    # Process time in segments so that memory stays bounded however long the recording; the right signal
+    # is taken `lag` bins wider on both sides, so no pair of bins within the lag range is lost at a cut.
+    seg = min(1 << 14, _fft_len(n_bins + 2 * lag) - 2 * lag)
+    nfft = _fft_len(seg + 2 * lag)
+    hr_pad = np.pad(hr, ((0, 0), (lag, lag + seg)))
+    for start in range(0, n_bins, seg):
+        a = hl[:, start:start + seg]
+        b = hr_pad[:, start:start + a.shape[1] + 2 * lag]
+        fa = np.conj(np.fft.rfft(a, nfft, axis=1))
+        fb = np.fft.rfft(b, nfft, axis=1)
+        for i, r in enumerate(shifts):
+            # y_left = y_right + r: left row y pairs with right row y - r; rows y0..y1 exist in both.
+            y0, y1 = max(0, r), min(height, height + r)
+            prod = fa[y0:y1] * fb[y0 - r:y1 - r]
+            spec = np.zeros((n_bands, fa.shape[1]), fa.dtype)
+            for band in range(n_bands):
+                lo, hi = max(bands[band], y0), min(bands[band + 1], y1)
+                if hi > lo:
+                    spec[band] = prod[lo - y0:hi - y0].sum(axis=0)
+            # c[k] = sum a[j] b[j + k]; b starts `lag` bins early, so k = lag + tau/bin.
+            corr[:, i] += np.fft.irfft(spec, nfft, axis=1)[:, :2 * lag + 1]
+    # Normalise to a correlation coefficient: per band for the band estimates, over all rows for the total (so
+    # that a band without events adds nothing to it).
+    el, er = (hl.astype(np.float64) ** 2).sum(axis=1), (hr.astype(np.float64) ** 2).sum(axis=1)
+    norm = np.zeros((n_bands, shifts.size, 2))
+    for i, r in enumerate(shifts):
+        for band in range(n_bands):
+            yl = np.arange(max(bands[band], r), min(bands[band + 1], height + r))
+            norm[band, i] = el[yl].sum(), er[yl - r].sum()
+    total_norm = np.sqrt(norm[..., 0].sum(axis=0) * norm[..., 1].sum(axis=0))[:, None]
+    band_norm = np.sqrt(norm[..., 0] * norm[..., 1])[..., None]
+    total_raw = corr.sum(axis=0)
+    corr = np.divide(corr, band_norm, out=np.zeros_like(corr), where=band_norm > 0)
+    corr_total = np.divide(total_raw, total_norm, out=np.zeros_like(total_raw), where=total_norm > 0)
+    # Smooth along the lag a little so that the parabola through the peak sees its shape, not bin noise.
+    total = _smooth_lags(corr_total, sigma=1.5)
+    i_best, k_best = np.unravel_index(int(np.argmax(total)), total.shape)
+    row = float(shifts[0] + _subsample_peak(total[:, k_best], i_best))
+    time = float((_subsample_peak(total[i_best], k_best) - lag) * bin_us)
+    row_conf = _contrast(total.max(axis=1), i_best, exclude=1) * _support(left.size, right.size)
+    # The lags where the peak stays above half its height belong to the peak itself (the sensors' latencies
+    # jitter by a few ms on real rigs and widen it); the confidence compares it with the lags beyond.
+    time_conf = _contrast(total[i_best], k_best, exclude=_half_width(total[i_best], k_best)) * _support(
+        left.size, right.size)
+    band_offsets, band_conf = [], []
+    for band in range(n_bands):
+        prof = _smooth_lags(corr[band], sigma=1.5)[:, k_best]
+        j = int(np.argmax(prof))
+        band_offsets.append(float(shifts[0] + _subsample_peak(prof, j)))
+        n_l, n_r = (int(((ev["y"] >= bands[band]) & (ev["y"] < bands[band + 1])).sum()) for ev in (left, right))
+        band_conf.append(_contrast(prof, j, exclude=1) * _support(n_l, n_r))
+    band_rows = tuple((int(bands[i]), int(bands[i + 1])) for i in range(n_bands))
+    return row, row_conf, tuple(band_offsets), tuple(band_conf), band_rows, time, time_conf
+
+
+def _bands(y, height, n_bands):
+    """Row edges of ``n_bands`` horizontal bands holding about equal shares of the events (at least 4 rows)."""
+    edges = np.quantile(y, np.linspace(0, 1, n_bands + 1)).round().astype(int)
+    edges[0], edges[-1] = 0, height
+    for i in range(1, n_bands):
+        edges[i] = min(max(edges[i], edges[i - 1] + 4), height - 4 * (n_bands - i))
+    return edges
+
+
+def _support(n_left, n_right, scale=500.0):
+    """How far an estimate from ``n_left`` and ``n_right`` events can be trusted on count alone, in [0, 1)."""
+    return float(1.0 - np.exp(-min(n_left, n_right) / scale))
+
+
+def _half_width(v, i):
+    """Samples from the peak at ``i`` to where ``v`` first falls below half the peak's height above the median."""
+    base = float(np.median(v))
+    half = base + 0.5 * (float(v[i]) - base)
+    below = np.flatnonzero(v < half)
+    left = below[below < i]
+    right = below[below > i]
+    reach = [i - int(left[-1]) if left.size else i, int(right[0]) - i if right.size else len(v) - 1 - i]
+    return max(1, max(reach))
+
+
+def _row_time_histogram(ev, t0, n_bins, bin_us, height):
+    """(height, n_bins) float32 counts of events per row and time bin."""
+    k = (ev["t"] - t0) // bin_us
+    flat = ev["y"].astype(np.int64) * n_bins + k
+    return np.bincount(flat, minlength=height * n_bins).astype(np.float32).reshape(height, n_bins)
+
+
+def _highpass(h, width):
+    """Subtract a centred moving average of ``width`` bins along the last axis (zero beyond the ends)."""
+    mean = cv2.blur(h, (max(1, int(width)), 1), borderType=cv2.BORDER_CONSTANT)
+    return h - mean
+
+
+def _smooth_lags(c, sigma):
+    """Gaussian smoothing along the last axis (lags)."""
+    radius = int(np.ceil(3 * sigma))
+    k = np.exp(-0.5 * (np.arange(-radius, radius + 1) / sigma) ** 2)
+    k /= k.sum()
+    return np.apply_along_axis(lambda v: np.convolve(v, k, mode="same"), -1, c)
+
+
+def _fft_len(n):
+    """The next power of two >= n (pocketfft is fastest there)."""
+    return 1 << int(np.ceil(np.log2(max(2, n))))
+
+
+# --------------------------------------------------------------------------------------------------------------
+# Disparity
+
+
+def _disparity_overlays(left, right, *, resolution, max_disparity, window_us, max_windows, block, min_ncc):
+    """Global overlay profile over shifts -D..D and the local best shifts.
+
+    Returns
+    -------
+    profile : (2D+1,) float ndarray
+        Normalised sum over windows and rows of ``sum_x L(x, y) R(x - s, y)``, index ``s + D``.
+    local : (M,) float ndarray
+        Best shift ``s`` at each left-camera event pixel whose block overlays well (NCC >= min_ncc).
+    """
+    width, height = resolution
+    d = int(min(max_disparity, width - 1))
+    t0 = min(int(left["t"][0]), int(right["t"][0]))
+    t1 = max(int(left["t"][-1]), int(right["t"][-1])) + 1
+    starts = np.arange(t0 - t0 % window_us, t1, window_us)
+    counts = np.array([np.diff(np.searchsorted(ev["t"], np.append(starts, starts[-1] + window_us))) for ev in
+                       (left, right)])
+    busy = starts[(counts >= 10).all(axis=0)]
+    if busy.size > max_windows:
+        busy = busy[np.linspace(0, busy.size - 1, max_windows).round().astype(int)]
+    profile = np.zeros(2 * d + 1)
+    local = []
+    bw, bh = block
+    nfft = _fft_len(2 * width)
+    for s in busy:
+        fl = _frame(left[time_slice(left, s, s + window_us)], width, height)
+        fr = _frame(right[time_slice(right, s, s + window_us)], width, height)
+        mask = fl != 0
+        gl, gr = (cv2.GaussianBlur(f, (3, 3), 0.8, borderType=cv2.BORDER_CONSTANT) for f in (fl, fr))
+        # sum_x L(x) R(x - s) for every row, via FFT along x; index s (negative wraps around).
+        c = np.fft.irfft(np.fft.rfft(gl, nfft, axis=1) * np.conj(np.fft.rfft(gr, nfft, axis=1)), nfft, axis=1)
+        c = c.sum(axis=0)
+        norm = np.sqrt((gl ** 2).sum() * (gr ** 2).sum())
+        if norm > 0:
+            profile += np.concatenate([c[-d:], c[:d + 1]]) / norm
+        local.append(_local_best(gl, gr, mask, d, bw, bh, min_ncc, max_points=200))
+    return profile, (np.concatenate(local) if local else np.zeros(0))
+
+
+def _local_best(gl, gr, mask, d, bw, bh, min_ncc, max_points):
+    """Best shift per left event pixel by block NCC of the signed frames, where it reaches ``min_ncc``.
+
+    At most ``max_points`` pixels (evenly spread over the event pixels) are scored: the blocks overlap, so
+    more would cost time without telling more.
+    """
+    ys, xs = np.nonzero(mask)
+    if ys.size > max_points:
+        pick = np.linspace(0, ys.size - 1, max_points).round().astype(int)
+        ys, xs = ys[pick], xs[pick]
+    ph, pw = bh // 2, bw // 2
+    lp = np.pad(gl, ((ph, ph), (pw, pw)))
+    rp = np.pad(gr, ((ph, ph), (pw + d, pw + d)))
+    rows = ys[:, None, None] + np.arange(bh)[None, :, None]
+    patch = lp[rows, xs[:, None, None] + np.arange(bw)[None, None, :]]           # (M, bh, bw)
+    # The right strip covers columns x - pw - d .. x + pw + d; its window k is the block at shift s = d - k.
+    strip = rp[rows, xs[:, None, None] + np.arange(bw + 2 * d)[None, None, :]]   # (M, bh, bw + 2d)
+    wins = np.lib.stride_tricks.sliding_window_view(strip, bw, axis=2)            # (M, bh, 2d+1, bw)
+    num = np.einsum("mhu,mhku->mk", patch, wins)
+    sq = np.cumsum(np.pad((strip * strip).sum(axis=1), ((0, 0), (1, 0))), axis=1)
+    den = np.sqrt(np.maximum((patch * patch).sum(axis=(1, 2))[:, None] * (sq[:, bw:] - sq[:, :-bw]), 0.0))
+    ncc = np.where(den > 1e-6, num / np.maximum(den, 1e-6), -1.0)
+    k = ncc.argmax(axis=1)
+    ok = ncc[np.arange(k.size), k] >= min_ncc
+    return (d - k[ok]).astype(float)
+
+
+def _frame(ev, width, height):
+    """(height, width) float32 sum of event signs."""
+    f = np.zeros(height * width, np.float32)
+    np.add.at(f, ev["y"].astype(np.int64) * width + ev["x"], 2.0 * ev["p"] - 1.0)
+    return f.reshape(height, width)
+
+
+def _decide_side(profile, d):
+    """(swap, confidence) from the overlay profile's strongest positive vs negative shift."""
+    base = float(np.median(profile))
+    pos, neg = float(profile[d + 1:].max()), float(profile[:d].max())
+    top = max(pos, neg) - base
+    if top <= 0:
+        return False, 0.0
+    return bool(neg > pos), _clip01(abs(pos - neg) / top)
+
+
+def _profile_peaks(profile, *, max_peaks=5):
+    """Indices (sub-sample) of local maxima standing out from the profile's background, strongest first."""
+    base = float(np.median(profile))
+    spread = float(np.median(np.abs(profile - base))) + 1e-12
+    top = float(profile.max())
+    out = []
+    for i in range(1, profile.size - 1):
+        v = profile[i]
+        if v >= profile[i - 1] and v > profile[i + 1] and v - base > max(6 * spread, 0.25 * (top - base)):
+            out.append((v, _subsample_peak(profile, i)))
+    out.sort(reverse=True)
+    return [p for _, p in out[:max_peaks]]
+
+
+# --------------------------------------------------------------------------------------------------------------
+# Counts and noise
+
+
+def _burst_ratio(left, right, *, window_us):
+    t0 = min(int(left["t"][0]), int(right["t"][0]))
+    n = (max(int(left["t"][-1]), int(right["t"][-1])) - t0) // window_us + 1
+    a = np.bincount((left["t"] - t0) // window_us, minlength=n)
+    b = np.bincount((right["t"] - t0) // window_us, minlength=n)
+    both = (a >= 5) & (b >= 5)
+    if not both.any():
+        return float("nan")
+    r = np.maximum(a[both] / b[both], b[both] / a[both])
+    return float(np.percentile(r, 95))
+
+
+def _isolated(ev, *, window_us, resolution):
+    """Number of events with no event at any of the 8 neighbouring pixels within ``window_us`` either side.
+
+    Events are sorted by (pixel, t); for each neighbour offset, a binary search finds the neighbour pixel's
+    events nearest in time. The own pixel does not count: a hot pixel firing alone is noise too.
+    """
+    width, height = resolution
+    pix = ev["y"].astype(np.int64) * width + ev["x"]
+    t = ev["t"] - int(ev["t"][0])
+    span = int(t[-1]) + 2 * window_us + 2
+    key = np.sort(pix * span + t)
+    # Queries in key order are (nearly) sorted too, which keeps the binary searches cache-friendly.
+    pix, t = key // span, key % span
+    x, y = pix % width, pix // width
+    has = np.zeros(ev.size, bool)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            if dx == 0 and dy == 0:
+                continue
+            inside = (x + dx >= 0) & (x + dx < width) & (y + dy >= 0) & (y + dy < height)
+            q = (pix + dy * width + dx) * span + t
+            lo = np.searchsorted(key, q - window_us, side="left")
+            hi = np.searchsorted(key, q + window_us, side="right")
+            has |= inside & (hi > lo)
+    return int((~has).sum())
+
+
+# --------------------------------------------------------------------------------------------------------------
+# Small helpers
+
+
+def _subsample_peak(v, i):
+    """Sub-sample position of the peak at index ``i`` by a parabola through its neighbours."""
+    if i <= 0 or i >= len(v) - 1:
+        return float(i)
+    a, b, c = float(v[i - 1]), float(v[i]), float(v[i + 1])
+    den = a - 2 * b + c
+    return float(i) if den >= 0 else float(i + 0.5 * (a - c) / den)
+
+
+def _contrast(v, i, *, exclude):
+    """How much the peak at ``i`` stands out: 1 - (best value beyond ``exclude`` samples of it) / (peak value),
+    both measured above the median of ``v``; clipped to [0, 1]."""
+    base = float(np.median(v))
+    peak = float(v[i]) - base
+    if peak <= 0:
+        return 0.0
+    out = np.ones(len(v), bool)
+    out[max(0, i - exclude):i + exclude + 1] = False
+    if not out.any():
+        return 1.0
+    return _clip01(1.0 - max(float(v[out].max()) - base, 0.0) / peak)
+
+
+def _clip01(v):
+    return float(min(1.0, max(0.0, v)))
+
+
+def _json_default(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, float):
+        return o
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
