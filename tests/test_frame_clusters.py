@@ -230,3 +230,38 @@ def test_invalid_parameters_say_what_to_do():
         FrameClusterParams(anchor_camera=2)
     with pytest.raises(ValueError, match="shared, separate, on, off"):
         FrameClusterMatcher.from_variant("both")
+
+
+def truth_at_matches(rec: Recording, matches: np.ndarray, window_us: int = W) -> np.ndarray:
+    """Per match: mean true disparity of the anchor camera's events at its pixel within its window (NaN: none)."""
+    out = np.full(matches.size, np.nan)
+    for cam in (0, 1):
+        sel = np.flatnonzero(matches["camera"] == cam)
+        ev, truth = rec.events(cam), rec.truth(cam)
+        ok = ~np.isnan(truth)
+        ev, truth = ev[ok], truth[ok]
+        # Group the events by (window, y, x); a match at window end t looks up window t // W - 1.
+        ev_key = ((ev["t"] // window_us) * 128 + ev["y"]) * 128 + ev["x"]
+        keys, inverse = np.unique(ev_key, return_inverse=True)
+        means = np.bincount(inverse, weights=truth) / np.bincount(inverse)
+        m = matches[sel]
+        m_key = ((m["t"] // window_us - 1) * 128 + m["y"]) * 128 + m["x"]
+        pos = np.clip(np.searchsorted(keys, m_key), 0, keys.size - 1)
+        found = keys[pos] == m_key
+        out[sel[found]] = means[pos[found]]
+    return out
+
+
+@pytest.mark.slow
+def test_mean_within_one_pixel_of_the_truth_on_a_one_arm_clip():
+    simulate = pytest.importorskip("cvstereo.simulate")
+    if not hasattr(simulate, "cached_preset"):
+        pytest.skip("the simulator has no cached_preset")
+    from cvstereo.io.npz import read_recording_npz
+
+    rec = read_recording_npz(simulate.cached_preset("1arm-50cm", seconds=2))
+    result = match(rec, method="frame")
+    truth = truth_at_matches(rec, result.matches)
+    known = ~np.isnan(truth)
+    assert result.matches.size > 100 and known.mean() > 0.9
+    assert abs(result.disparity[known].mean() - truth[known].mean()) < 1.0
