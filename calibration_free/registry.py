@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+import importlib.util
 import typing
 
 from cvstereo.matcher import StreamMatcher
@@ -21,6 +22,7 @@ METHODS: dict[str, str] = {
     "event-vector": "calibration_free.event_vector:EventVectorMatcher",
     "stereobm": "cvstereo.baseline:StereoBMMatcher",
     "sgbm": "cvstereo.baseline:StereoSGBMMatcher",
+    "dv-semidense": "cvstereo.compare_dv:DvSemiDenseMatcher",
 }
 
 
@@ -29,10 +31,12 @@ def available_methods() -> list[str]:
     out = []
     for name in METHODS:
         try:
-            matcher_class(name)
+            cls = matcher_class(name)
         except ImportError:
             continue
-        out.append(name)
+        # Optional extras (e.g. dv-processing for the comparison) are only imported when a matcher is built.
+        if all(importlib.util.find_spec(mod) is not None for mod in getattr(cls, "requires", ())):
+            out.append(name)
     return out
 
 

@@ -223,10 +223,29 @@ class _OpenCVMatcher(FrameMatcher):
             return empty_matches()
         counts = [polarity_counts(ev, resolution=self.resolution) for ev in (window.left, window.right)]
         disp = self.disparity_map(self.image(counts[0]), self.image(counts[1]))
-        y, x = np.nonzero(event_mask(counts[0]) & ~np.isnan(disp))
-        # Polarity of a pixel: the sign of its sum of event signs (ties count as ON).
-        pol = (counts[0][0, y, x] >= counts[0][1, y, x]).astype(np.int8)
-        return make_matches(window.t_end, x, y, pol, 0, disp[y, x])
+        return matches_at_left_events(window.t_end, counts[0], disp)
+
+
+def matches_at_left_events(t_end: int, left_counts: np.ndarray, disparity: np.ndarray) -> np.ndarray:
+    """Sample a dense disparity map at the left camera's pixels that saw events (formats.md's window anchors).
+
+    Parameters
+    ----------
+    t_end : int
+        The window's end time, us: the stamp of every match.
+    left_counts : (2, height, width) int ndarray
+        ON and OFF counts of the left camera in the window.
+    disparity : (height, width) float ndarray
+        Disparity at the left image's pixels; NaN where there is none.
+
+    Returns
+    -------
+    (M,) ndarray of MATCH_DTYPE
+    """
+    y, x = np.nonzero(event_mask(left_counts) & ~np.isnan(disparity))
+    # Polarity of a pixel: the sign of its sum of event signs (ties count as ON).
+    pol = (left_counts[0, y, x] >= left_counts[1, y, x]).astype(np.int8)
+    return make_matches(t_end, x, y, pol, 0, disparity[y, x])
 
 
 class StereoBMMatcher(_OpenCVMatcher):
