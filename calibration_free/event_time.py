@@ -24,9 +24,7 @@ from typing import ClassVar, Literal
 import numpy as np
 from numba import njit
 
-from calibration_free._event_common import matches_at
-from cvstereo.dynamic_frames import DynamicFrameParams, FrameBank, event_columns
-from cvstereo.events import empty_events
+from cvstereo.dynamic_frames import DynamicFrameParams, FrameBank, event_matrix
 from cvstereo.matcher import StreamMatcher
 from cvstereo.matches import empty_matches
 
@@ -144,10 +142,12 @@ class EventTimeMatcher(StreamMatcher):
     def __init__(self, params: EventTimeParams | None = None, *, resolution=(128, 128)):
         super().__init__(params, resolution=resolution)
         self._bank = FrameBank(2, self.params.frame_params(), resolution=self.resolution)
-        # Reference events that passed the threshold and await their candidate window; D1 of each.
-        self._pending, self._pending_value = empty_events(), np.empty(0)
-        # Other-camera events that can be candidates (threshold and sign passed); D2 of each.
-        self._cands, self._cand_value = empty_events(), np.empty(0)
+        # Plain columns rather than structured arrays: numpy is several times faster on them, and at 10 ms
+        # packets the per-packet overhead is what limits the speed.
+        # Reference events that passed the threshold and await their candidate window: rows t, x, y, p; D1.
+        self._pending, self._pending_value = np.empty((4, 0), np.int64), np.empty(0)
+        # Other-camera events that can be candidates (threshold and sign passed): rows t, x, y, p; D2.
+        self._cands, self._cand_value = np.empty((4, 0), np.int64), np.empty(0)
 
     def anchor_cameras(self) -> tuple[int, ...]:
         return (self.params.reference_camera,)
@@ -157,24 +157,26 @@ class EventTimeMatcher(StreamMatcher):
         ref = prm.reference_camera
         packets = (left, right)
         # Each camera's frame depends on its own events only: no merged order is needed here.
-        v1 = self._bank.process(ref, packets[ref], read="before")
-        keep = np.abs(v1) >= prm.threshold  # NaN (dropped polarity) compares False
-        self._pending = np.concatenate([self._pending, packets[ref][keep]])
-        self._pending_value = np.concatenate([self._pending_value, v1[keep]])
-        other = packets[1 - ref]
-        v2 = self._bank.process(1 - ref, other, read="after")
-        sign = np.where(other["p"] > 0, 1.0, -1.0)
-        keep = (np.abs(v2) >= prm.threshold) & (np.sign(v2) == sign)
-        self._cands = np.concatenate([self._cands, other[keep]])
-        self._cand_value = np.concatenate([self._cand_value, v2[keep]])
+        if packets[ref].size:
+            cols = event_matrix(packets[ref])
+            v1 = self._bank.process_columns(ref, cols, read="before")
+            keep = np.abs(v1) >= prm.threshold  # NaN (dropped polarity) compares False
+            self._pending = np.concatenate([self._pending, cols[:, keep]], axis=1)
+            self._pending_value = np.concatenate([self._pending_value, v1[keep]])
+        if packets[1 - ref].size:
+            cols = event_matrix(packets[1 - ref])
+            v2 = self._bank.process_columns(1 - ref, cols, read="after")
+            keep = (np.abs(v2) >= prm.threshold) & (np.sign(v2) == 2 * cols[3] - 1)
+            self._cands = np.concatenate([self._cands, cols[:, keep]], axis=1)
+            self._cand_value = np.concatenate([self._cand_value, v2[keep]])
         if self.watermark is None:
             return empty_matches()
         # Every later event has t >= watermark: a pending event is final once watermark > t + window.
-        n = int(np.searchsorted(self._pending["t"], self.watermark - prm.time_window_us, side="left"))
+        n = int(np.searchsorted(self._pending[0], self.watermark - prm.time_window_us, side="left"))
         return self._resolve(n)
 
     def _flush(self) -> np.ndarray:
-        return self._resolve(self._pending.size)
+        return self._resolve(self._pending.shape[1])
 
     def _resolve(self, n: int) -> np.ndarray:
         prm = self.params
@@ -183,17 +185,22 @@ class EventTimeMatcher(StreamMatcher):
         ref = prm.reference_camera
         side = 0 if not prm.restrict_side else (1 if ref == 1 else -1)
         out = np.empty(n, dtype=np.int64)
-        _resolve(*event_columns(self._pending[:n]), self._pending_value[:n], n, *event_columns(self._cands),
-                 self._cand_value, self.resolution[1], int(prm.time_window_us), int(prm.row_tolerance),
-                 float(prm.value_tolerance), side, int(prm.max_disparity), out)
+        pend, cands = self._pending, self._cands
+        _resolve(pend[0], pend[1], pend[2], pend[3], self._pending_value, n, cands[0], cands[1], cands[2],
+                 cands[3], self._cand_value, self.resolution[1], int(prm.time_window_us),
+                 int(prm.row_tolerance), float(prm.value_tolerance), side, int(prm.max_disparity), out)
         found = np.flatnonzero(out >= 0)
-        resolved = self._pending[:n]
-        self._pending, self._pending_value = self._pending[n:], self._pending_value[n:]
+        matches = empty_matches(found.size)
+        for row, name in enumerate(("t", "x", "y", "p")):
+            matches[name] = pend[row, found]
+        matches["camera"] = ref
+        matches["disparity"] = out[found]
+        self._pending, self._pending_value = pend[:, n:], self._pending_value[n:]
         # Candidates older than any future use: earlier than the next pending event (or the watermark)
         # minus the window.
         horizon = self.watermark if self.watermark is not None else 0
-        if self._pending.size:
-            horizon = min(horizon, int(self._pending["t"][0]))
-        drop = int(np.searchsorted(self._cands["t"], horizon - prm.time_window_us, side="left"))
-        self._cands, self._cand_value = self._cands[drop:], self._cand_value[drop:]
-        return matches_at((resolved, resolved), np.full(found.size, ref), found, out[found].astype(np.float64))
+        if self._pending.shape[1]:
+            horizon = min(horizon, int(self._pending[0, 0]))
+        drop = int(np.searchsorted(cands[0], horizon - prm.time_window_us, side="left"))
+        self._cands, self._cand_value = cands[:, drop:], self._cand_value[drop:]
+        return matches

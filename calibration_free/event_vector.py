@@ -57,7 +57,7 @@ class EventVectorParams(DynamicFrameParams):
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}.")
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _sign(v):
     return 1 if v > 0 else (-1 if v < 0 else 0)
 
@@ -104,13 +104,17 @@ def _event_vector_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, s
             while k < width and abs(stored[cam, slot, y, k] * c1) < threshold:
                 k += 1
             b1 = _sign(stored[cam, slot, y, k] * c1) * (k - x) if k < width else 0
-            # The other row's vectors at every pixel in two passes (the same numbers as walking from each).
+            # The other row's vectors at the candidate pixels lo..hi in two passes (the same numbers as walking
+            # from each): left to right up to hi, right to left down to lo.
+            step = 1 if cam == 1 else -1  # right-camera events look towards larger x, left towards smaller
+            lo = x if cam == 1 else max(0, x - max_d)
+            hi = min(width - 1, x + max_d) if cam == 1 else x
             c2 = scale[other]
             for xx in range(width):
                 row[xx] = stored[other, slot, y, xx] * c2
             prev = -1  # last above-threshold pixel before the current run
             last = -1  # last above-threshold pixel so far
-            for xx in range(width):
+            for xx in range(hi + 1):
                 if abs(row[xx]) >= threshold:
                     if xx == 0 or abs(row[xx - 1]) < threshold:
                         prev = last
@@ -120,7 +124,7 @@ def _event_vector_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, s
                     vec_a[xx] = _sign(row[last]) * (xx - last) if last >= 0 else 0
             prev = width
             last = width
-            for xx in range(width - 1, -1, -1):
+            for xx in range(width - 1, lo - 1, -1):
                 if abs(row[xx]) >= threshold:
                     if xx == width - 1 or abs(row[xx + 1]) < threshold:
                         prev = last
@@ -128,7 +132,6 @@ def _event_vector_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, s
                     last = xx
                 else:
                     vec_b[xx] = _sign(row[last]) * (last - xx) if last < width else 0
-            step = 1 if cam == 1 else -1  # right-camera events look towards larger x, left towards smaller
             s1 = _sign(value)
             best = -1
             best_cost = max_cost

@@ -235,9 +235,11 @@ class DynamicFrames:
 # ----------------------------------------------------------------------------------------------------------
 # Fast path: the same operations as DynamicFrames, on state arrays of several cameras, in numba.
 # State of camera ``cam``: stored[cam] (n_frames, H, W), scale[cam], clock[cam] = (next_tick, touched).
+# advance() and splat() are inlined into their callers: a numba call with array arguments costs atomic
+# reference counting on every array, which made a 9-pixel splat ten times slower.
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def advance(stored, scale, clock, cam, t, decay, period):
     """Apply the due decay ticks of camera ``cam`` up to time ``t`` (see :meth:`DynamicFrames.advance`)."""
     if clock[cam, 1] != 0 and t // period + 1 - clock[cam, 0] > FORGET_TICKS:
@@ -262,7 +264,7 @@ def advance(stored, scale, clock, cam, t, decay, period):
     clock[cam, 0] = k
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def splat(stored, scale, clock, cam, slot, x, y, sign, kernel):
     """Add ``sign * kernel`` centred on (x, y) to frame ``slot`` of camera ``cam`` (see :meth:`DynamicFrames.add`)."""
     k = kernel.shape[0]
@@ -302,9 +304,21 @@ def process_events(stored, scale, clock, cam, t, x, y, p, slot_of_p, kernel, dec
             out[i] = stored[cam, slot, y[i], x[i]] * scale[cam]
 
 
+def event_matrix(events: np.ndarray) -> np.ndarray:
+    """The columns t, x, y, p of an event array as the rows of one ``(4, N)`` int64 array.
+
+    Each row is contiguous, as the numba kernels take them.
+    """
+    out = np.empty((4, events.size), dtype=np.int64)
+    for row, name in enumerate(("t", "x", "y", "p")):
+        out[row] = events[name]
+    return out
+
+
 def event_columns(events: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Contiguous int64 columns t, x, y, p of an event array, as the numba kernels take them."""
-    return tuple(np.ascontiguousarray(events[f], dtype=np.int64) for f in ("t", "x", "y", "p"))
+    m = event_matrix(events)
+    return m[0], m[1], m[2], m[3]
 
 
 class FrameBank:
@@ -350,11 +364,16 @@ class FrameBank:
             The value of each event's own frame at its pixel, before or just after its own update; NaN for
             dropped polarities.
         """
+        return self.process_columns(cam, event_matrix(events), read=read)
+
+    def process_columns(self, cam: int, columns: np.ndarray, *, read: Literal["before", "after"] = "before"
+                        ) -> np.ndarray:
+        """:meth:`process` on the ``(4, N)`` int64 rows t, x, y, p of :func:`event_matrix`."""
         if read not in ("before", "after"):
             raise ValueError(f"read must be 'before' or 'after', got {read!r}.")
-        out = np.empty(events.size)
-        process_events(self.stored, self.scale, self.clock, cam, *event_columns(events), self.slot_of_p,
-                       self.kernel, *self.decay_args, read == "after", out)
+        out = np.empty(columns.shape[1])
+        process_events(self.stored, self.scale, self.clock, cam, columns[0], columns[1], columns[2], columns[3],
+                       self.slot_of_p, self.kernel, *self.decay_args, read == "after", out)
         return out
 
     def values(self, cam: int, t: int | None = None) -> np.ndarray:

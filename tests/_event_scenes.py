@@ -81,3 +81,19 @@ def moving_edges(*, shift: int = 6, delay_us: int = 50, edges=EDGES, us_per_px: 
     keep = left["x"] >= shift
     right = make_events(left["t"][keep] + delay_us, left["x"][keep] - shift, left["y"][keep], left["p"][keep])
     return left, right
+
+
+def simulated_clip(t_stop_us: int = 100_000):
+    """The first ``t_stop_us`` of the simulator's ``2arms-50cm`` preset (left, right, resolution); skips the
+    test when the simulator is not available."""
+    import pytest
+
+    try:
+        from cvstereo.io.npz import read_recording_npz
+        from cvstereo.simulate import cached_preset
+    except ImportError as exc:
+        pytest.skip(f"simulator not available: {exc}")
+    rec = read_recording_npz(cached_preset("2arms-50cm", seconds=0.3))
+    left = rec.left[rec.left["t"] < t_stop_us]
+    right = rec.right[rec.right["t"] < t_stop_us]
+    return left, right, rec.resolution

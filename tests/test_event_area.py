@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _event_scenes import feed_cut, moving_edges, random_pair
+from _event_scenes import feed_cut, moving_edges, random_pair, simulated_clip
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -74,3 +74,11 @@ def test_variant_parameters():
     assert EventAreaMatcher.make_params().threshold == 1.2
     with pytest.raises(ValueError, match="block"):
         EventAreaParams(block=4)
+
+
+def test_fast_equals_reference_on_a_simulated_clip():
+    left, right, resolution = simulated_clip(100_000)
+    expected = event_area_reference(left, right, EventAreaParams(), resolution=resolution)
+    got = feed_cut(EventAreaMatcher(EventAreaParams(), resolution=resolution), left, right, range(0, 100_000, 3_333))
+    assert expected.size > 0
+    np.testing.assert_array_equal(got, expected)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _event_scenes import feed_cut, moving_edges, random_pair
+from _event_scenes import feed_cut, moving_edges, random_pair, simulated_clip
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -99,3 +99,11 @@ def test_describe_and_anchor_camera():
     assert meta["anchor_cameras"] == [0] and meta["params"]["threshold"] == 0.8
     with pytest.raises(ValueError, match="reference_camera"):
         EventTimeParams(reference_camera=2)
+
+
+def test_fast_equals_reference_on_a_simulated_clip():
+    left, right, resolution = simulated_clip(100_000)
+    expected = event_time_reference(left, right, EventTimeParams(), resolution=resolution)
+    got = feed_cut(EventTimeMatcher(EventTimeParams(), resolution=resolution), left, right, range(0, 100_000, 3_333))
+    assert expected.size > 0
+    np.testing.assert_array_equal(got, expected)

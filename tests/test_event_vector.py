@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _event_scenes import feed_cut, moving_edges, random_pair
+from _event_scenes import feed_cut, moving_edges, random_pair, simulated_clip
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -61,3 +61,12 @@ def test_parameters():
     assert list(EventVectorMatcher.variants) == ["default"]
     with pytest.raises(ValueError, match="threshold"):
         EventVectorParams(threshold=-1)
+
+
+def test_fast_equals_reference_on_a_simulated_clip():
+    left, right, resolution = simulated_clip(100_000)
+    expected = event_vector_reference(left, right, EventVectorParams(), resolution=resolution)
+    matcher = EventVectorMatcher(EventVectorParams(), resolution=resolution)
+    got = feed_cut(matcher, left, right, range(0, 100_000, 3_333))
+    assert expected.size > 0
+    np.testing.assert_array_equal(got, expected)
