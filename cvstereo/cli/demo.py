@@ -27,7 +27,8 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
     return p
 
 
-def _shared_folder(arg: str | None) -> Path:
+def shared_folder(arg: str | None) -> Path:
+    """The shared data folder: the argument, else $CVSTEREO_SHARED, else ../shared (design.md)."""
     if arg:
         return Path(arg)
     if "CVSTEREO_SHARED" in os.environ:
@@ -53,7 +54,7 @@ def _real_recordings(shared: Path) -> None:
 def run(args: argparse.Namespace) -> int:
     out = Path(args.output)
     out.mkdir(parents=True, exist_ok=True)
-    _real_recordings(_shared_folder(args.shared))
+    _real_recordings(shared_folder(args.shared))
     print()
     if importlib.util.find_spec("cvstereo.simulate") is None:
         print("The simulator has not landed yet: no simulated recordings to run the matchers on.")

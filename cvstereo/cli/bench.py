@@ -1,0 +1,41 @@
+"""``cvstereo bench``: every matcher on the same recordings; results.json and results.md."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def add_parser(sub, name: str) -> argparse.ArgumentParser:
+    p = sub.add_parser(
+        name, help="benchmark every matcher: accuracy vs truth, thesis tables, speed, memory, distance",
+        description="Run every matcher and variant (and the OpenCV / dv-processing baselines where installed) "
+        "on the thesis' six presets, the motorcycle scene and the real TUM recordings when present; write "
+        "results.json and results.md.")
+    p.add_argument("-o", "--output", default="bench",
+                   help="folder for results.json and results.md (default: %(default)s)")
+    p.add_argument("--quick", action="store_true",
+                   help="1.5 s clips of every recording: about a minute once the recordings are cached")
+    p.add_argument("--methods", nargs="+", default=None, metavar="METHOD", help="matchers to run (default: all)")
+    p.add_argument("--no-distance", action="store_true", help="skip the distance fit")
+    p.add_argument("--shared", default=None,
+                   help="shared data folder with data/tum-stereo (default: $CVSTEREO_SHARED or ../shared)")
+    return p
+
+
+def run(args: argparse.Namespace) -> int:
+    import cv2
+
+    from cvstereo.benchmark import BenchConfig, run_bench, write_results
+    from cvstereo.cli.demo import shared_folder
+
+    # Speed is reported per core: OpenCV would otherwise spread its kernels over every CPU.
+    cv2.setNumThreads(1)
+    config = BenchConfig(quick=args.quick, methods=tuple(args.methods) if args.methods else None,
+                         shared=shared_folder(args.shared), distance=not args.no_distance)
+    results = run_bench(config, log=lambda msg: print(msg, file=sys.stderr))
+    json_path, md_path = write_results(results, Path(args.output))
+    print(md_path.read_text())
+    print(f"written: {json_path}, {md_path}", file=sys.stderr)
+    return 0
