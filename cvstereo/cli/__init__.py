@@ -24,6 +24,7 @@ COMMANDS: dict[str, str] = {
     "record": "record",
     "live": "live",
     "rigcheck": "rigcheck",
+    "simulate": "simulate",
 }
 
 

@@ -1,0 +1,23 @@
+"""Stereo event simulator with per-event ground truth: the thesis' rig, arms, a turning rig, a real stereo pair.
+
+>>> from cvstereo.simulate import simulate, ArmsScene, Rig
+>>> rec = simulate(ArmsScene(arms=1, distance_m=1.0), rig=Rig(), seconds=0.05, seed=0)  # doctest: +SKIP
+>>> rec.left_disparity  # x_left - x_right of the scene point behind each event, NaN for noise  # doctest: +SKIP
+
+- :mod:`~cvstereo.simulate.rig`: rig geometry (baseline, focal length, barrel distortion, axis and vertical
+  offsets) and the sensors' pixel models (thresholds, mismatch, refractory period, noise, jitter).
+- :mod:`~cvstereo.simulate.scenes`: arms, the rotating rig in a room, the motorcycle pair, textured layers.
+- :mod:`~cvstereo.simulate.render`, :mod:`~cvstereo.simulate.dvs`: rendering and event generation.
+- :mod:`~cvstereo.simulate.presets`: the thesis' six recordings and a cache (:func:`cached_preset`).
+"""
+
+from cvstereo.simulate.core import DEFAULT_RENDER_HZ, GENERATOR_VERSION, simulate
+from cvstereo.simulate.presets import PRESETS, Preset, cached_preset, default_cache_dir, get_preset, simulate_preset
+from cvstereo.simulate.rig import EDVS1_RIGHT, EDVS2_LEFT, Rig, SensorModel
+from cvstereo.simulate.scenes import SCENES, ArmsScene, LayeredScene, Motion, MotorcycleScene, PlaneLayer, RotationScene
+
+__all__ = [
+    "DEFAULT_RENDER_HZ", "EDVS1_RIGHT", "EDVS2_LEFT", "GENERATOR_VERSION", "PRESETS", "SCENES", "ArmsScene",
+    "LayeredScene", "Motion", "MotorcycleScene", "PlaneLayer", "Preset", "Rig", "RotationScene", "SensorModel",
+    "cached_preset", "default_cache_dir", "get_preset", "simulate", "simulate_preset",
+]

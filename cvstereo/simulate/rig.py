@@ -1,0 +1,254 @@
+"""The stereo rig and the sensors: geometry (pinhole, barrel distortion, misalignment) and DVS pixel parameters.
+
+Coordinates
+-----------
+The rig frame has X to the right, Y down and Z forward (along both optical axes, which are parallel).
+The left camera sits at ``X = -B/2``, the right one at ``X = +B/2``, so that a scene point has the larger
+``x`` in the left camera (formats.md) and the disparity ``d = x_left - x_right`` is positive.
+
+A camera maps a point ``(X, Y, Z)`` of its own frame to raw sensor coordinates in three steps:
+
+1. pinhole: ``xn = X / Z``, ``yn = Y / Z`` (undistorted, normalised);
+2. radial (barrel) distortion: ``(xd, yd) = (xn, yn) * (1 + k1 * (xn**2 + yn**2))`` with ``k1 < 0``;
+3. intrinsics: ``u = cx + f * xd``, ``v = cy + f * yd`` (pixel centres at integers, 0 = left / top).
+
+The misalignment of the thesis' rig is modelled by the principal points: the left camera's lies ``c/2`` to
+the left of the sensor centre and the right camera's ``c/2`` to the right, so that an undistorted rig gives
+exactly ``d = f*B/Z - c``; this is the small-angle equivalent of optical axes that diverge by ``c / f``
+radians. The right camera's principal point also lies ``dy`` rows lower than the left one's (the vertical
+offset of about one row between the sensors).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from cvstereo.events import DEFAULT_RESOLUTION
+
+#: Fixed-point iterations that invert the radial distortion; 12 reach 1e-9 for |k1 * r^2| < 0.2.
+_UNDISTORT_ITERATIONS = 12
+
+
+@dataclass(frozen=True)
+class SensorModel:
+    """The pixel model of one DVS128: contrast thresholds, their mismatch, refractory period, noise, jitter.
+
+    Parameters
+    ----------
+    on_threshold, off_threshold : float
+        Mean log-intensity change that fires an ON / OFF event. A lower ON threshold makes ON events
+        outnumber OFF events (thesis table 4.1: by 15-23 %).
+    threshold_mismatch : float
+        Standard deviation of the per-pixel thresholds, as a fraction of the mean (fixed-pattern mismatch).
+    min_threshold : float
+        Per-pixel thresholds are clipped below at this value, so that a badly mismatched pixel stays finite.
+    refractory_us : float
+        After an event a pixel ignores threshold crossings for this long (the crossed levels are consumed).
+    noise_rate_hz : float
+        Background-activity noise, Poisson, per pixel (events / s); noise events carry NaN ground truth.
+    noise_on_fraction : float
+        Share of noise events that are ON.
+    jitter_us : float
+        Standard deviation of the Gaussian timestamp jitter (readout latency) added to every event.
+    """
+
+    on_threshold: float = 0.25
+    off_threshold: float = 0.30
+    threshold_mismatch: float = 0.08
+    min_threshold: float = 0.05
+    refractory_us: float = 100.0
+    noise_rate_hz: float = 0.05
+    noise_on_fraction: float = 0.5
+    jitter_us: float = 30.0
+
+    def __post_init__(self):
+        for name in ("on_threshold", "off_threshold", "min_threshold"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"SensorModel.{name} must be positive, got {getattr(self, name)}.")
+        for name in ("threshold_mismatch", "refractory_us", "noise_rate_hz", "jitter_us"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"SensorModel.{name} must be >= 0, got {getattr(self, name)}.")
+        if not 0 <= self.noise_on_fraction <= 1:
+            raise ValueError(f"SensorModel.noise_on_fraction must lie in [0, 1], got {self.noise_on_fraction}.")
+
+    def ideal(self) -> SensorModel:
+        """The same thresholds without mismatch, refractory period, noise or jitter (for tests)."""
+        return dataclasses.replace(self, threshold_mismatch=0.0, refractory_us=0.0, noise_rate_hz=0.0,
+                                   jitter_us=0.0)
+
+
+# The thesis' eDVS2 (our left camera) gives 23 % more ON than OFF events and the fewer events; eDVS1 (our
+# right camera) 15 % more ON than OFF and 7-28 % more events in all (table 4.1). ON/OFF ratios follow the
+# threshold ratio; the right camera's lower thresholds make it the busier one. Tuned with
+# bench/bench_simulate.py against table 4.1.
+#: The thesis' eDVS2, our left camera.
+EDVS2_LEFT = SensorModel(on_threshold=0.25, off_threshold=0.30, noise_rate_hz=0.05)
+#: The thesis' eDVS1, our right camera (the busier one).
+EDVS1_RIGHT = SensorModel(on_threshold=0.235, off_threshold=0.267, noise_rate_hz=0.06)
+
+
+@dataclass(frozen=True)
+class Camera:
+    """One camera of a rig: intrinsics, distortion, position, and the rays of its raw pixels.
+
+    Build it with :meth:`Rig.camera`; the fields are derived from the rig.
+
+    Parameters
+    ----------
+    index : int
+        0 = left, 1 = right.
+    focal_px, cx, cy, k1 : float
+        Focal length, principal point (raw pixels), radial distortion coefficient.
+    position_x : float
+        X of the optical centre in the rig frame (metres).
+    resolution : (width, height)
+    """
+
+    index: int
+    focal_px: float
+    cx: float
+    cy: float
+    k1: float
+    position_x: float
+    resolution: tuple[int, int]
+    _rays: tuple[np.ndarray, np.ndarray] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        w, h = self.resolution
+        v, u = np.mgrid[0:h, 0:w].astype(np.float64)
+        object.__setattr__(self, "_rays", self.undistort_pixels(u, v))
+
+    @property
+    def rays(self) -> tuple[np.ndarray, np.ndarray]:
+        """Undistorted normalised ray coordinates ``(xn, yn)`` of every raw pixel centre, each (H, W)."""
+        return self._rays
+
+    def distort(self, xn: np.ndarray, yn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Raw pixel coordinates ``(u, v)`` of undistorted normalised coordinates (same shapes)."""
+        g = 1.0 + self.k1 * (xn * xn + yn * yn)
+        return self.cx + self.focal_px * xn * g, self.cy + self.focal_px * yn * g
+
+    def undistort_pixels(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Undistorted normalised coordinates ``(xn, yn)`` of raw pixel coordinates (same shapes)."""
+        xd = (np.asarray(u, np.float64) - self.cx) / self.focal_px
+        yd = (np.asarray(v, np.float64) - self.cy) / self.focal_px
+        xn, yn = xd, yd
+        for _ in range(_UNDISTORT_ITERATIONS):
+            g = 1.0 + self.k1 * (xn * xn + yn * yn)
+            xn, yn = xd / g, yd / g
+        return xn, yn
+
+
+@dataclass(frozen=True)
+class Rig:
+    """Two DVS128 side by side with parallel optical axes, as in the thesis (10 cm apart, f about 160 px).
+
+    Parameters
+    ----------
+    baseline_m : float
+        Distance B between the optical centres.
+    focal_px : float
+        Focal length f in pixels (both cameras).
+    axis_offset_px : float
+        The offset c of d = f*B/Z - c, from optical axes that are not exactly parallel (see module doc).
+    vertical_offset_px : float
+        How many rows lower the right camera sees a scene point than the left one (about one row).
+    distortion_k1 : float
+        Radial distortion coefficient of both lenses; negative = barrel. -0.08 moves the sensor corners
+        about 2 px towards the centre ("slight barrel distortion", thesis 3.2).
+    resolution : (width, height)
+    left, right : SensorModel
+        The pixel models of the left (thesis: eDVS2) and right (eDVS1) sensors.
+    """
+
+    baseline_m: float = 0.10
+    # f and c are tuned so that arms at 50, 100, 150 cm give 28-30, 13-14, 7-8 px as the thesis measured
+    # (a least-squares fit of its means gives f*B = 16.1 px*m, c = 2.9 px; barrel distortion lowers the
+    # disparity off-centre by about 2 %, hence f = 165).
+    focal_px: float = 165.0
+    axis_offset_px: float = 3.0
+    vertical_offset_px: float = 1.0
+    distortion_k1: float = -0.08
+    resolution: tuple[int, int] = DEFAULT_RESOLUTION
+    left: SensorModel = EDVS2_LEFT
+    right: SensorModel = EDVS1_RIGHT
+
+    def __post_init__(self):
+        object.__setattr__(self, "resolution", (int(self.resolution[0]), int(self.resolution[1])))
+        if self.baseline_m < 0:
+            raise ValueError(f"Rig.baseline_m must be >= 0, got {self.baseline_m}.")
+        if not self.focal_px > 0:
+            raise ValueError(f"Rig.focal_px must be positive, got {self.focal_px}.")
+        w, h = self.resolution
+        if w < 2 or h < 2:
+            raise ValueError(f"Rig.resolution must be at least 2x2, got {w}x{h}.")
+        corner_r2 = ((w / 2) ** 2 + (h / 2) ** 2) / self.focal_px**2
+        if not -0.2 < self.distortion_k1 * corner_r2 < 0.2:
+            raise ValueError(
+                f"Rig.distortion_k1={self.distortion_k1} distorts the sensor corners by more than 20 %; "
+                f"the model is meant for slight distortion (|k1| < {0.2 / corner_r2:.2f} at f={self.focal_px})."
+            )
+
+    def ideal(self) -> Rig:
+        """The same rig without distortion, axis offset or vertical offset."""
+        return dataclasses.replace(self, axis_offset_px=0.0, vertical_offset_px=0.0, distortion_k1=0.0)
+
+    def sensor(self, index: int) -> SensorModel:
+        """The sensor model of camera 0 (left) or 1 (right)."""
+        return self.left if index == 0 else self.right
+
+    def camera(self, index: int) -> Camera:
+        """Camera 0 (left) or 1 (right)."""
+        if index not in (0, 1):
+            raise ValueError(f"camera index must be 0 (left) or 1 (right), got {index}.")
+        w, h = self.resolution
+        side = -1.0 if index == 0 else 1.0
+        return Camera(
+            index=index,
+            focal_px=self.focal_px,
+            cx=(w - 1) / 2 + side * self.axis_offset_px / 2,
+            cy=(h - 1) / 2 + side * self.vertical_offset_px / 2,
+            k1=self.distortion_k1,
+            position_x=side * self.baseline_m / 2,
+            resolution=self.resolution,
+        )
+
+    def disparity_from_depth(self, index: int, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """True disparity of the scene points seen at raw pixels of one camera, from their depth.
+
+        The point seen at pixel ``(x, y)`` of camera ``index`` at depth ``z`` (rig frame, along the optical
+        axis) is projected into the other camera; the result is ``x_left - x_right`` in raw coordinates.
+
+        Parameters
+        ----------
+        index : int
+            Camera that saw the points, 0 = left, 1 = right.
+        x, y : (N,) array_like
+            Raw pixel coordinates in that camera.
+        z : (N,) array_like
+            Depth in metres; NaN gives NaN, inf gives the disparity of a point at infinity (``-c``).
+
+        Returns
+        -------
+        (N,) float64 ndarray
+        """
+        own, other = self.camera(index), self.camera(1 - index)
+        xn, yn = own.undistort_pixels(x, y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            shift = (own.position_x - other.position_x) / np.asarray(z, np.float64)
+        shift = np.where(np.isinf(np.asarray(z, np.float64)), 0.0, shift)
+        u_other, _ = other.distort(xn + shift, yn)
+        x = np.asarray(x, np.float64)
+        return x - u_other if index == 0 else u_other - x
+
+    def describe(self) -> dict:
+        """JSON-serialisable description for a recording's meta."""
+        d = dataclasses.asdict(self)
+        d["resolution"] = list(self.resolution)
+        d["left_sensor"], d["right_sensor"] = d.pop("left"), d.pop("right")
+        d["model"] = ("pinhole, radial distortion (xd = xn*(1+k1*r^2)), principal points shifted by "
+                      "-/+axis_offset_px/2 and -/+vertical_offset_px/2 (left/right); d = f*B/Z - c undistorted")
+        return d

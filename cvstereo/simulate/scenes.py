@@ -1,0 +1,443 @@
+"""Scenes: what the rig looks at, as a function of time.
+
+A scene renders one camera of a rig at a batch of instants: ``scene.render(rig, index, times_s)`` returns
+linear intensity and depth, each (T, H, W) float32 (see :mod:`cvstereo.simulate.render`), and
+``scene.describe()`` a JSON-serialisable description for the recording's meta.
+
+- :class:`LayeredScene`: textured rectangles that move (and a rig that may turn) — the building block.
+- :class:`ArmsScene`: one or two arms moving through the view in front of a wall (the thesis' recordings).
+- :class:`RotationScene`: the rig turning in a static room with objects at several depths (a mobile robot).
+- :class:`MotorcycleScene`: the view panning over the Middlebury motorcycle pair that scikit-image ships.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from cvstereo.simulate import textures
+from cvstereo.simulate.render import layer_hits, render_image, render_planes
+from cvstereo.simulate.rig import Rig
+
+
+@dataclass(frozen=True)
+class Motion:
+    """A smooth path: a centre, a constant velocity and a sum of sinusoids per axis.
+
+    ``position(t) = center + velocity * t + sum(amplitude * sin(2*pi*t / period + phase) * e_axis)``.
+
+    Parameters
+    ----------
+    center : tuple of float
+        Position at t = 0 without the sinusoids (metres, or radians for an angle).
+    velocity : tuple of float
+        Per second.
+    terms : tuple of (axis, amplitude, period_s, phase) tuples
+    """
+
+    center: tuple[float, ...] = (0.0, 0.0, 0.0)
+    velocity: tuple[float, ...] | None = None
+    terms: tuple[tuple[int, float, float, float], ...] = ()
+
+    def position(self, times_s: np.ndarray) -> np.ndarray:
+        """(T, D) positions at the instants ``times_s`` (T,), D = len(center)."""
+        t = np.asarray(times_s, np.float64)[:, None]
+        pos = np.asarray(self.center, np.float64)[None, :] + 0 * t
+        if self.velocity is not None:
+            pos = pos + np.asarray(self.velocity, np.float64)[None, :] * t
+        for axis, amplitude, period, phase in self.terms:
+            pos[:, axis] += amplitude * np.sin(2 * np.pi * t[:, 0] / period + phase)
+        return pos
+
+    @property
+    def is_static(self) -> bool:
+        """True when the position never changes."""
+        return (self.velocity is None or not any(self.velocity)) and not any(term[1] for term in self.terms)
+
+    def describe(self) -> dict:
+        return {"center": list(self.center), "velocity": None if self.velocity is None else list(self.velocity),
+                "terms": [list(term) for term in self.terms]}
+
+
+@dataclass(frozen=True, eq=False)
+class PlaneLayer:
+    """A textured rectangle in the world: texture, texel size, orientation and motion of its centre.
+
+    Parameters
+    ----------
+    name : str
+    intensity, alpha : (H, W) float32 ndarray
+        Linear intensity and coverage (see :mod:`cvstereo.simulate.textures`).
+    texel_m : float
+        Metres per texel.
+    motion : Motion
+        World position of the texture's centre over time.
+    u_axis, v_axis : tuple of 3 float
+        World directions of the texture's columns (x) and rows (y); unit, orthogonal.
+    """
+
+    name: str
+    intensity: np.ndarray
+    alpha: np.ndarray
+    texel_m: float
+    motion: Motion
+    u_axis: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    v_axis: tuple[float, float, float] = (0.0, 1.0, 0.0)
+
+    def __post_init__(self):
+        if self.intensity.shape != self.alpha.shape or self.intensity.ndim != 2 or min(self.intensity.shape) < 2:
+            raise ValueError(f"layer '{self.name}': intensity {self.intensity.shape} and alpha "
+                             f"{self.alpha.shape} must be equal 2-D shapes of at least 2x2.")
+        if abs(float(np.dot(self.u_axis, self.v_axis))) > 1e-9:
+            raise ValueError(f"layer '{self.name}': u_axis and v_axis must be orthogonal.")
+
+    def describe(self) -> dict:
+        h, w = self.intensity.shape
+        return {"name": self.name, "size_m": [w * self.texel_m, h * self.texel_m], "motion": self.motion.describe(),
+                "u_axis": list(self.u_axis), "v_axis": list(self.v_axis)}
+
+
+def _yaw_matrices(angles: np.ndarray) -> np.ndarray:
+    """(T, 3, 3) rotations about the rig's Y axis (down) by ``angles`` (T,) radians; positive turns right."""
+    c, s = np.cos(angles), np.sin(angles)
+    rot = np.zeros((angles.size, 3, 3))
+    rot[:, 0, 0], rot[:, 0, 2] = c, s
+    rot[:, 1, 1] = 1.0
+    rot[:, 2, 0], rot[:, 2, 2] = -s, c
+    return rot
+
+
+@dataclass(frozen=True, eq=False)
+class LayeredScene:
+    """Textured rectangles, a uniform background behind them, a rig that may turn, a light that may change.
+
+    Parameters
+    ----------
+    layers : tuple of PlaneLayer
+    background : float
+        Intensity where no rectangle is hit (depth unknown there).
+    rig_yaw : Motion or None
+        Yaw angle of the rig (radians, axis 0 of a 1-D motion); None: the rig stands still at the origin.
+    illumination : callable or None
+        ``gain(times_s) -> (T,)`` multiplies the whole image (for brightness-step tests).
+    name : str
+    """
+
+    layers: tuple[PlaneLayer, ...]
+    background: float = 0.5
+    rig_yaw: Motion | None = None
+    illumination: Callable[[np.ndarray], np.ndarray] | None = None
+    name: str = "layers"
+    _cache: dict = field(init=False, repr=False)
+
+    def __post_init__(self):
+        if not self.layers:
+            raise ValueError("LayeredScene needs at least one layer.")
+        object.__setattr__(self, "_cache", {})
+
+    def _pack(self, indices: tuple[int, ...]) -> dict:
+        """Textures and axes of some layers, padded to one shape, for the renderer (cached)."""
+        key = ("pack", indices)
+        if key not in self._cache:
+            layers = [self.layers[m] for m in indices]
+            hmax = max((layer.intensity.shape[0] for layer in layers), default=2)
+            wmax = max((layer.intensity.shape[1] for layer in layers), default=2)
+            tex = np.zeros((len(layers), hmax, wmax), np.float32)
+            alpha = np.zeros_like(tex)
+            for m, layer in enumerate(layers):
+                h, w = layer.intensity.shape
+                tex[m, :h, :w] = layer.intensity
+                alpha[m, :h, :w] = layer.alpha
+            self._cache[key] = dict(
+                tex=tex, alpha=alpha,
+                size=np.array([[la.intensity.shape[1], la.intensity.shape[0]] for la in layers]).reshape(-1, 2),
+                texel=np.array([layer.texel_m for layer in layers]),
+                u_axis=np.array([layer.u_axis for layer in layers], np.float64).reshape(-1, 3),
+                v_axis=np.array([layer.v_axis for layer in layers], np.float64).reshape(-1, 3),
+            )
+        return self._cache[key]
+
+    def render(self, rig: Rig, index: int, times_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Intensity and depth, each (T, H, W) float32, of camera ``index`` at ``times_s`` (T,)."""
+        times_s = np.asarray(times_s, np.float64)
+        camera = rig.camera(index)
+        yaw = np.zeros(times_s.size) if self.rig_yaw is None else self.rig_yaw.position(times_s)[:, 0]
+        rot = _yaw_matrices(yaw)
+        cam_pos = rot @ np.array([camera.position_x, 0.0, 0.0])
+        gain = np.ones(times_s.size) if self.illumination is None else np.asarray(self.illumination(times_s))
+        # With the rig at rest, layers that do not move look the same in every frame: intersect them once.
+        still = tuple(m for m, layer in enumerate(self.layers) if self.rig_yaw is None and layer.motion.is_static)
+        moving = tuple(m for m in range(len(self.layers)) if m not in still)
+        static = None
+        if still:
+            key = ("static", rig, index)
+            if key not in self._cache:
+                fixed = dict(self._pack(still), origins=np.array([self.layers[m].motion.center for m in still]))
+                self._cache[key] = layer_hits(camera.rays, cam_pos[0], rot[0], fixed)
+            static = self._cache[key]
+        origins = np.zeros((times_s.size, len(moving), 3))
+        for j, m in enumerate(moving):
+            origins[:, j] = self.layers[m].motion.position(times_s)
+        layers = dict(self._pack(moving), origins=origins)
+        return render_planes(camera.rays, cam_pos, rot, layers, gain=gain, background=self.background,
+                             static=static)
+
+    def describe(self) -> dict:
+        return {"type": self.name, "background": self.background,
+                "rig_yaw": None if self.rig_yaw is None else self.rig_yaw.describe(),
+                "illumination": None if self.illumination is None else getattr(self.illumination, "__name__", "custom"),
+                "layers": [layer.describe() for layer in self.layers]}
+
+
+class _Built:
+    """Mixin for parameter dataclasses that build a LayeredScene once per focal length."""
+
+    def render(self, rig: Rig, index: int, times_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Intensity and depth, each (T, H, W) float32, of camera ``index`` at ``times_s`` (T,)."""
+        return self.build(rig.focal_px).render(rig, index, times_s)
+
+    def describe(self) -> dict:
+        return {"type": self.kind, **dataclasses.asdict(self)}
+
+
+@dataclass(frozen=True)
+class ArmsScene(_Built):
+    """One or two arms (sleeve and hand, fingers up) moving sideways through the view in front of a wall.
+
+    The arms sweep to and fro (a sinusoid across ``sweep_fraction`` of the view's half-width), bob a little
+    up and down, and wobble in depth by about ``wobble_m`` around ``distance_m`` (the thesis: "not assured
+    that the arms stay in exactly the same distance"). A second arm moves against the first, 2 cm further.
+
+    Parameters
+    ----------
+    arms : int
+        1 or 2.
+    distance_m : float
+        Mean distance of the (first) arm from the rig.
+    background_m : float
+        Distance of the static wall behind.
+    sweep_period_s : float
+        Period of the sideways sweep; with ``sweep_fraction`` it sets the speed, hence the event rate.
+    sweep_fraction : float
+        Sweep amplitude as a fraction of the view's half-width at ``distance_m``.
+    wobble_m : float
+        Amplitude of the depth wobble.
+    sleeve_contrast : float
+        Contrast of the shirt's check pattern (see :func:`cvstereo.simulate.textures.arm`).
+    seed : int
+        Textures and motion phases.
+    """
+
+    arms: int = 1
+    distance_m: float = 0.5
+    background_m: float = 2.5
+    sweep_period_s: float = 3.0
+    sweep_fraction: float = 0.8
+    wobble_m: float = 0.02
+    sleeve_contrast: float = 0.35
+    seed: int = 0
+    kind = "arms"
+
+    def __post_init__(self):
+        if self.arms not in (1, 2):
+            raise ValueError(f"ArmsScene.arms must be 1 or 2, got {self.arms}.")
+        if not 0.1 <= self.distance_m < self.background_m:
+            raise ValueError(f"ArmsScene.distance_m={self.distance_m} must be >= 0.1 m and in front of the wall "
+                             f"(background_m={self.background_m}).")
+        if self.sweep_period_s <= 0:
+            raise ValueError(f"ArmsScene.sweep_period_s must be positive, got {self.sweep_period_s}.")
+
+    @functools.lru_cache(maxsize=4)  # noqa: B019 -- frozen, hashable parameters; a handful of focal lengths
+    def build(self, focal_px: float) -> LayeredScene:
+        """The layers for a rig of focal length ``focal_px`` (textures are sampled for it)."""
+        rng = np.random.default_rng([self.seed, 0xA5])
+        half_width = 64 / focal_px
+        wall_texel = textures.texel_size(self.background_m, focal_px, texels_per_pixel=1.5)
+        wall_size = (2.6 * half_width * self.background_m + 0.4, 2.6 * half_width * self.background_m + 0.4)
+        wall_i, wall_a = textures.wall(rng, wall_size, wall_texel,
+                                       blur_texels=textures.OPTICS_BLUR_PX * 1.5)
+        layers = [PlaneLayer("wall", wall_i, wall_a, wall_texel, Motion((0.0, 0.0, self.background_m)))]
+        for k in range(self.arms):
+            z = self.distance_m + 0.02 * k
+            texel = textures.texel_size(z, focal_px)
+            arm_i, arm_a = textures.arm(rng, texel, sleeve_contrast=self.sleeve_contrast,
+                                        blur_texels=textures.OPTICS_BLUR_PX * 2)
+            if k == 1:  # the other hand: mirrored, a lighter shirt
+                arm_i, arm_a = arm_i[:, ::-1].copy() * 1.3, arm_a[:, ::-1].copy()
+            length = arm_i.shape[0] * texel
+            view_half = half_width * z
+            top = -0.55 * view_half  # fingertips in the upper part of the view
+            amp = self.sweep_fraction * view_half
+            phases = rng.uniform(0, 2 * np.pi, 4)
+            start = phases[0] if k == 0 else phases[0] + np.pi  # two arms sweep against each other
+            layers.append(PlaneLayer(
+                f"arm{k + 1}", arm_i, arm_a, texel,
+                Motion((0.0, top + length / 2, z), terms=(
+                    (0, amp, self.sweep_period_s * (1 + 0.27 * k), start),
+                    (1, 0.08 * view_half, 2.3 + 0.4 * k, phases[1]),
+                    (2, 0.7 * self.wobble_m, 3.1 + 0.5 * k, phases[2]),
+                    (2, 0.3 * self.wobble_m, 1.3, phases[3]),
+                )),
+            ))
+        return LayeredScene(tuple(layers), background=0.5, name="arms")
+
+
+_OBJECT_BEARINGS = (0.05, -0.3, 0.35, -0.55, 0.6, -0.8)
+
+
+@dataclass(frozen=True)
+class RotationScene(_Built):
+    """The rig turning to and fro in a static room with objects at several depths (a mobile robot).
+
+    Parameters
+    ----------
+    yaw_amplitude_deg : float
+        The rig turns by up to this much either way.
+    yaw_period_s : float
+    object_distances_m : tuple of float
+        Distances of the objects (boxes on shelves, cabinets) in the room, at the rig's height.
+    seed : int
+    """
+
+    yaw_amplitude_deg: float = 35.0
+    yaw_period_s: float = 8.0
+    object_distances_m: tuple[float, ...] = (0.8, 1.3, 1.9, 2.6)
+    seed: int = 0
+    kind = "rotation"
+
+    @functools.lru_cache(maxsize=4)  # noqa: B019 -- frozen, hashable parameters; a handful of focal lengths
+    def build(self, focal_px: float) -> LayeredScene:
+        """The layers for a rig of focal length ``focal_px``."""
+        rng = np.random.default_rng([self.seed, 0x5A])
+        blur = textures.OPTICS_BLUR_PX * 1.5
+        x0, x1, z0, z1, y_floor, y_ceiling = -2.5, 2.5, -3.0, 3.5, 1.2, -1.4
+        height = y_floor - y_ceiling
+        room = []  # (name, size, centre, u, v, texel)
+        t_room = textures.texel_size(3.0, focal_px, texels_per_pixel=1.5)
+        room.append(("front", (x1 - x0, height), (0, (y_floor + y_ceiling) / 2, z1), (1, 0, 0), (0, 1, 0)))
+        room.append(("back", (x1 - x0, height), (0, (y_floor + y_ceiling) / 2, z0), (-1, 0, 0), (0, 1, 0)))
+        room.append(("left", (z1 - z0, height), (x0, (y_floor + y_ceiling) / 2, (z0 + z1) / 2), (0, 0, -1), (0, 1, 0)))
+        room.append(("right", (z1 - z0, height), (x1, (y_floor + y_ceiling) / 2, (z0 + z1) / 2), (0, 0, 1), (0, 1, 0)))
+        room.append(("floor", (x1 - x0, z1 - z0), (0, y_floor, (z0 + z1) / 2), (1, 0, 0), (0, 0, 1)))
+        room.append(("ceiling", (x1 - x0, z1 - z0), (0, y_ceiling, (z0 + z1) / 2), (1, 0, 0), (0, 0, -1)))
+        layers = []
+        for name, size, centre, u, v in room:
+            img, a = textures.wall(rng, size, t_room, blur_texels=blur)
+            layers.append(PlaneLayer(name, img, a, t_room, Motion(tuple(map(float, centre))),
+                                     tuple(map(float, u)), tuple(map(float, v))))
+        for k, dist in enumerate(self.object_distances_m):
+            # the nearest object ahead at the start, the others to both sides (the view spans +-0.37 rad)
+            bearing = _OBJECT_BEARINGS[k % len(_OBJECT_BEARINGS)] + rng.uniform(-0.05, 0.05)
+            size = (rng.uniform(0.25, 0.5), rng.uniform(0.4, 0.9))
+            texel = textures.texel_size(dist, focal_px)
+            img, a = textures.panel(rng, size, texel, level=rng.uniform(0.3, 0.8), blur_texels=blur * 1.3)
+            centre = (dist * np.sin(bearing), rng.uniform(-0.2, 0.2), dist * np.cos(bearing))  # at eye height
+            u = (np.cos(bearing), 0.0, -np.sin(bearing))  # facing the rig
+            layers.append(PlaneLayer(f"object{k + 1}", img, a, texel, Motion(tuple(map(float, centre))),
+                                     tuple(map(float, u)), (0.0, 1.0, 0.0)))
+        yaw = Motion((0.0,), terms=((0, np.deg2rad(self.yaw_amplitude_deg), self.yaw_period_s, 0.0),))
+        return LayeredScene(tuple(layers), background=0.3, rig_yaw=yaw, name="rotation")
+
+
+@functools.lru_cache(maxsize=2)
+def _motorcycle_images(scale: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Left/right linear intensity and left/right disparity (NaN unknown) at ``scale``, as float32 arrays.
+
+    The disparity map of ``skimage.data.stereo_motorcycle`` belongs to the left view (``x_right = x_left - d``,
+    full-size pixels, inf where unknown). Resampling the images by ``scale`` scales the disparities by the same
+    factor; the right view's map is the left one forward-warped (the nearer point wins), NaN in holes.
+    """
+    from skimage import data
+
+    left, right, disp = data.stereo_motorcycle()
+    h, w = disp.shape
+    size = (round(w * scale), round(h * scale))
+
+    def gray(img):  # sRGB to linear luminance, then resampled by area (no aliasing)
+        lin = (img.astype(np.float32) / 255) ** 2.2
+        lum = lin @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+        return cv2.resize(lum, size, interpolation=cv2.INTER_AREA).astype(np.float32)
+
+    d = np.where(np.isfinite(disp), disp, np.nan).astype(np.float32)
+    d = cv2.resize(d, size, interpolation=cv2.INTER_NEAREST) * scale
+    d_right = np.full_like(d, -np.inf)
+    yy, xx = np.nonzero(np.isfinite(d))
+    xr = np.rint(xx - d[yy, xx]).astype(int)
+    ok = (xr >= 0) & (xr < size[0])
+    np.maximum.at(d_right, (yy[ok], xr[ok]), d[yy[ok], xx[ok]])
+    d_right[~np.isfinite(d_right)] = np.nan
+    return gray(left), gray(right), d, d_right
+
+
+@dataclass(frozen=True)
+class MotorcycleScene:
+    """The view panning over the Middlebury "motorcycle" stereo pair shipped with scikit-image.
+
+    The left camera samples the left image and the right camera the right image (real texture, real
+    occlusions), both through the rig's distortion and principal points. The images are resampled by
+    ``scale`` sensor pixels per image pixel (the 741x500 pair at 0.5 gives a 370x250 scene, of which the
+    128x128 sensor sees about a third), so disparities are the map's times ``scale``: 3.6-30 px at 0.5,
+    median 19. The truth of an event is that map value at the pixel, carried through the rig's distortion and
+    offsets like every other scene (as the depth ``f*B / (scale*d)`` of a rig with this focal length and
+    baseline); inf (unknown) in the map gives NaN. Panning is a small rotation of the rig: the whole image
+    shifts, sinusoidally in x and y.
+
+    Parameters
+    ----------
+    scale : float
+        Sensor pixels per image pixel.
+    pan_period_s : (float, float)
+        Periods of the x and y pan.
+    pan_fraction : float
+        Pan amplitude as a fraction of the room the image leaves around the view.
+    seed : int
+        Pan phases.
+    """
+
+    scale: float = 0.5
+    pan_period_s: tuple[float, float] = (6.0, 4.3)
+    pan_fraction: float = 0.8
+    seed: int = 0
+    kind = "motorcycle"
+
+    def __post_init__(self):
+        if not 0.2 <= self.scale <= 1.0:
+            raise ValueError(f"MotorcycleScene.scale must lie in [0.2, 1.0] (the pair is 741x500), got {self.scale}.")
+
+    def pan(self, rig: Rig, times_s: np.ndarray) -> np.ndarray:
+        """(T, 2) image point seen by the principal ray of the left camera at each instant."""
+        left, _, _, _ = _motorcycle_images(self.scale)
+        h, w = left.shape
+        rw, rh = rig.resolution
+        margin_x, margin_y = 0.6 * rw + 4, 0.6 * rh + 4  # the half-view plus distortion and offsets
+        if w < 2 * margin_x or h < 2 * margin_y:
+            raise ValueError(f"the motorcycle image at scale {self.scale} ({w}x{h}) is smaller than the "
+                             f"{rw}x{rh} view; raise --scale.")
+        phase = np.random.default_rng([self.seed, 0x3C]).uniform(0, 2 * np.pi, 2)
+        amp = self.pan_fraction * np.array([w / 2 - margin_x, h / 2 - margin_y])
+        motion = Motion(((w - 1) / 2, (h - 1) / 2), terms=((0, amp[0], self.pan_period_s[0], phase[0]),
+                                                           (1, amp[1], self.pan_period_s[1], phase[1])))
+        return motion.position(times_s)
+
+    def render(self, rig: Rig, index: int, times_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Intensity and depth, each (T, H, W) float32, of camera ``index`` at ``times_s`` (T,)."""
+        if rig.baseline_m <= 0:
+            raise ValueError("the motorcycle scene has its own baseline (its disparity map); give the rig a "
+                             "positive baseline_m, which only encodes the map's disparities as depths.")
+        images = _motorcycle_images(self.scale)
+        image, disp = images[index], images[2 + index]
+        with np.errstate(divide="ignore"):
+            depth = (rig.focal_px * rig.baseline_m / disp).astype(np.float32)
+        return render_image(rig.camera(index).rays, rig.focal_px, image, depth, self.pan(rig, times_s))
+
+    def describe(self) -> dict:
+        return {"type": self.kind, **dataclasses.asdict(self), "source": "skimage.data.stereo_motorcycle",
+                "disparity_scale": self.scale}
+
+
+SCENES = {"arms": ArmsScene, "rotation": RotationScene, "motorcycle": MotorcycleScene}
