@@ -15,11 +15,13 @@ streams may be offset in time. :func:`check_rig` estimates, from the events of a
 - **imbalance**: event-rate ratio right/left (overall and in 5 ms bursts) and ON share per camera;
 - **noise**: events with no event at any of the 8 neighbouring pixels within a few ms, per second.
 
-Each estimate carries a confidence in [0, 1]. Row and time offset come from one joint cross-correlation of
-per-row event-rate signals (a row x time histogram per camera, high-passed), searched over row shifts and
-time lags: it integrates x out, so it does not depend on the disparity, and it is sharp in time because the
-same edge crosses a row at the same moment in both cameras. The disparity stage then works on the streams
-with those offsets removed.
+Each estimate carries a confidence in [0, 1]. The row offset comes from the 2-D cross-correlation of
+accumulated signed frames over (dx, dy) (windows long against any time offset); the time offset from the
+histogram of time differences between events at corresponding pixels (same polarity, that row offset, the
+dominant disparity +-1 px); then the rows once more with the time offset removed, and the disparity stage on
+the corrected streams. Known limit: for motion mostly in one horizontal direction, a disparity error of
+``e`` px passes for a time offset of ``e / speed``; slow sideways sweeps (the simulated arms) can then give
+time offsets of several ms with low confidence, which ``--auto`` does not apply (below 0.3).
 
 Reported offsets and disparities refer to the recording *as it should be used*: after exchanging the
 cameras when ``swap`` is True (:meth:`RigReport.prepare` does that), so that ``row_offset`` and
@@ -45,7 +47,6 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from cvstereo.events import time_slice
 from cvstereo.recording import Recording
 
 #: Percentiles of the local disparities that are reported.
@@ -54,6 +55,9 @@ DISPARITY_PERCENTILES = (5, 25, 50, 75, 95)
 #: Events per camera that an automatic disparity-stage window aims at: enough to overlay shapes, few enough
 #: that moving things do not smear across many pixels.
 WINDOW_EVENTS = 300
+
+#: Rate changes slower than this are removed from the per-row signals before their lag is measured.
+HIGHPASS_US = 10_000
 
 #: Below this many events per camera no estimate is meaningful.
 MIN_EVENTS = 50
@@ -256,18 +260,25 @@ def check_rig(recording: Recording, *, max_disparity: int = 64, max_row_offset: 
         window_us = int(np.clip(WINDOW_EVENTS / rate * 1e6, 10_000, 1_000_000))
         settings["window_us"] = window_us
 
-    # 1. Row and time offset, jointly, from per-row event-rate signals (independent of the disparity).
-    yt = _row_time_offsets(left, right, height=height, max_row_offset=min(max_row_offset, height - 1),
-                           max_lag_us=max_time_offset_us, bin_us=time_bin_us, n_bands=n_bands)
-    row_offset, row_conf, band_offsets, band_conf, band_rows, time_offset, time_conf = yt
+    # 1. Row offset from the 2-D overlay of accumulated frames over (dx, dy): windows long against any time
+    #    offset, so nearly independent of it. 2. Time offset from per-row event-rate signals at that row
+    #    shift: searching rows and lags jointly there is ambiguous (an inclined edge moving sideways looks the
+    #    same a few rows lower and a few ms later), at a fixed row shift it is not. 3. The rows once more
+    #    with the time offset removed, and the lag again if the rows changed.
+    res = (width, height)
+    frame_opts = {"resolution": res, "max_row_offset": min(max_row_offset, height - 1),
+                  "max_disparity": min(max_disparity, width - 1), "window_us": window_us,
+                  "max_windows": max_windows, "n_bands": n_bands}
+    lag_opts = {"resolution": res, "max_lag_us": max_time_offset_us, "bin_us": time_bin_us}
+    rows = _frame_row_offsets(left, right, **frame_opts)
+    time_offset, time_conf = _time_offset(left, right, row=round(rows[0]), disparity=rows[5], **lag_opts)
+    rows2 = _frame_row_offsets(left, _shifted(right, 0, time_offset, res), **frame_opts)
+    if round(rows2[0]) != round(rows[0]) or rows2[5] != rows[5]:
+        time_offset, time_conf = _time_offset(left, right, row=round(rows2[0]), disparity=rows2[5], **lag_opts)
+    row_offset, row_conf, band_offsets, band_conf, band_rows, _ = rows2
 
-    # 2. Disparity on the streams with those offsets removed (whole rows; the time offset to the microsecond).
-    corrected = right.copy()
-    corrected["y"] = right["y"] + round(row_offset)
-    corrected["t"] = right["t"] - round(time_offset)
-    keep = (corrected["y"] >= 0) & (corrected["y"] < height)
-    corrected = corrected[keep]
-    corrected = corrected[np.argsort(corrected["t"], kind="stable")]
+    # 4. Disparity on the streams with both offsets removed (whole rows; the time offset to the microsecond).
+    corrected = _shifted(right, row_offset, time_offset, res)
     profile, local = _disparity_overlays(left, corrected, resolution=(width, height), max_disparity=max_disparity,
                                          window_us=window_us, max_windows=max_windows, block=block, min_ncc=min_ncc)
     swap, swap_conf = _decide_side(profile, max_disparity)
@@ -323,76 +334,117 @@ def check_rig(recording: Recording, *, max_disparity: int = 64, max_row_offset: 
 # Row and time offset
 
 
-def _row_time_offsets(left, right, *, height, max_row_offset, max_lag_us, bin_us, n_bands):
-    """Joint search over row shifts r and time lags of per-row event-rate signals.
+def _shifted(right, rows, time_us, resolution):
+    """Right-camera events with ``round(rows)`` added to y and ``round(time_us)`` subtracted from t."""
+    from cvstereo.rigcorrect import RigCorrection
 
-    Returns ``(row_offset, confidence, band_offsets, band_confidences, band_rows, time_offset_us, confidence)``.
+    return RigCorrection(rows, round(time_us), resolution).correct_right(right)[0]
+
+
+def _time_offset(left, right, *, row, disparity, resolution, max_lag_us, bin_us, max_events=200_000):
+    """How much later the right camera fires than the left at corresponding pixels.
+
+    For every left event at (x, y), the right events of the same polarity at (x - d, y - row) for d within one
+    pixel of the dominant ``disparity`` and within ``max_lag_us`` form pairs; their time differences pile up
+    at the time offset (the same edge crosses both pixels), pairs of unrelated events spread evenly. The
+    histogram's peak, interpolated below ``bin_us``, is the estimate. (Per-row event rates with x summed out
+    would not need the disparity, but things entering the view and slow motion blur them beyond use.)
+
+    Returns ``(time_offset_us, confidence)``.
     """
-    t0 = min(int(left["t"][0]), int(right["t"][0]))
-    t1 = max(int(left["t"][-1]), int(right["t"][-1])) + 1
-    n_bins = (t1 - t0) // bin_us + 1
+    width, height = resolution
+    if left.size > max_events:
+        left = left[np.linspace(0, left.size - 1, max_events).round().astype(np.int64)]
+    key_r = (right["y"].astype(np.int64) * width + right["x"]) * 2 + right["p"]
+    order = np.lexsort((right["t"], key_r))
+    keys, times = key_r[order], right["t"][order]
     lag = int(np.ceil(max_lag_us / bin_us))
-    # High-pass: remove each row's slow rate changes (slower than 10 ms, or twice the largest lag) that would
-    # widen the peak without telling anything about the lag; what stays is when edges cross the row.
-    smooth = max(2 * lag, round(10_000 / bin_us))
-    hl = _highpass(_row_time_histogram(left, t0, n_bins, bin_us, height), smooth)
-    hr = _highpass(_row_time_histogram(right, t0, n_bins, bin_us, height), smooth)
-    bands = _bands(left["y"], height, n_bands)
-    shifts = np.arange(-max_row_offset, max_row_offset + 1)
-    corr = np.zeros((n_bands, shifts.size, 2 * lag + 1))
-    # Process time in segments so that memory stays bounded however long the recording; the right signal
-    # is taken `lag` bins wider on both sides, so no pair of bins within the lag range is lost at a cut.
-    seg = min(1 << 14, _fft_len(n_bins + 2 * lag) - 2 * lag)
-    nfft = _fft_len(seg + 2 * lag)
-    hr_pad = np.pad(hr, ((0, 0), (lag, lag + seg)))
-    for start in range(0, n_bins, seg):
-        a = hl[:, start:start + seg]
-        b = hr_pad[:, start:start + a.shape[1] + 2 * lag]
-        fa = np.conj(np.fft.rfft(a, nfft, axis=1))
-        fb = np.fft.rfft(b, nfft, axis=1)
-        for i, r in enumerate(shifts):
-            # y_left = y_right + r: left row y pairs with right row y - r; rows y0..y1 exist in both.
-            y0, y1 = max(0, r), min(height, height + r)
-            prod = fa[y0:y1] * fb[y0 - r:y1 - r]
-            spec = np.zeros((n_bands, fa.shape[1]), fa.dtype)
-            for band in range(n_bands):
-                lo, hi = max(bands[band], y0), min(bands[band + 1], y1)
-                if hi > lo:
-                    spec[band] = prod[lo - y0:hi - y0].sum(axis=0)
-            # c[k] = sum a[j] b[j + k]; b starts `lag` bins early, so k = lag + tau/bin.
-            corr[:, i] += np.fft.irfft(spec, nfft, axis=1)[:, :2 * lag + 1]
-    # Normalise to a correlation coefficient: per band for the band estimates, over all rows for the total (so
-    # that a band without events adds nothing to it).
-    el, er = (hl.astype(np.float64) ** 2).sum(axis=1), (hr.astype(np.float64) ** 2).sum(axis=1)
-    norm = np.zeros((n_bands, shifts.size, 2))
-    for i, r in enumerate(shifts):
-        for band in range(n_bands):
-            yl = np.arange(max(bands[band], r), min(bands[band + 1], height + r))
-            norm[band, i] = el[yl].sum(), er[yl - r].sum()
-    total_norm = np.sqrt(norm[..., 0].sum(axis=0) * norm[..., 1].sum(axis=0))[:, None]
-    band_norm = np.sqrt(norm[..., 0] * norm[..., 1])[..., None]
-    total_raw = corr.sum(axis=0)
-    corr = np.divide(corr, band_norm, out=np.zeros_like(corr), where=band_norm > 0)
-    corr_total = np.divide(total_raw, total_norm, out=np.zeros_like(total_raw), where=total_norm > 0)
-    # Smooth along the lag a little so that the parabola through the peak sees its shape, not bin noise.
-    total = _smooth_lags(corr_total, sigma=1.5)
-    i_best, k_best = np.unravel_index(int(np.argmax(total)), total.shape)
-    row = float(shifts[0] + _subsample_peak(total[:, k_best], i_best))
-    time = float((_subsample_peak(total[i_best], k_best) - lag) * bin_us)
-    row_conf = _contrast(total.max(axis=1), i_best, exclude=1) * _support(left.size, right.size)
+    hist = np.zeros(2 * lag + 1)
+    for d in (disparity - 1, disparity, disparity + 1):
+        x, y = left["x"].astype(np.int64) - d, left["y"].astype(np.int64) - row
+        ok = (x >= 0) & (x < width) & (y >= 0) & (y < height)
+        k = ((y * width + x) * 2 + left["p"])[ok]
+        lo = np.searchsorted(keys, k, side="left")
+        hi = np.searchsorted(keys, k, side="right")
+        n = hi - lo
+        if not n.sum():
+            continue
+        # All pairs (left event, right event at its corresponding pixel), then keep those within the lag range.
+        first = np.repeat(lo - np.concatenate([[0], np.cumsum(n)[:-1]]), n) + np.arange(n.sum())
+        dt = times[first] - np.repeat(left["t"][ok], n)
+        dt = dt[np.abs(dt) <= lag * bin_us]
+        hist += np.bincount(np.round(dt / bin_us).astype(np.int64) + lag, minlength=2 * lag + 1)[:2 * lag + 1]
+    if hist.sum() == 0:
+        return 0.0, 0.0
+    corr = _smooth_lags(hist - np.median(hist), sigma=1.5)
+    k = int(np.argmax(corr))
+    time = float((_subsample_peak(corr, k) - lag) * bin_us)
     # The lags where the peak stays above half its height belong to the peak itself (the sensors' latencies
     # jitter by a few ms on real rigs and widen it); the confidence compares it with the lags beyond.
-    time_conf = _contrast(total[i_best], k_best, exclude=_half_width(total[i_best], k_best)) * _support(
-        left.size, right.size)
+    conf = _contrast(corr, k, exclude=_half_width(corr, k)) * _support(left.size, right.size)
+    return time, conf
+
+
+def _frame_row_offsets(left, right, *, resolution, max_row_offset, max_disparity, window_us, max_windows, n_bands):
+    """Row offset from the 2-D cross-correlation of accumulated signed frames over (dx, dy), also per band.
+
+    For every row shift the best horizontal shift counts (whatever the disparity); the row shift where that
+    is largest wins. Returns ``(row_offset, confidence, band_offsets, band_confidences, band_rows, dx)``, dx
+    the horizontal shift of the strongest overlay (the dominant disparity, in the given camera order).
+    """
+    width, height = resolution
+    bands = _bands(left["y"], height, n_bands)
+    masks = np.zeros((n_bands, height, 1), np.float32)
+    for b in range(n_bands):
+        masks[b, bands[b]:bands[b + 1]] = 1
+    shape = (_fft_len(height + max_row_offset + 1), _fft_len(width + max_disparity + 1))
+    acc = np.zeros((n_bands, shape[0], shape[1] // 2 + 1), np.complex128)
+    for fl, fr, _ in _window_frames(left, right, resolution=resolution, window_us=window_us,
+                                    max_windows=max_windows):
+        norm = np.sqrt(float((fl * fl).sum()) * float((fr * fr).sum()))
+        if norm > 0:
+            # c[a, b] = sum L(y + a, x + b) R(y, x): a = y_left - y_right, b = x_left - x_right.
+            acc += np.fft.rfft2(fl[None] * masks, shape) * np.conj(np.fft.rfft2(fr, shape))[None] / norm
+    c = np.fft.irfft2(acc, shape)
+    rows = np.arange(-max_row_offset, max_row_offset + 1)
+    cols = np.arange(-max_disparity, max_disparity + 1)
+    surface = c[:, rows[:, None] % shape[0], cols[None, :] % shape[1]]                # (n_bands, rows, cols)
+    prof = surface.max(axis=2)
+    total = prof.sum(axis=0)
+    i = int(np.argmax(total))
+    dx = int(cols[np.argmax(surface.sum(axis=0)[i])])
+    row = float(rows[0] + _subsample_peak(total, i))
+    conf = _contrast(total, i, exclude=1) * _support(left.size, right.size)
     band_offsets, band_conf = [], []
-    for band in range(n_bands):
-        prof = _smooth_lags(corr[band], sigma=1.5)[:, k_best]
-        j = int(np.argmax(prof))
-        band_offsets.append(float(shifts[0] + _subsample_peak(prof, j)))
-        n_l, n_r = (int(((ev["y"] >= bands[band]) & (ev["y"] < bands[band + 1])).sum()) for ev in (left, right))
-        band_conf.append(_contrast(prof, j, exclude=1) * _support(n_l, n_r))
-    band_rows = tuple((int(bands[i]), int(bands[i + 1])) for i in range(n_bands))
-    return row, row_conf, tuple(band_offsets), tuple(band_conf), band_rows, time, time_conf
+    for b in range(n_bands):
+        j = int(np.argmax(prof[b]))
+        band_offsets.append(float(rows[0] + _subsample_peak(prof[b], j)))
+        n_l, n_r = (int(((ev["y"] >= bands[b]) & (ev["y"] < bands[b + 1])).sum()) for ev in (left, right))
+        band_conf.append(_contrast(prof[b], j, exclude=1) * _support(n_l, n_r))
+    band_rows = tuple((int(bands[b]), int(bands[b + 1])) for b in range(n_bands))
+    return row, conf, tuple(band_offsets), tuple(band_conf), band_rows, dx
+
+
+def _window_frames(left, right, *, resolution, window_us, max_windows):
+    """Yield ``(left, right, left_events)`` for windows busy in both cameras: Gaussian-smoothed signed frames,
+    (H, W) float32, and the (H, W) bool mask of the pixels where the left camera had events.
+
+    At most ``max_windows`` windows, evenly spread over the recording.
+    """
+    width, height = resolution
+    t0 = min(int(left["t"][0]), int(right["t"][0]))
+    t1 = max(int(left["t"][-1]), int(right["t"][-1])) + 1
+    starts = np.arange(t0 - t0 % window_us, t1, window_us)
+    edges = np.append(starts, starts[-1] + window_us)
+    idx = [np.searchsorted(ev["t"], edges) for ev in (left, right)]
+    busy = np.flatnonzero((np.diff(idx[0]) >= 10) & (np.diff(idx[1]) >= 10))
+    if busy.size > max_windows:
+        busy = busy[np.linspace(0, busy.size - 1, max_windows).round().astype(int)]
+    for k in busy:
+        frames = [_frame(ev[i[k]:i[k + 1]], width, height) for ev, i in ((left, idx[0]), (right, idx[1]))]
+        # A little smoothing so that events one pixel apart still overlay (jitter, distortion).
+        gl, gr = (cv2.GaussianBlur(f, (3, 3), 0.8, borderType=cv2.BORDER_CONSTANT) for f in frames)
+        yield gl, gr, frames[0] != 0
 
 
 def _bands(y, height, n_bands):
@@ -460,25 +512,13 @@ def _disparity_overlays(left, right, *, resolution, max_disparity, window_us, ma
     local : (M,) float ndarray
         Best shift ``s`` at each left-camera event pixel whose block overlays well (NCC >= min_ncc).
     """
-    width, height = resolution
-    d = int(min(max_disparity, width - 1))
-    t0 = min(int(left["t"][0]), int(right["t"][0]))
-    t1 = max(int(left["t"][-1]), int(right["t"][-1])) + 1
-    starts = np.arange(t0 - t0 % window_us, t1, window_us)
-    counts = np.array([np.diff(np.searchsorted(ev["t"], np.append(starts, starts[-1] + window_us))) for ev in
-                       (left, right)])
-    busy = starts[(counts >= 10).all(axis=0)]
-    if busy.size > max_windows:
-        busy = busy[np.linspace(0, busy.size - 1, max_windows).round().astype(int)]
+    d = int(min(max_disparity, resolution[0] - 1))
     profile = np.zeros(2 * d + 1)
     local = []
     bw, bh = block
-    nfft = _fft_len(2 * width)
-    for s in busy:
-        fl = _frame(left[time_slice(left, s, s + window_us)], width, height)
-        fr = _frame(right[time_slice(right, s, s + window_us)], width, height)
-        mask = fl != 0
-        gl, gr = (cv2.GaussianBlur(f, (3, 3), 0.8, borderType=cv2.BORDER_CONSTANT) for f in (fl, fr))
+    nfft = _fft_len(2 * resolution[0])
+    for gl, gr, mask in _window_frames(left, right, resolution=resolution, window_us=window_us,
+                                       max_windows=max_windows):
         # sum_x L(x) R(x - s) for every row, via FFT along x; index s (negative wraps around).
         c = np.fft.irfft(np.fft.rfft(gl, nfft, axis=1) * np.conj(np.fft.rfft(gr, nfft, axis=1)), nfft, axis=1)
         c = c.sum(axis=0)

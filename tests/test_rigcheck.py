@@ -118,7 +118,8 @@ def test_report_fields_summary_and_json(patches):
     assert "row offset" in text and "time offset" in text and "noise" in text
     data = json.loads(json.dumps(report.to_dict()))
     assert data["swap"] is False and set(data["disparity_percentiles"]) == {"5", "25", "50", "75", "95"}
-    assert report.match_kwargs() == {"row_offset": 0, "time_offset_us": 0}
+    kwargs = report.match_kwargs()
+    assert kwargs["row_offset"] == 0 and abs(kwargs["time_offset_us"]) <= TIME_TOLERANCE_US
     with pytest.raises(dataclasses_frozen_error()):
         report.swap = True
 
@@ -251,7 +252,8 @@ def test_real_files_left_retina_agrees_with_readme(tum_dir, name, left_retina):
     if name.startswith("NSTlogo"):
         lo, hi = report.disparity_range
         assert lo <= 3 and hi >= 12                               # letters at exactly 12, 8 and 3 px
-        assert abs(report.row_offset) < 0.5 and abs(report.time_offset_us) < 500
+        # 130 events/s: the offsets are weakly determined, and --auto must then leave them alone.
+        assert report.match_kwargs() == {"row_offset": 0, "time_offset_us": 0}
 
 
 # ---------------------------------------------------------------------------------------------------------------
