@@ -18,6 +18,7 @@ COMMANDS: dict[str, str] = {
     "convert": "convert",
     "evaluate": "evaluate",
     "demo": "demo",
+    "bench": "bench",
     "match": "match",
     "plot": "plot",
     "video": "video",
