@@ -33,7 +33,7 @@ def test_preset_writes_a_recording_with_truth_and_meta(tmp_path):
 
 
 def test_scene_is_deterministic_for_a_seed(tmp_path):
-    args = ("--scene", "arms", "--arms", "2", "--distance", "1.2", "--seconds", "0.1", "--seed", "5")
+    args = ("--scene", "arms", "--arms", "2", "--distance", "1.2", "--seconds", "0.05", "--seed", "5")
     for name in ("a.npz", "b.npz"):
         out = _run(*args, "-o", str(tmp_path / name))
         assert out.returncode == 0, out.stderr
@@ -50,8 +50,7 @@ def test_bad_preset_is_one_line_and_exit_1(tmp_path):
     assert not (tmp_path / "x.npz").exists()
 
 
-@pytest.mark.parametrize("args", [(), ("--preset", "1arm-50cm"), ("--scene", "rotation", "--arms", "2", "-o", "x.npz"),
-                                  ("--preset", "1arm-50cm", "--scene", "arms", "-o", "x.npz")])
+@pytest.mark.parametrize("args", [(), ("--preset", "1arm-50cm"), ("--scene", "rotation", "--arms", "2", "-o", "x.npz")])
 def test_usage_errors_exit_2(args, tmp_path):
     out = _run(*args, cwd=tmp_path)
     assert out.returncode == 2

@@ -13,7 +13,7 @@ from cvstereo.simulate.dvs import PixelArray, background_noise, jitter, log_inte
 from cvstereo.simulate.rig import Rig
 
 #: Bump whenever a change alters the events a seed produces: cached presets carry it in their key.
-GENERATOR_VERSION = 1
+GENERATOR_VERSION = 2
 
 #: Frames rendered per batch: large enough to amortise the per-call overhead, small enough that a batch of
 #: intensity and depth frames (2 x 4 bytes x 128 x 128 x 200 = 26 MB) stays cheap.
