@@ -131,7 +131,7 @@ def _layer_hits_kernel(xn, yn, cam_pos, cam_rot, origins, u_axis, v_axis, texel,
 
 @njit(parallel=True, cache=True, fastmath=_FASTMATH, error_model="numpy")
 def _render_planes_kernel(xn, yn, cam_pos, cam_rot, origins, u_axis, v_axis, texel, size, tex, alpha, gain,
-                          background, alpha_truth, static_s, static_a, static_i, out_i, out_z):
+                          background, alpha_truth, static_s, static_a, static_i, still_i, still_z, out_i, out_z):
     n_frames = cam_pos.shape[0]
     h, w = xn.shape
     n_layers = u_axis.shape[0]
@@ -149,6 +149,17 @@ def _render_planes_kernel(xn, yn, cam_pos, cam_rot, origins, u_axis, v_axis, tex
                 d0 = rot[0, 0] * rx + rot[0, 1] * ry + rot[0, 2]
                 d1 = rot[1, 0] * rx + rot[1, 1] * ry + rot[1, 2]
                 d2 = rot[2, 0] * rx + rot[2, 1] * ry + rot[2, 2]
+                if still_i.shape[0]:
+                    # Where no moving layer can reach, the pixel shows the pre-composited still layers.
+                    reached = False
+                    for m in range(n_layers):
+                        if bbox[m, 0] <= rx <= bbox[m, 1] and bbox[m, 2] <= ry <= bbox[m, 3]:
+                            reached = True
+                            break
+                    if not reached:
+                        out_i[k, y, x] = still_i[y, x] * gain[k]
+                        out_z[k, y, x] = still_z[y, x]
+                        continue
                 n_hits = 0
                 for m in range(n_layers + n_static):
                     if m < n_static:  # pre-rendered layers that do not move
@@ -247,13 +258,25 @@ def render_planes(rays, cam_pos, cam_rot, layers, *, gain, background, static=No
     n_frames = cam_pos.shape[0]
     out_i = np.empty((n_frames, *xn.shape), np.float32)
     out_z = np.empty((n_frames, *xn.shape), np.float32)
+    xn, yn = np.ascontiguousarray(xn, np.float64), np.ascontiguousarray(yn, np.float64)
+    none = np.zeros((0, 0), np.float64), np.zeros((0, 0), np.float32)
+    still = none
     if static is None:
         static = tuple(np.zeros((0, *xn.shape), np.float32) for _ in range(3))
+    elif len(layers["texel"]):
+        # The still layers alone, composited once in float64 (as the kernel does per pixel): pixels that no
+        # moving layer reaches copy it, bit for bit what the full composite would give.
+        still_i, still_z = np.empty((1, *xn.shape), np.float64), np.empty((1, *xn.shape), np.float32)
+        empty = {key: value[:0] for key, value in layers.items() if key != "origins"}
+        empty["origins"] = np.zeros((1, 0, 3))
+        _render_planes_kernel(xn, yn, np.ascontiguousarray(cam_pos[:1], np.float64),
+                              np.ascontiguousarray(cam_rot[:1], np.float64), *_layer_args(empty), np.ones(1),
+                              float(background), ALPHA_TRUTH_MIN, *static, *none, still_i, still_z)
+        still = still_i[0], still_z[0]
     _render_planes_kernel(
-        np.ascontiguousarray(xn, np.float64), np.ascontiguousarray(yn, np.float64),
-        np.ascontiguousarray(cam_pos, np.float64), np.ascontiguousarray(cam_rot, np.float64),
+        xn, yn, np.ascontiguousarray(cam_pos, np.float64), np.ascontiguousarray(cam_rot, np.float64),
         *_layer_args(layers), np.ascontiguousarray(gain, np.float64), float(background), ALPHA_TRUTH_MIN,
-        *static, out_i, out_z,
+        *static, *still, out_i, out_z,
     )
     return out_i, out_z
 
