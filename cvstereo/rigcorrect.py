@@ -25,7 +25,7 @@ again a time slice of both cameras, whatever the input packets were.
 >>> right = make_events([400, 1200], [3, 3], [8, 8], [1, 1])       # 2 rows up and 300 us late
 >>> stream = RigCorrection(2, 300).stream([StereoPacket(left, right, 2000)])
 >>> [(p.right["t"].tolist(), p.right["y"].tolist(), p.until) for p in stream]
-[([100, 900], [10, 10], 2000)]
+[([100, 900], [10, 10], 1700)]
 """
 
 from __future__ import annotations
