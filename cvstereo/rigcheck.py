@@ -16,12 +16,18 @@ streams may be offset in time. :func:`check_rig` estimates, from the events of a
 - **noise**: events with no event at any of the 8 neighbouring pixels within a few ms, per second.
 
 Each estimate carries a confidence in [0, 1]. The row offset comes from the 2-D cross-correlation of
-accumulated signed frames over (dx, dy) (windows long against any time offset); the time offset from the
-histogram of time differences between events at corresponding pixels (same polarity, that row offset, the
-dominant disparity +-1 px); then the rows once more with the time offset removed, and the disparity stage on
-the corrected streams. Known limit: for motion mostly in one horizontal direction, a disparity error of
-``e`` px passes for a time offset of ``e / speed``; slow sideways sweeps (the simulated arms) can then give
-time offsets of several ms with low confidence, which ``--auto`` does not apply (below 0.3).
+accumulated signed frames over (dx, dy) (windows long against any time offset). The time offset comes from
+two estimators: the histogram of time differences between events at corresponding pixels (same polarity,
+that row offset, the dominant disparity +-1 px), precise when the disparities are whole pixels or the scene
+nearly static; and the regression of the cameras' apparent shift on the image velocity over 10 ms windows
+and image tiles (``s = d + v * tau``: slope tau, one intercept d per tile), which on sideways sweeps is not
+fooled by a disparity error ``e`` that the histogram takes for a time offset ``e / v``. The histogram's answer
+stands when its peak is sharp, the regression's otherwise (:func:`_time_offset`). Then the rows once more with
+the time offset removed, and the disparity stage on the corrected streams. Known limit: a disparity that
+changes in step with the speed (an arm wobbling in depth while it sweeps, over a clip of only a few sweeps)
+cannot be told from a time offset by any estimator; on 2 s of the simulated arm presets that leaves errors of
+1-4 ms at confidences mostly below the 0.3 that ``--auto`` needs, and slow one-way drifts (1 arm at 100 cm)
+are not determined at all (confidence below 0.2).
 
 Reported offsets and disparities refer to the recording *as it should be used*: after exchanging the
 cameras when ``swap`` is True (:meth:`RigReport.prepare` does that), so that ``row_offset`` and
@@ -61,6 +67,49 @@ HIGHPASS_US = 10_000
 
 #: Below this many events per camera no estimate is meaningful.
 MIN_EVENTS = 50
+
+# Time offset by shift-velocity regression (_time_offset_regression).
+#: Window of the frames whose shift between the cameras is measured: short enough that the image speed is
+#: about constant within it (an arm reverses within ~100 ms), long enough for a few hundred events.
+REG_WINDOW_US = 10_000
+#: The speed comes from the windows this many steps before and after: a longer baseline gives a larger shift,
+#: measured with less relative error, at the cost of averaging the speed over 2 * REG_GAP windows.
+REG_GAP = 1
+#: Image tiles (columns, rows), each with its own disparity in the fit: depth and lens distortion make the
+#: disparity vary over the image, and tiles keep things moving in opposite directions (two arms) apart.
+REG_TILES = (4, 2)
+#: Measured windows per chunk (bounds memory: 2 cameras x 3 x 100 x 128 x 128 float32 = 40 MB).
+REG_CHUNK = 100
+#: Gaussian smoothing of the frames, px (sigma).
+REG_BLUR_PX = 1.0
+#: The correlation is interpolated on a grid this many times finer than a pixel.
+REG_UPSAMPLE = 16
+#: Search range around the dominant disparity, px, on top of the shift the largest time offset can cause.
+REG_SHIFT_PX = 6
+#: Fastest image motion considered, px/us (0.5 px/ms: a DVS128 crossed in a quarter second).
+REG_MAX_SPEED = 0.5e-3
+#: A window (tile) enters the fit when both its cameras' overlay and its speed's overlay reach this
+#: normalised correlation (sparse noise-only windows do not).
+REG_MIN_NCC = 0.3
+#: Residuals beyond this many robust standard deviations (1.4826 MAD) are outliers (another object, an
+#: occlusion); the fit is repeated without them.
+REG_TRIM_MAD = 3.0
+#: Trimming rounds at most.
+REG_ITERATIONS = 6
+#: A window is measured only when each camera has this many events in it (and in its neighbours).
+REG_MIN_WINDOW_EVENTS = 20
+#: At most this many windows are measured, evenly spread over the recording.
+REG_MAX_WINDOWS = 300
+#: Fewer usable windows than this leave the regression undetermined.
+REG_MIN_WINDOWS = 20
+#: Standard error of the slope at which the confidence is 0.5 (half the 0.5 ms a matcher tolerates).
+REG_SE_SCALE_US = 250.0
+#: Below this confidence (slope standard error above ~750 us) the regression is not used at all.
+REG_MIN_CONFIDENCE = 0.1
+#: The pixel-coincidence histogram is trusted over the regression when its peak's half width at half height
+#: is at most this (sensor jitter and latency spread a true coincidence peak by a few hundred us; a disparity
+#: off by a fraction of a pixel on a slow sweep spreads it by several ms).
+PAIRS_SHARP_US = 1_000
 
 
 @dataclass(frozen=True)
@@ -271,10 +320,13 @@ def check_rig(recording: Recording, *, max_disparity: int = 64, max_row_offset: 
                   "max_windows": max_windows, "n_bands": n_bands}
     lag_opts = {"resolution": res, "max_lag_us": max_time_offset_us, "bin_us": time_bin_us}
     rows = _frame_row_offsets(left, right, **frame_opts)
-    time_offset, time_conf = _time_offset(left, right, row=round(rows[0]), disparity=rows[5], **lag_opts)
+    time_offset, time_conf, time_method = _time_offset(left, right, row=round(rows[0]), disparity=rows[5],
+                                                       **lag_opts)
     rows2 = _frame_row_offsets(left, _shifted(right, 0, time_offset, res), **frame_opts)
     if round(rows2[0]) != round(rows[0]) or rows2[5] != rows[5]:
-        time_offset, time_conf = _time_offset(left, right, row=round(rows2[0]), disparity=rows2[5], **lag_opts)
+        time_offset, time_conf, time_method = _time_offset(left, right, row=round(rows2[0]), disparity=rows2[5],
+                                                           **lag_opts)
+    settings["time_offset_method"] = time_method
     row_offset, row_conf, band_offsets, band_conf, band_rows, _ = rows2
 
     # 4. Disparity on the streams with both offsets removed (whole rows; the time offset to the microsecond).
@@ -341,7 +393,202 @@ def _shifted(right, rows, time_us, resolution):
     return RigCorrection(rows, round(time_us), resolution).correct_right(right)[0]
 
 
-def _time_offset(left, right, *, row, disparity, resolution, max_lag_us, bin_us, max_events=200_000):
+def _time_offset(left, right, *, row, disparity, resolution, max_lag_us, bin_us):
+    """How much later the right camera stamps the same change: ``(time_offset_us, confidence, method)``.
+
+    The pixel-coincidence histogram (:func:`_time_offset_pairs`) answers when its peak is sharp (at most
+    :data:`PAIRS_SHARP_US` half width) or the shift-velocity regression (:func:`_time_offset_regression`) is
+    undetermined (nearly static scenes, too few busy windows) or below :data:`REG_MIN_CONFIDENCE`; the
+    regression otherwise. ``method`` names the one used.
+    """
+    reg = _time_offset_regression(left, right, row=row, disparity=disparity, resolution=resolution,
+                                  max_lag_us=max_lag_us)
+    pairs = _time_offset_pairs(left, right, row=row, disparity=disparity, resolution=resolution,
+                               max_lag_us=max_lag_us, bin_us=bin_us)
+    # The histogram is biased by (disparity error) / speed on moving scenes, and then also broad: pairs at the
+    # neighbouring disparities land (1 px) / speed away. A sharp peak means the disparities were right (or the
+    # scene nearly static) and the histogram is the more precise; a broad one defers to the regression.
+    if pairs[2] > PAIRS_SHARP_US and reg is not None and reg[1] >= REG_MIN_CONFIDENCE:
+        return reg[0], reg[1], "shift-velocity regression"
+    return pairs[0], pairs[1], "pixel coincidences"
+
+
+def _time_offset_regression(left, right, *, row, disparity, resolution, max_lag_us):
+    """Time offset as the slope of the cameras' apparent shift against the image velocity.
+
+    In a short window the right camera's image is the left one shifted by ``s = d + v * tau``: it shows the
+    scene ``tau`` earlier, when things stood ``v * tau`` px further back (``v`` the horizontal image velocity,
+    px/us). Per window (:data:`REG_WINDOW_US`) and image tile (:data:`REG_TILES`), ``s`` is the sub-pixel peak
+    of the horizontal cross-correlation of the two cameras' smoothed signed frames (rows lined up by ``row``)
+    and ``v`` the shift between the windows before and after, in either camera, over their distance. A
+    weighted least-squares fit of ``s`` on ``v`` with one intercept per tile (the disparity varies over the
+    image: depth, lens distortion) then gives ``tau`` as the common slope; windows whose residual exceeds
+    :data:`REG_TRIM_MAD` robust standard deviations are dropped and the fit repeated. A sweep to and fro gives
+    ``v`` of both signs and many sizes, which pins ``tau`` independently of the disparity; a steady drift
+    does not, and the slope's standard error (from the residuals, deflated for their correlation between
+    neighbouring windows) then says so.
+
+    Known limit: a disparity that changes in step with the speed (an arm wobbling in depth while it sweeps,
+    over a clip of a few sweeps) is indistinguishable from a time offset; longer recordings average it out.
+
+    Returns ``(time_offset_us, confidence)``, or None when too few windows move (e.g. a nearly static scene).
+    """
+    width, height = resolution
+    y = right["y"].astype(np.int64) + row
+    keep = (y >= 0) & (y < height)
+    right = right[keep].copy()
+    right["y"] = y[keep]
+    if right.size < MIN_EVENTS:
+        return None
+    t0 = min(int(left["t"][0]), int(right["t"][0]))
+    t1 = max(int(left["t"][-1]), int(right["t"][-1])) + 1
+    starts = np.arange(t0, t1, REG_WINDOW_US)
+    counts = [np.diff(np.searchsorted(ev["t"], np.append(starts, starts[-1] + REG_WINDOW_US))) for ev in (left, right)]
+    busy = (counts[0] >= REG_MIN_WINDOW_EVENTS) & (counts[1] >= REG_MIN_WINDOW_EVENTS)
+    # A window is measured when it and its neighbours at +-REG_GAP are busy; at most REG_MAX_WINDOWS of them,
+    # evenly spread (enough for the fit; bounds the time on long recordings).
+    centre = np.flatnonzero(busy[REG_GAP:-REG_GAP] & busy[:-2 * REG_GAP] & busy[2 * REG_GAP:]) + REG_GAP
+    if centre.size < REG_MIN_WINDOWS:
+        return None
+    if centre.size > REG_MAX_WINDOWS:
+        centre = centre[np.linspace(0, centre.size - 1, REG_MAX_WINDOWS).round().astype(int)]
+    search = REG_SHIFT_PX + int(np.ceil(REG_MAX_SPEED * max_lag_us))
+    col_edges = np.linspace(0, width, REG_TILES[0] + 1).round().astype(int)
+    row_edges = np.linspace(0, height, REG_TILES[1] + 1).round().astype(int)
+    col_masks = np.zeros((REG_TILES[0], 1, 1, width), np.float32)
+    col_masks_r = np.zeros_like(col_masks)
+    for col in range(REG_TILES[0]):
+        col_masks[col, ..., col_edges[col]:col_edges[col + 1]] = 1
+        # The right camera sees a tile's content ``disparity`` columns further left.
+        lo_r, hi_r = col_edges[col] - int(disparity), col_edges[col + 1] - int(disparity)
+        col_masks_r[col, ..., max(lo_r, 0):max(hi_r, 0)] = 1
+    n_cols, n_rows = REG_TILES
+    lag_v = int(np.ceil(REG_MAX_SPEED * 2 * REG_GAP * REG_WINDOW_US))
+    nfft = _fft_len(width + search + abs(int(disparity)) + 1)
+    tiles, shifts, s_weight, speeds, v_weight = [], [], [], [], []
+    # Chunks of measured windows bound the memory on long recordings.
+    for lo in range(0, centre.size, REG_CHUNK):
+        chunk = centre[lo:lo + REG_CHUNK]
+        needed, where = np.unique(np.concatenate([chunk - REG_GAP, chunk, chunk + REG_GAP]), return_inverse=True)
+        before, inner, after = where.reshape(3, chunk.size)
+        fl = _window_stack(left, starts[needed], width, height)
+        fr = _window_stack(right, starts[needed], width, height)
+        # Spectra along x, once per camera and once per column tile; a row tile is a sum over its rows.
+        spec_l, spec_r = np.fft.rfft(fl, nfft, axis=2), np.fft.rfft(fr, nfft, axis=2)
+        energy_l, energy_r = (fl * fl).sum(axis=2), (fr * fr).sum(axis=2)
+        for col in range(n_cols):
+            tl = np.fft.rfft(fl * col_masks[col], nfft, axis=2)
+            tr = np.fft.rfft(fr * col_masks_r[col], nfft, axis=2)
+            el, er = (fl * fl * col_masks[col]).sum(axis=2), (fr * fr * col_masks_r[col]).sum(axis=2)
+            for band in range(n_rows):
+                rs = slice(row_edges[band], row_edges[band + 1])
+                s, hs = _fine_shift(tl[inner, rs], spec_r[inner, rs], el[inner, rs], energy_r[inner, rs],
+                                    disparity - search, disparity + search, nfft)
+                ul, hl = _fine_shift(tl[after, rs], spec_l[before, rs],
+                                     el[after, rs], energy_l[before, rs], -lag_v, lag_v, nfft)
+                ur, hr = _fine_shift(tr[after, rs], spec_r[before, rs],
+                                     er[after, rs], energy_r[before, rs], -lag_v, lag_v, nfft)
+                tiles.append(np.full(inner.size, band * n_cols + col))
+                shifts.append(s)
+                s_weight.append(hs)
+                speeds.append((ul + ur) / (2 * 2 * REG_GAP * REG_WINDOW_US))
+                v_weight.append(np.minimum(hl, hr))
+    n_tiles = n_cols * n_rows
+    tile, s, v = np.concatenate(tiles), np.concatenate(shifts), np.concatenate(speeds)
+    w = np.concatenate(s_weight) * np.concatenate(v_weight)
+    w[(np.concatenate(s_weight) < REG_MIN_NCC) | (np.concatenate(v_weight) < REG_MIN_NCC)] = 0.0
+    fit = _fixed_effects_slope(tile, s, v, w, n_tiles)
+    if fit is None:
+        return None
+    tau, se = fit
+    if not abs(tau) <= max_lag_us:
+        return None
+    conf = 1.0 / (1.0 + (se / REG_SE_SCALE_US) ** 2) * _support(left.size, right.size)
+    return float(tau), float(conf)
+
+
+def _window_stack(ev, starts, width, height):
+    """(K, H, W) float32 signed event frames of the windows ``[starts[k], starts[k] + REG_WINDOW_US)`` (sorted,
+    not overlapping), Gaussian-smoothed."""
+    k = np.searchsorted(starts, ev["t"], side="right") - 1
+    ok = (k >= 0) & (ev["t"] < starts[np.maximum(k, 0)] + REG_WINDOW_US)
+    n = starts.size
+    flat = (k[ok] * height + ev["y"][ok].astype(np.int64)) * width + ev["x"][ok]
+    f = np.bincount(flat, weights=2.0 * ev["p"][ok] - 1.0, minlength=n * height * width)
+    f = f.astype(np.float32).reshape(n, height, width)
+    for i in range(n):
+        # Smoothing makes the correlation peak broad enough to interpolate without locking to whole pixels.
+        f[i] = cv2.GaussianBlur(f[i], (0, 0), REG_BLUR_PX, borderType=cv2.BORDER_CONSTANT)
+    return f
+
+
+def _fine_shift(spec_a, spec_b, energy_a, energy_b, lo, hi, nfft):
+    """Per window, the sub-pixel ``s`` in ``[lo, hi]`` maximising ``sum_y sum_x a(x, y) b(x - s, y)``, and that
+    maximum normalised like a correlation coefficient (0 when the peak sits at the end of the search range).
+
+    ``spec_a``, ``spec_b``: (K, rows, nfft // 2 + 1) spectra along x of the frames (zero-padded to ``nfft``);
+    ``energy_a``, ``energy_b``: (K, rows) sums of their squares per row. The rows' cross-spectra are summed
+    and transformed back on a grid :data:`REG_UPSAMPLE` times finer than a pixel (exact interpolation of the
+    band-limited correlation); a parabola through the finest samples then places the peak. A parabola on
+    whole pixels alone biases sub-pixel shifts towards integers, which would leak into the slope.
+    """
+    spec = (spec_a * np.conj(spec_b)).sum(axis=1)
+    n = nfft * REG_UPSAMPLE
+    lags = np.arange(lo * REG_UPSAMPLE, hi * REG_UPSAMPLE + 1)
+    c = (np.fft.irfft(spec, n, axis=-1) * REG_UPSAMPLE)[:, lags % n]
+    i = c.argmax(axis=1)
+    at_end = (i == 0) | (i == lags.size - 1)
+    i = np.clip(i, 1, lags.size - 2)
+    k = np.arange(c.shape[0])
+    p, q, r = c[k, i - 1], c[k, i], c[k, i + 1]
+    den = p - 2 * q + r
+    off = np.where(den < 0, 0.5 * (p - r) / np.where(den < 0, den, -1.0), 0.0)
+    norm = np.sqrt(energy_a.sum(axis=1) * energy_b.sum(axis=1))
+    height = np.where(at_end | (norm <= 0), 0.0, q / np.maximum(norm, 1e-12))
+    return (lags[i] + np.clip(off, -0.5, 0.5)) / REG_UPSAMPLE, height
+
+
+def _fixed_effects_slope(tile, s, v, w, n_tiles):
+    """Weighted, iteratively trimmed least squares of ``s = d[tile] + tau * v``: ``(tau, standard error)``.
+
+    None when fewer than :data:`REG_MIN_WINDOWS` windows remain or the speeds do not vary within tiles.
+    """
+    good = np.isfinite(s) & np.isfinite(v) & (w > 0)
+    design = np.concatenate([np.eye(n_tiles)[tile], v[:, None]], axis=1)
+    for _ in range(REG_ITERATIONS):
+        if good.sum() < REG_MIN_WINDOWS:
+            return None
+        sw = np.sqrt(w[good])
+        # Scale v to px/ms so that the columns are of similar size (conditioning).
+        a = design[good] * np.append(np.ones(n_tiles), 1e3)
+        coef, *_ = np.linalg.lstsq(a * sw[:, None], s[good] * sw, rcond=None)
+        res = s - design @ (coef * np.append(np.ones(n_tiles), 1e3))
+        spread = 1.4826 * float(np.median(np.abs(res[good])))
+        new = np.isfinite(s) & np.isfinite(v) & (w > 0) & (np.abs(res) <= REG_TRIM_MAD * max(spread, 1e-3))
+        if np.array_equal(new, good):
+            break
+        good = new
+    if good.sum() < REG_MIN_WINDOWS:
+        return None
+    # Standard error of the slope: weighted residual variance over the weighted within-tile spread of v.
+    wg, vg, rg, tg = w[good], v[good], res[good], tile[good]
+    v_mean = np.bincount(tg, wg * vg, n_tiles) / np.maximum(np.bincount(tg, wg, n_tiles), 1e-12)
+    sxx = float((wg * (vg - v_mean[tg]) ** 2).sum())
+    used = np.unique(tg).size
+    dof = good.sum() - used - 1
+    if sxx <= 0 or dof < 1:
+        return None
+    sigma2 = float((wg * rg * rg).sum()) / dof
+    # Neighbouring windows of one tile share slow errors (a wobble in depth): fewer independent samples.
+    same = tg[1:] == tg[:-1]
+    rho = 0.0
+    if same.sum() > 2:
+        rho = float(np.clip(np.corrcoef(rg[1:][same], rg[:-1][same])[0, 1], 0.0, 0.95))
+    se = np.sqrt(sigma2 / sxx * (1 + rho) / (1 - rho))
+    return float(coef[-1] * 1e3), float(se)
+
+
+def _time_offset_pairs(left, right, *, row, disparity, resolution, max_lag_us, bin_us, max_events=200_000):
     """How much later the right camera fires than the left at corresponding pixels.
 
     For every left event at (x, y), the right events of the same polarity at (x - d, y - row) for d within one
@@ -350,7 +597,7 @@ def _time_offset(left, right, *, row, disparity, resolution, max_lag_us, bin_us,
     histogram's peak, interpolated below ``bin_us``, is the estimate. (Per-row event rates with x summed out
     would not need the disparity, but things entering the view and slow motion blur them beyond use.)
 
-    Returns ``(time_offset_us, confidence)``.
+    Returns ``(time_offset_us, confidence, half_width_us)``, the last the peak's half width at half height.
     """
     width, height = resolution
     if left.size > max_events:
@@ -375,14 +622,15 @@ def _time_offset(left, right, *, row, disparity, resolution, max_lag_us, bin_us,
         dt = dt[np.abs(dt) <= lag * bin_us]
         hist += np.bincount(np.round(dt / bin_us).astype(np.int64) + lag, minlength=2 * lag + 1)[:2 * lag + 1]
     if hist.sum() == 0:
-        return 0.0, 0.0
+        return 0.0, 0.0, float("inf")
     corr = _smooth_lags(hist - np.median(hist), sigma=1.5)
     k = int(np.argmax(corr))
     time = float((_subsample_peak(corr, k) - lag) * bin_us)
     # The lags where the peak stays above half its height belong to the peak itself (the sensors' latencies
     # jitter by a few ms on real rigs and widen it); the confidence compares it with the lags beyond.
-    conf = _contrast(corr, k, exclude=_half_width(corr, k)) * _support(left.size, right.size)
-    return time, conf
+    width_bins = _half_width(corr, k)
+    conf = _contrast(corr, k, exclude=width_bins) * _support(left.size, right.size)
+    return time, conf, float(width_bins * bin_us)
 
 
 def _frame_row_offsets(left, right, *, resolution, max_row_offset, max_disparity, window_us, max_windows, n_bands):
