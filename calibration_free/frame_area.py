@@ -24,8 +24,7 @@ import numpy as np
 from cvstereo.frames import (
     FrameMatcher,
     Window,
-    check_filter_params,
-    check_window_us,
+    WindowFrameParams,
     event_mask,
     gaussian_filter,
     polarity_counts,
@@ -35,19 +34,14 @@ from cvstereo.matches import empty_matches, make_matches
 
 
 @dataclass(frozen=True, kw_only=True)
-class FrameAreaParams:
+class FrameAreaParams(WindowFrameParams):
     """Parameters of the frame-area SAD matcher (thesis defaults; algorithms.md section 3).
+
+    The window and Gaussian fields (window_us, gaussian, sigma, kernel_size) are those of
+    :class:`~cvstereo.frames.WindowFrameParams`.
 
     Attributes
     ----------
-    window_us : int
-        Window length, us; windows ``[k*W, (k+1)*W)`` on the absolute clock.
-    gaussian : bool
-        Filter the frames with the Gaussian (variant ``gaussian``) or not (``no-gaussian``).
-    sigma : float
-        Standard deviation of the Gaussian, px.
-    kernel_size : int
-        Odd side of the Gaussian kernel.
     threshold : float
         Reference pixels with ``|value| >= threshold`` are searched (2, or 4 without the Gaussian).
     block : int
@@ -58,19 +52,14 @@ class FrameAreaParams:
         The scanned camera, whose pixels carry the results (1 = right, the thesis' eDVS1; 0 = left).
     """
 
-    window_us: int = 40_000
-    gaussian: bool = True
-    sigma: float = 1.0
-    kernel_size: int = 5
     threshold: float = 2.0
     block: int = 5
     max_disparity: int = 64
     reference_camera: Literal[0, 1] = 1
 
     def __post_init__(self):
+        super().__post_init__()
         where = type(self).__name__
-        check_window_us(self.window_us, where)
-        check_filter_params(self.sigma, self.kernel_size, where)
         if not self.threshold > 0:
             raise ValueError(f"{where}: threshold must be > 0 (the thesis uses 2, or 4 without the Gaussian), "
                              f"got {self.threshold}.")

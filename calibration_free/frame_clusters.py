@@ -30,8 +30,7 @@ from cvstereo.frames import (
     FrameMatcher,
     Polarity,
     Window,
-    check_filter_params,
-    check_window_us,
+    WindowFrameParams,
     event_mask,
     gaussian_filter,
     polarity_counts,
@@ -45,21 +44,16 @@ _EDGE_EPS = 1e-9
 
 
 @dataclass(frozen=True, kw_only=True)
-class FrameClusterParams:
+class FrameClusterParams(WindowFrameParams):
     """Parameters of the frame-based cluster matcher (thesis defaults; algorithms.md section 1).
+
+    The window and Gaussian fields (window_us, gaussian, sigma, kernel_size) are those of
+    :class:`~cvstereo.frames.WindowFrameParams`.
 
     Attributes
     ----------
-    window_us : int
-        Window length, us; windows ``[k*W, (k+1)*W)`` on the absolute clock.
     polarity : {"shared", "separate", "on", "off"}
         ON and OFF events in one frame (sum of signs), in two frames matched each on its own, ON only, OFF only.
-    gaussian : bool
-        Filter the frames with the Gaussian (the thesis always does).
-    sigma : float
-        Standard deviation of the Gaussian, px.
-    kernel_size : int
-        Odd side of the Gaussian kernel.
     threshold : float
         Pixels with ``|filtered value| >= threshold`` form clusters (eq. 3.7, on the magnitude).
     width_tolerance : float
@@ -70,20 +64,15 @@ class FrameClusterParams:
         The camera whose cluster pixels carry the results (0 = left, 1 = right).
     """
 
-    window_us: int = 40_000
     polarity: Polarity = "shared"
-    gaussian: bool = True
-    sigma: float = 1.0
-    kernel_size: int = 5
     threshold: float = 1.2
     width_tolerance: float = 0.3
     max_disparity: int = 64
     anchor_camera: Literal[0, 1] = 0
 
     def __post_init__(self):
+        super().__post_init__()
         where = type(self).__name__
-        check_window_us(self.window_us, where)
-        check_filter_params(self.sigma, self.kernel_size, where)
         if self.polarity not in ("shared", "separate", "on", "off"):
             raise ValueError(f"{where}: polarity must be one of shared, separate, on, off; got '{self.polarity}'.")
         if not self.threshold > 0:

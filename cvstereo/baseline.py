@@ -29,8 +29,7 @@ import numpy as np
 from cvstereo.frames import (
     FrameMatcher,
     Window,
-    check_filter_params,
-    check_window_us,
+    WindowFrameParams,
     event_mask,
     gaussian_filter,
     polarity_counts,
@@ -45,21 +44,18 @@ MID_GREY = 128
 
 
 @dataclass(frozen=True, kw_only=True)
-class _OpenCVParams:
+class _OpenCVParams(WindowFrameParams):
     """Parameters common to both baselines (see the module docstring for the image mapping).
+
+    The window and Gaussian fields (window_us, gaussian, sigma, kernel_size) are those of
+    :class:`~cvstereo.frames.WindowFrameParams`.
 
     Attributes
     ----------
-    window_us : int
-        Window length, us.
     image : {"filtered", "count"}
         Image mapping: signed Gaussian-filtered frame around mid-grey, or event count.
     gain : float
         Grey levels per unit of frame value.
-    gaussian : bool
-        Filter the frames with the thesis' Gaussian before mapping them.
-    sigma, kernel_size :
-        The Gaussian (sigma px, odd kernel side).
     min_disparity : int
         Smallest disparity searched, px.
     num_disparities : int
@@ -74,12 +70,8 @@ class _OpenCVParams:
         Pad both images on the left with ``num_disparities`` mid-grey columns, so that the left strip gets results.
     """
 
-    window_us: int = 40_000
     image: Literal["filtered", "count"] = "filtered"
     gain: float = 32.0
-    gaussian: bool = True
-    sigma: float = 1.0
-    kernel_size: int = 5
     min_disparity: int = 0
     num_disparities: int = 64
     block_size: int = 9
@@ -89,9 +81,8 @@ class _OpenCVParams:
     pad: bool = True
 
     def __post_init__(self):
+        super().__post_init__()
         where = type(self).__name__
-        check_window_us(self.window_us, where)
-        check_filter_params(self.sigma, self.kernel_size, where)
         if self.image not in ("filtered", "count"):
             raise ValueError(f"{where}: image must be 'filtered' or 'count', got '{self.image}'.")
         if not self.gain > 0:

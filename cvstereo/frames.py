@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import abc
 from collections.abc import Iterator
+from dataclasses import dataclass
 from typing import Literal, NamedTuple
 
 import cv2
@@ -191,6 +192,35 @@ def check_window_us(window_us: int, where: str) -> None:
     if int(window_us) != window_us or window_us <= 0:
         raise ValueError(f"{where}: window_us must be a positive whole number of microseconds "
                          f"(the thesis uses 40000), got {window_us}.")
+
+
+@dataclass(frozen=True, kw_only=True)
+class WindowFrameParams:
+    """Parameters every frame matcher shares: the window on the absolute clock and the thesis' Gaussian.
+
+    Matchers' parameter classes extend it with their own fields.
+
+    Attributes
+    ----------
+    window_us : int
+        Window length, us; windows ``[k*W, (k+1)*W)`` on the absolute clock.
+    gaussian : bool
+        Filter the frames with the Gaussian (eq. 3.6).
+    sigma : float
+        Standard deviation of the Gaussian, px.
+    kernel_size : int
+        Odd side of the Gaussian kernel.
+    """
+
+    window_us: int = 40_000
+    gaussian: bool = True
+    sigma: float = 1.0
+    kernel_size: int = 5
+
+    def __post_init__(self):
+        where = type(self).__name__
+        check_window_us(self.window_us, where)
+        check_filter_params(self.sigma, self.kernel_size, where)
 
 
 class Window(NamedTuple):
