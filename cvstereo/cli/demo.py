@@ -13,6 +13,14 @@ import os
 import sys
 from pathlib import Path
 
+#: Matchers the demo runs: the thesis' five and OpenCV's block matcher (`cvstereo bench` runs them all).
+DEMO_METHODS = ("frame", "frame-area", "event-time", "event-area", "event-vector", "stereobm")
+
+#: The preset and matchers drawn in the demo's figures, and the window length of the frame pictures.
+FIGURE_RECORDING = "1arm-50cm"
+FIGURE_COMBOS = (("frame", "separate"), ("event-area", "gaussian"), ("stereobm", "default"))
+FIGURE_WINDOW_US = 40_000
+
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p = sub.add_parser(name, help="run the thesis' experiment on the built-in simulated recordings",
@@ -67,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     from cvstereo.simulate import cached_preset
     from cvstereo.thesis import RECORDINGS
 
-    methods = args.methods or available_methods()
+    methods = args.methods or [m for m in available_methods() if m in DEMO_METHODS]
     if not methods:
         print("No matcher has landed yet: nothing to run on the simulated recordings.")
         return 0
@@ -79,4 +87,32 @@ def run(args: argparse.Namespace) -> int:
     write_text_atomic(out / "results.md", text + "\n")
     write_text_atomic(out / "results.json", to_json({c.label: rows for c, rows in result.figures.items()}, indent=2))
     print(f"\nTables written to {out / 'results.md'} and {out / 'results.json'}")
+    _figures(recordings[FIGURE_RECORDING], [c for c in FIGURE_COMBOS if c[0] in methods], out / "figures")
     return 0
+
+
+def _figures(recording, combos, folder: Path) -> None:
+    """The thesis' figures for one preset and a few matchers (needs the viz extra; skipped without it)."""
+    if importlib.util.find_spec("matplotlib") is None:
+        print("(figures skipped: matplotlib is not installed; pip install 'cvstereo[viz]')")
+        return
+    from calibration_free import match
+    from cvstereo import viz
+
+    folder.mkdir(parents=True, exist_ok=True)
+    t0 = viz.busiest_window(recording, FIGURE_WINDOW_US)
+    pictures = {
+        "events.png": viz.plot_event_frames(recording, t0),
+        "filtered.png": viz.plot_filtered_frames(recording, t0),
+        "dynamic.png": viz.plot_dynamic_frames(recording, t0 + FIGURE_WINDOW_US),
+    }
+    depth = viz.depth_from_meta(recording.meta)
+    for method, variant in combos:
+        result = match(recording, method=method, variant=variant)
+        name = f"{method}-{variant}"
+        pictures[f"{name}-over-time.png"] = viz.plot_disparity_over_time(recording, result, depth=depth)
+        pictures[f"{name}-map.png"] = viz.plot_disparity_map(recording, result, depth=depth)
+        pictures[f"{name}-error.png"] = viz.plot_error_histogram(recording, result)
+    for file, fig in pictures.items():
+        viz.save_figure(fig, folder / file)
+    print(f"Figures of {FIGURE_RECORDING} written to {folder}/: {', '.join(pictures)}")
