@@ -106,6 +106,12 @@ REG_MIN_WINDOWS = 20
 REG_SE_SCALE_US = 250.0
 #: Below this confidence (slope standard error above ~750 us) the regression is not used at all.
 REG_MIN_CONFIDENCE = 0.1
+
+#: Confidence a time offset needs before ``match_kwargs`` (and so ``match --auto``) applies it. Higher than
+#: for rows: on the simulated arms, whose depth wobbles, wrong time offsets of 1-4 ms came with confidences up
+#: to 0.55, and applying an offset wrong by more than the event-time matcher's 300 us window ruins its matches,
+#: while leaving a true offset of a few ms unapplied only costs some of them.
+TIME_APPLY_CONFIDENCE = 0.6
 #: The pixel-coincidence histogram is trusted over the regression when its peak's half width at half height
 #: is at most this (sensor jitter and latency spread a true coincidence peak by a few hundred us; a disparity
 #: off by a fraction of a pixel on a slow sweep spreads it by several ms).
@@ -197,14 +203,14 @@ class RigReport:
         """The recording with the cameras exchanged if :attr:`swap` (with at least ``min_confidence``)."""
         return recording.swapped() if self.swap and self.swap_confidence >= min_confidence else recording
 
-    def match_kwargs(self, *, min_confidence: float = 0.3) -> dict:
+    def match_kwargs(self, *, min_confidence: float = 0.3, min_time_confidence: float = TIME_APPLY_CONFIDENCE) -> dict:
         """``row_offset`` and ``time_offset_us`` for :func:`calibration_free.match`.
 
-        An offset whose confidence is below ``min_confidence`` is left at 0; the row offset is rounded
-        (matchers work on whole rows), the time offset to whole microseconds.
+        An offset whose confidence is below ``min_confidence`` (rows) or ``min_time_confidence`` (time) is left
+        at 0; the row offset is rounded (matchers work on whole rows), the time offset to whole microseconds.
         """
         row = round(self.row_offset) if self.row_offset_confidence >= min_confidence else 0
-        dt = round(self.time_offset_us) if self.time_offset_confidence >= min_confidence else 0
+        dt = round(self.time_offset_us) if self.time_offset_confidence >= min_time_confidence else 0
         return {"row_offset": int(row), "time_offset_us": int(dt)}
 
     def to_dict(self) -> dict:
