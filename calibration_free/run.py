@@ -10,8 +10,10 @@ from calibration_free.registry import create_matcher
 from cvstereo.matches import MatchResult, concat_matches, sort_matches
 from cvstereo.recording import Recording
 
-#: Packet length used to stream a recording through a matcher; the result does not depend on it.
-DEFAULT_PACKET_US = 10_000
+#: Packet length used to stream a recording through a matcher. The result does not depend on it; the speed
+#: does: one frame window per packet saves the frame matchers from joining partial windows, and the event
+#: matchers pay a fixed cost per call (on 2arms-50cm event-time ran 3x faster with 40 ms than with 10 ms).
+DEFAULT_PACKET_US = 40_000
 
 
 def match(recording, right=None, *, method: str = "frame", variant: str | None = None,
