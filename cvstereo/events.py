@@ -206,6 +206,17 @@ def time_slice(events: np.ndarray, t_start: int | None = None, t_stop: int | Non
     return slice(lo, max(lo, hi))
 
 
+def distinct_sorted(values: np.ndarray) -> np.ndarray:
+    """The distinct values of a sorted array, in order (``np.unique`` without its sort).
+
+    >>> distinct_sorted(np.array([0, 0, 3, 3, 3, 7])).tolist()
+    [0, 3, 7]
+    """
+    if values.size == 0:
+        return values
+    return values[np.concatenate([[True], values[1:] != values[:-1]])]
+
+
 def window_indices(events: np.ndarray, window_us: int) -> np.ndarray:
     """Index ``k`` of the absolute window ``[k*W, (k+1)*W)`` that holds each event."""
     return events["t"] // int(window_us)

@@ -27,7 +27,7 @@ from typing import Literal, NamedTuple
 import cv2
 import numpy as np
 
-from cvstereo.events import DEFAULT_RESOLUTION, empty_events
+from cvstereo.events import DEFAULT_RESOLUTION, distinct_sorted, empty_events
 from cvstereo.matcher import StreamMatcher
 from cvstereo.matches import concat_matches, empty_matches
 
@@ -308,7 +308,7 @@ class WindowAccumulator:
             if n:
                 k0, k1 = int(t[0]) // w, int(t[n - 1]) // w
                 # Usually one window closes at a time: skip the unique for that case.
-                ks.append(np.array([k0]) if k0 == k1 else _sorted_unique(t[:n] // w))
+                ks.append(np.array([k0]) if k0 == k1 else distinct_sorted(t[:n] // w))
         left, right = parts
         if not ks:
             return []
@@ -337,12 +337,6 @@ def _join(chunks: list[np.ndarray]) -> np.ndarray:
         i += c.size
     return out
 
-
-def _sorted_unique(values: np.ndarray) -> np.ndarray:
-    """np.unique of an already sorted array, in O(n) without sorting or hashing."""
-    if values.size == 0:
-        return values
-    return values[np.flatnonzero(np.diff(values, prepend=values[0] - 1))]
 
 
 class FrameMatcher(StreamMatcher):

@@ -8,9 +8,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cvstereo.errors import EventFormatError
-from cvstereo.events import DEFAULT_RESOLUTION, StereoPacket, as_events, iter_stereo_packets, time_slice
+from cvstereo.events import DEFAULT_RESOLUTION, StereoPacket, as_events, distinct_sorted, time_slice
 
 CAMERAS = ("left", "right")
+
 
 
 @dataclass(frozen=True, eq=False)
@@ -84,8 +85,23 @@ class Recording:
         return (self.t_end - self.t_start) / 1e6
 
     def packets(self, packet_us: int = 10_000) -> Iterator[StereoPacket]:
-        """Iterate over time-aligned packets of both cameras (see :func:`cvstereo.events.iter_stereo_packets`)."""
-        return iter_stereo_packets((self.left, self.left_disparity), (self.right, self.right_disparity), packet_us)
+        """Iterate over time-aligned packets of both cameras.
+
+        The same packets as :func:`cvstereo.events.iter_stereo_packets` (absolute windows ``[k*P, (k+1)*P)``,
+        windows without events skipped), cut from the arrays in memory as views, without copying.
+        """
+        if packet_us <= 0:
+            raise ValueError(f"packet_us must be positive, got {packet_us}.")
+        ks = np.union1d(distinct_sorted(self.left["t"] // packet_us), distinct_sorted(self.right["t"] // packet_us))
+        bounds = ks * packet_us
+        cuts = [(np.searchsorted(ev["t"], bounds, side="left"), np.searchsorted(ev["t"], bounds + packet_us,
+                                                                                  side="left"))
+                for ev in (self.left, self.right)]
+        for i, stop in enumerate((bounds + packet_us).tolist()):
+            sl, sr = (slice(int(lo[i]), int(hi[i])) for lo, hi in cuts)
+            yield StereoPacket(self.left[sl], self.right[sr], stop,
+                               None if self.left_disparity is None else self.left_disparity[sl],
+                               None if self.right_disparity is None else self.right_disparity[sr])
 
     def slice_time(self, t_start: int | None = None, t_stop: int | None = None) -> Recording:
         """The part of the recording with ``t_start <= t < t_stop`` (absolute times, us)."""

@@ -105,3 +105,24 @@ def test_packets_skip_empty_windows_and_reject_bad_length():
     assert [p.until for p in packets] == [1000, 1_001_000]
     with pytest.raises(ValueError, match="packet_us must be positive"):
         list(iter_stereo_packets(left, left, 0))
+
+
+@pytest.mark.parametrize("packet_us", [1, 7, 1000, 40_000])
+def test_recording_packets_equal_iter_stereo_packets(packet_us):
+    # The in-memory fast path must cut exactly the packets of the streaming iterator, truth included.
+    from cvstereo.recording import Recording
+
+    rng = np.random.default_rng(packet_us)
+    cams = []
+    for n in (300, 200):
+        t = np.sort(rng.integers(0, 200_000, n))
+        cams.append(make_events(t, rng.integers(0, 128, n), rng.integers(0, 128, n), rng.integers(0, 2, n)))
+    truths = [rng.normal(10, 1, c.size).astype(np.float32) for c in cams]
+    rec = Recording(cams[0], cams[1], truths[0], truths[1])
+    fast = list(rec.packets(packet_us))
+    slow = list(iter_stereo_packets((cams[0], truths[0]), (cams[1], truths[1]), packet_us))
+    assert len(fast) == len(slow)
+    for a, b in zip(fast, slow, strict=True):
+        assert a.until == b.until
+        for x, y in zip(a[:2] + a[3:], b[:2] + b[3:], strict=True):
+            np.testing.assert_array_equal(x, y)
