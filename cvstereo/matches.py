@@ -33,10 +33,14 @@ def make_matches(t, x, y, p, camera, disparity) -> np.ndarray:
     -------
     (N,) ndarray of MATCH_DTYPE
     """
-    cols = np.broadcast_arrays(*(np.asarray(c) for c in (t, x, y, p, camera, disparity)))
-    out = np.empty(cols[0].shape[0] if cols[0].ndim else 1, dtype=MATCH_DTYPE)
+    cols = [np.asarray(c) for c in (t, x, y, p, camera, disparity)]
+    lengths = {c.shape[0] for c in cols if c.ndim}
+    if len(lengths) > 1:
+        raise ValueError(f"make_matches: columns have different lengths {sorted(lengths)}.")
+    out = np.empty(lengths.pop() if lengths else 1, dtype=MATCH_DTYPE)
+    # Assigning a scalar column broadcasts it; no broadcast_arrays copies (this runs once per window).
     for name, col in zip(MATCH_DTYPE.names, cols, strict=True):
-        out[name] = col.ravel()
+        out[name] = col
     return out
 
 
