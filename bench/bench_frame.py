@@ -1,6 +1,6 @@
 """Speed of the frame matchers on one core: frame-based (every variant), frame-area (both), OpenCV baselines.
 
-Runs each matcher through ``calibration_free.match`` (the streaming path a user takes, 10 ms packets) over the
+Runs each matcher through ``calibration_free.match`` (the streaming path a user takes, its default 40 ms packets) over the
 simulator's ``2arms-50cm`` preset when the simulator provides it, otherwise over a synthetic stream of moving
 textured edges with a similar event rate (about 1.2 M events in 11 s, the thesis' busiest recording).
 Prints a table and writes ``bench/results/frame.json`` and ``frame.md``.
@@ -183,7 +183,7 @@ def markdown(report: dict) -> str:
         "# Frame matchers: speed on one core",
         "",
         f"Input: {report['input']}, {report['events']} events, {report['duration_s']:.2f} s. "
-        f"Best of {report['repeats']} runs through `calibration_free.match` (10 ms packets), after a warm-up; "
+        f"Best of {report['repeats']} runs through `calibration_free.match` (40 ms packets), after a warm-up; "
         f"OpenCV {report['opencv']}, numpy {report['numpy']}, {report['date']}, load average "
         f"{report['load_average'][0]:.1f} (wall time counts waits for a busy machine; CPU time does not).",
         "",
