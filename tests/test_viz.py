@@ -19,7 +19,7 @@ from cvstereo.errors import MissingExtraError  # noqa: E402
 from cvstereo.events import make_events  # noqa: E402
 from cvstereo.matches import MatchResult, make_matches  # noqa: E402
 from cvstereo.recording import Recording  # noqa: E402
-from cvstereo.viz._images import match_window_slice, pixel_mean  # noqa: E402
+from cvstereo.viz._images import CONTEXT_RGB, match_window_slice, pixel_mean  # noqa: E402
 
 #: A small sensor, so that each sensor pixel covers many screen pixels and colours can be read back exactly.
 RES = (16, 12)
@@ -174,7 +174,8 @@ def test_disparity_map_colours_through_the_colormap(rec, window_result):
         assert _close(_color_at(img, axes[2], x, y), want)
     assert _color_at(img, axes[2], 12, 10) == BLACK  # the 80 ms match belongs to the next window
     assert _close(_color_at(img, axes[3], 3, 2), tuple(round(v * 255) for v in cmap(0.2)[:3]))
-    assert _color_at(img, axes[3], 5, 7) == BLACK  # noise: no truth
+    assert _color_at(img, axes[3], 5, 7) == CONTEXT_RGB  # noise: an event without truth, shown grey
+    assert _color_at(img, axes[3], 0, 0) == BLACK  # no event
     assert fig.axes[-1].get_ylabel() == "disparity (px)"
 
 
@@ -185,7 +186,7 @@ def test_disparity_map_default_windows_and_event_anchors(rec):
     fig = viz.plot_disparity_map(rec, result, n_windows=2, depth=DepthModel(a=16.5))
     maps = [ax for ax in fig.axes if ax.get_title().startswith("disparity")]
     assert len(maps) == 2
-    assert [int(np.isfinite(ax.images[0].get_array()).sum()) for ax in maps] == [1, 1]
+    assert [int(np.isfinite(ax.images[-1].get_array()).sum()) for ax in maps] == [1, 1]
 
 
 def test_disparity_map_needs_matches(rec):
@@ -275,6 +276,7 @@ def test_video_frames_size_and_colours(rec, window_result, tmp_path):
     want = cv2.applyColorMap(np.array([[round(0.8 * 255)]], np.uint8), cv2.COLORMAP_TURBO)[0, 0, ::-1]
     assert _close(at(2, 9, 4), want, tol=40)
     assert _close(at(2, 0, 0), BLACK, tol=40)
+    assert _close(at(2, 5, 7), CONTEXT_RGB, tol=40)  # an event without a match
 
 
 def test_video_without_matches_and_seconds(rec, tmp_path):

@@ -28,6 +28,10 @@ OFF_RGB = (255, 0, 0)
 #: Colour of pixels without a disparity in the colour-coded maps (not colour 0 of the map, which is a value).
 NO_DATA_RGB = (0, 0, 0)
 
+#: Colour of pixels that saw events but have no disparity, under the colour-coded maps: the object's silhouette,
+#: so that sparse matches can be read against it. Dark enough that every colour of the map stands out.
+CONTEXT_RGB = (70, 70, 70)
+
 CAMERA_NAMES = ("left", "right")
 
 
@@ -62,6 +66,14 @@ def event_frame_rgb(events: np.ndarray, *, resolution: tuple[int, int]) -> np.nd
     for polarity, rgb in ((1, ON_RGB), (0, OFF_RGB)):
         seen = np.unique(idx[events["p"] == polarity])
         img[seen] |= np.array(rgb, dtype=np.uint8)
+    return img.reshape(h, w, 3)
+
+
+def context_rgb(events: np.ndarray, *, resolution: tuple[int, int]) -> np.ndarray:
+    """Pixels that saw any event in :data:`CONTEXT_RGB`, the others in :data:`NO_DATA_RGB`; (H, W, 3) uint8."""
+    h, w = _shape(resolution)
+    img = np.full((h * w, 3), NO_DATA_RGB, dtype=np.uint8)
+    img[events["y"].astype(np.intp) * w + events["x"].astype(np.intp)] = CONTEXT_RGB
     return img.reshape(h, w, 3)
 
 
@@ -188,14 +200,16 @@ def disparity_range(*arrays: np.ndarray) -> tuple[float, float]:
     return lo, hi if hi > lo else lo + 1.0
 
 
-def colorize(image: np.ndarray, vmin: float, vmax: float) -> np.ndarray:
-    """Colour-code a disparity image with the turbo map (OpenCV's ``COLORMAP_TURBO``); NaN becomes black.
+def colorize(image: np.ndarray, vmin: float, vmax: float, *, background: np.ndarray | None = None) -> np.ndarray:
+    """Colour-code a disparity image with the turbo map (OpenCV's ``COLORMAP_TURBO``); NaN shows the background.
 
     Parameters
     ----------
     image : (H, W) float ndarray
     vmin, vmax : float
         Values mapped to the ends of the map (clipped beyond).
+    background : (H, W, 3) uint8 ndarray, optional, keyword-only
+        Shown where ``image`` is NaN (e.g. :func:`context_rgb`); default black.
 
     Returns
     -------
@@ -207,7 +221,7 @@ def colorize(image: np.ndarray, vmin: float, vmax: float) -> np.ndarray:
     levels = np.round(scaled * 255).astype(np.uint8)
     rgb = cv2.applyColorMap(levels, cv2.COLORMAP_TURBO)[..., ::-1]
     rgb = np.ascontiguousarray(rgb)
-    rgb[~finite] = NO_DATA_RGB
+    rgb[~finite] = NO_DATA_RGB if background is None else background[~finite]
     return rgb
 
 

@@ -7,7 +7,6 @@ They display in Jupyter as they are; in a script, save them with :func:`save_fig
 
 from __future__ import annotations
 
-import math
 import os
 
 import numpy as np
@@ -164,22 +163,33 @@ def _metres_label(z: float) -> str:
 
 
 def figure_title(result_meta: dict | None, recording_meta: dict | None) -> str:
-    """A short description of what is shown: method (variant) on scene, for suptitles."""
+    """A short description of what is shown, for titles: "method (variant) on preset-or-scene".
+
+    Examples
+    --------
+    >>> figure_title({"method": "frame", "variant": "shared"}, {"scene": {"type": "arms", "distance_m": 0.5}})
+    'frame (shared) on arms scene at 0.5 m'
+    """
     parts = []
-    if result_meta:
-        method = result_meta.get("method")
+    if result_meta and result_meta.get("method"):
         variant = result_meta.get("variant")
-        if method:
-            parts.append(f"{method} ({variant})" if variant else str(method))
-    if recording_meta:
-        scene = recording_meta.get("preset") or recording_meta.get("scene") or recording_meta.get("name")
-        if isinstance(scene, str):
-            parts.append(scene)
-        elif isinstance(scene, dict) and isinstance(scene.get("name"), str):
-            parts.append(scene["name"])
+        parts.append(f"{result_meta['method']} ({variant})" if variant else str(result_meta["method"]))
+    scene = _scene_name(recording_meta or {})
+    if scene:
+        parts.append(scene)
     return " on ".join(parts)
 
 
-def finite_or(value: float, default: float) -> float:
-    """``value`` if finite else ``default``."""
-    return value if isinstance(value, int | float) and math.isfinite(value) else default
+def _scene_name(meta: dict) -> str:
+    for key in ("preset", "name"):
+        if isinstance(meta.get(key), str):
+            return meta[key]
+    scene = meta.get("scene")
+    if isinstance(scene, str):
+        return scene
+    if isinstance(scene, dict):
+        name = scene.get("name") or scene.get("preset") or scene.get("type")
+        if isinstance(name, str):
+            dist = scene.get("distance_m")
+            return f"{name} scene" + (f" at {dist:g} m" if isinstance(dist, int | float) else "")
+    return ""

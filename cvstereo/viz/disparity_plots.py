@@ -22,6 +22,7 @@ from cvstereo.viz._images import (
     DEFAULT_WINDOW_US,
     anchor_cameras,
     anchor_of,
+    context_rgb,
     disparity_image,
     disparity_range,
     event_frame_rgb,
@@ -96,6 +97,25 @@ def grouped_percentiles(keys: np.ndarray, values: np.ndarray, q: Sequence[float]
     return groups, out
 
 
+def fill_gaps(groups: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Spread per-window rows over every window from the first to the last, NaN rows where a window is missing.
+
+    Lines drawn through the result break over windows without data instead of bridging them.
+
+    Examples
+    --------
+    >>> k, v = fill_gaps(np.array([2, 3, 5]), np.array([[1.0], [2.0], [3.0]]))
+    >>> k.tolist(), v[:, 0].tolist()
+    ([2, 3, 4, 5], [1.0, 2.0, nan, 3.0])
+    """
+    if groups.size == 0:
+        return groups, values
+    keys = np.arange(groups[0], groups[-1] + 1)
+    out = np.full((keys.size, *values.shape[1:]), np.nan)
+    out[groups - groups[0]] = values
+    return keys, out
+
+
 def window_truth(recording: Recording, cameras: Sequence[int], window_us: int,
                  q: Sequence[float] = (50, *TRUTH_BAND)) -> tuple[np.ndarray, np.ndarray]:
     """Percentiles of the true disparity of the events of ``cameras`` per absolute window.
@@ -103,12 +123,14 @@ def window_truth(recording: Recording, cameras: Sequence[int], window_us: int,
     Returns
     -------
     starts : (G,) int64 ndarray
-        Window starts (us) of the windows holding events with finite truth.
+        Window starts (us) from the first to the last window holding events with finite truth.
     percentiles : (G, len(q)) float64 ndarray
+        NaN for windows without such events.
     """
     keys = np.concatenate([recording.events(c)["t"] // window_us for c in cameras])
     values = np.concatenate([recording.truth(c) for c in cameras])
     groups, pct = grouped_percentiles(keys, values, q)
+    groups, pct = fill_gaps(groups, pct)
     return groups * window_us, pct
 
 
@@ -143,7 +165,7 @@ def plot_disparity_over_time(recording: Recording, result, *, window_us: int | N
             color="tab:blue", alpha=_point_alpha(disp.size), rasterized=True, label=f"matches ({disp.size:,})")
     lows, highs = [], []
     if disp.size:
-        groups, med = grouped_percentiles(_window_keys(result, window_us), disp, [50])
+        groups, med = fill_gaps(*grouped_percentiles(_window_keys(result, window_us), disp, [50]))
         centre = (groups * window_us + window_us / 2) / 1e6
         ax.plot(centre, med[:, 0], color="tab:orange", linewidth=1.5,
                 label=f"median of matches per {window_us / 1000:g} ms")
@@ -157,8 +179,8 @@ def plot_disparity_over_time(recording: Recording, result, *, window_us: int | N
                             label=f"truth, {TRUTH_BAND[0]}-{TRUTH_BAND[1]} % of events")
             ax.plot(centre, pct[:, 0], color="k", linestyle="--", linewidth=1.2,
                     label=f"truth, median per {window_us / 1000:g} ms")
-            lows.append(float(pct[:, 1].min()))
-            highs.append(float(pct[:, 2].max()))
+            lows.append(float(np.nanmin(pct[:, 1])))
+            highs.append(float(np.nanmax(pct[:, 2])))
     if lows:
         lo, hi = min(0.0, min(lows)), max(highs)
         pad = 0.05 * max(hi - lo, 1.0)
@@ -170,7 +192,8 @@ def plot_disparity_over_time(recording: Recording, result, *, window_us: int | N
     ax.set_xlabel("time (s)")
     ax.set_ylabel("disparity (px)")
     ax.grid(True, alpha=0.3)
-    ax.legend(loc="lower right", fontsize="small", markerscale=4, framealpha=0.8)
+    # Below the axes: inside, any corner may hide matches.
+    fig.legend(loc="outside lower center", ncols=4, fontsize="small", markerscale=4, frameon=False)
     if depth is not None:
         add_metres_axis(ax, depth)
     ax.set_title(title or ("Disparity over time: " + (figure_title(result.meta, recording.meta) or "matches")))
@@ -200,7 +223,8 @@ def plot_disparity_map(recording: Recording, result, t_end_us: int | Sequence[in
 
     Each row shows a window ``[t_end - W, t_end)``: both cameras' events (ON green, OFF red), then for each
     camera the matches are anchored on, the mean disparity of its matches at each pixel, and the true disparity
-    of its events there when the recording has ground truth. Pixels without a value are black.
+    of its events there when the recording has ground truth. Pixels that saw events of that camera but have no
+    value are dark grey (the object's silhouette), the others black.
 
     Parameters
     ----------
@@ -240,12 +264,14 @@ def plot_disparity_map(recording: Recording, result, t_end_us: int | Sequence[in
         m = result.matches[match_window_slice(result.matches, t0, t_end, anchor=anchor)]
         maps = []
         for c in cams:
+            ev = recording.events(c)
+            context = context_rgb(ev[time_slice(ev, t0, t_end)], resolution=res)
             maps.append((f"disparity ({CAMERA_NAMES[c]})", disparity_image(m, c, resolution=res),
-                         int(np.count_nonzero(m["camera"] == c))))
+                         int(np.count_nonzero(m["camera"] == c)), context))
             if recording.has_truth:
-                maps.append((f"truth ({CAMERA_NAMES[c]})", truth_image(recording, c, t0, t_end), None))
+                maps.append((f"truth ({CAMERA_NAMES[c]})", truth_image(recording, c, t0, t_end), None, context))
         rows.append((t0, t_end, frames, maps))
-    lo, hi = disparity_range(*(img for *_, maps in rows for _, img, _ in maps))
+    lo, hi = disparity_range(*(img for *_, maps in rows for _, img, _, _ in maps))
     norm_lo, norm_hi = lo if vmin is None else vmin, hi if vmax is None else vmax
     return _draw_map_grid(rows, norm_lo, norm_hi, depth=depth,
                           title=title or ("Disparity per window: " + (figure_title(result.meta, recording.meta)
@@ -259,15 +285,17 @@ def _draw_map_grid(rows, vmin: float, vmax: float, *, depth: DepthModel | None, 
     panel = 2.6
     fig = new_figure(n_cols * panel + 1.0, len(rows) * panel + 0.5)
     axes = fig.subplots(len(rows), n_cols, sharex=True, sharey=True, squeeze=False)
-    cmap = cmap_with_background(DISPARITY_CMAP)
+    # NaN transparent: the anchor camera's events show through in grey where they got no disparity.
+    cmap = cmap_with_background(DISPARITY_CMAP, background=(0.0, 0.0, 0.0, 0.0))
     norm = Normalize(vmin, vmax)
     im = None
     for r, (t0, t_end, frames, maps) in enumerate(rows):
         span = f"{t0 / 1000:g}-{t_end / 1000:g} ms"
         for c, frame in enumerate(frames):
             show_sensor_image(axes[r, c], frame, title=f"{CAMERA_NAMES[c]} events, {span}")
-        for j, (label, img, count) in enumerate(maps):
+        for j, (label, img, count, context) in enumerate(maps):
             suffix = "" if count is None else f" ({count:,})"
+            show_sensor_image(axes[r, 2 + j], context)
             im = show_sensor_image(axes[r, 2 + j], img, cmap=cmap, norm=norm, title=label + suffix)
     for ax in axes.flat:
         ax.label_outer()

@@ -22,6 +22,7 @@ from cvstereo.viz._images import (
     anchor_cameras,
     anchor_of,
     colorize,
+    context_rgb,
     disparity_image,
     disparity_range,
     event_frame_rgb,
@@ -44,9 +45,10 @@ _FONT_PX = 40
 GAP_PX = 4
 GAP_RGB = (64, 64, 64)
 
-#: Width of the colour bar beside the disparity panels, px, and of the space for its labels.
+#: Width of the colour bar beside the disparity panels, px, and of the space for its labels per unit of font scale
+#: (a label such as "120px" is about 4.5 font heights wide).
 COLORBAR_PX = 12
-COLORBAR_LABEL_PX = 44
+COLORBAR_LABEL_PX_PER_FONT = 110
 
 
 def write_video(recording: Recording, path: str | os.PathLike, result=None, *, fps: float = 25.0,
@@ -56,8 +58,9 @@ def write_video(recording: Recording, path: str | os.PathLike, result=None, *, f
 
     Each frame shows the window ``[k*W, (k+1)*W)`` of the absolute clock: the left and right events (ON green,
     OFF red, on black), then for each camera the matches are anchored on, the mean disparity at each anchor
-    pixel colour-coded with the turbo map (black: no match) and a colour bar. A text bar on top gives the time,
-    and with matches their number, median disparity and, given ``depth``, the distance it means.
+    pixel colour-coded with the turbo map (dark grey: events without a match; black: no event) and a colour
+    bar. A text bar on top gives the time, and with matches their number, median disparity and, given
+    ``depth``, the distance it means.
 
     Parameters
     ----------
@@ -75,8 +78,9 @@ def write_video(recording: Recording, path: str | os.PathLike, result=None, *, f
         Only the first ``seconds`` of the recording.
     depth : DepthModel, optional, keyword-only
     vmin, vmax : float, optional, keyword-only
-        Disparity colour range, px; default: 1st-99th percentile of all matches (and 0), fixed for the whole video
-        so that a colour means the same disparity in every frame.
+        Disparity colour range, px; default: 0 (or the 1st percentile if lower) to the 99th percentile of all
+        matches and the true disparities of the anchor cameras' events, fixed for the whole video so that a colour
+        means the same disparity in every frame.
 
     Returns
     -------
@@ -107,7 +111,10 @@ def write_video(recording: Recording, path: str | os.PathLike, result=None, *, f
         starts = starts[starts < starts[0] + seconds * 1e6]
     cams = [] if result is None else anchor_cameras(result)
     if result is not None:
-        lo, hi = disparity_range(result.disparity)
+        # The scene's true disparities, where known, set the colours as in plot_disparity_map: a matcher's wild
+        # matches then show as outliers instead of stretching the scale.
+        truths = [t for t in (recording.truth(c) for c in cams) if t is not None]
+        lo, hi = disparity_range(result.disparity, *truths)
         vmin, vmax = (lo if vmin is None else vmin), (hi if vmax is None else vmax)
     layout = _Layout(recording.resolution, scale, n_disparity=len(cams))
     with _video_writer(path, fps, layout.size) as writer:
@@ -122,10 +129,10 @@ class _Layout:
     def __init__(self, resolution: tuple[int, int], scale: int, *, n_disparity: int):
         self.pw, self.ph = resolution[0] * scale, resolution[1] * scale
         n_panels = 2 + n_disparity
-        bar = COLORBAR_PX + COLORBAR_LABEL_PX if n_disparity else 0
-        width = n_panels * self.pw + (n_panels + 1) * GAP_PX + bar
         self.header = max(HEADER_MIN_PX, HEADER_PX_PER_SCALE * scale)
         self.font = self.header / _FONT_PX
+        bar = COLORBAR_PX + round(COLORBAR_LABEL_PX_PER_FONT * self.font * 0.7) if n_disparity else 0
+        width = n_panels * self.pw + (n_panels + 1) * GAP_PX + bar
         height = self.header + self.ph + GAP_PX
         # Even sides: MPEG-4 encoders subsample colour by 2 in each direction.
         self.size = (width + width % 2, height + height % 2)
@@ -155,8 +162,10 @@ def _frame(recording: Recording, result, t0: int, window_us: int, cams: list[int
         anchor, _ = anchor_of(result)
         m = result.matches[match_window_slice(result.matches, t0, t1, anchor=anchor)]
         for c in cams:
-            panels.append((colorize(disparity_image(m, c, resolution=recording.resolution), vmin, vmax),
-                           f"disparity ({CAMERA_NAMES[c]})"))
+            ev = recording.events(c)
+            context = context_rgb(ev[time_slice(ev, t0, t1)], resolution=recording.resolution)
+            panels.append((colorize(disparity_image(m, c, resolution=recording.resolution), vmin, vmax,
+                                    background=context), f"disparity ({CAMERA_NAMES[c]})"))
         header += f"   {m.size:5d} matches"
         if m.size:
             med = float(np.median(m["disparity"]))
@@ -180,8 +189,9 @@ def _draw_colorbar(img: np.ndarray, layout: _Layout, vmin: float, vmax: float) -
     x, y = layout.colorbar_x, layout.header
     values = np.linspace(vmax, vmin, layout.ph)[:, None].repeat(COLORBAR_PX, axis=1)
     img[y:y + layout.ph, x:x + COLORBAR_PX] = colorize(values, vmin, vmax)
-    for value, ty in ((vmax, y + 10), (vmin, y + layout.ph - 2)):
-        cv2.putText(img, f"{value:.0f}px", (x + COLORBAR_PX + 2, ty), cv2.FONT_HERSHEY_SIMPLEX, 0.35,
+    font = layout.font * 0.7
+    for value, ty in ((vmax, y + round(_FONT_PX * font * 0.6)), (vmin, y + layout.ph - 2)):
+        cv2.putText(img, f"{value:.0f}px", (x + COLORBAR_PX + 2, ty), cv2.FONT_HERSHEY_SIMPLEX, font,
                     (255, 255, 255), 1, cv2.LINE_AA)
 
 
