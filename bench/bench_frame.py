@@ -1,8 +1,9 @@
 """Speed of the frame matchers on one core: frame-based (every variant), frame-area (both), OpenCV baselines.
 
-Runs each matcher through ``calibration_free.match`` (the streaming path a user takes, its default 40 ms packets) over the
-simulator's ``2arms-50cm`` preset when the simulator provides it, otherwise over a synthetic stream of moving
-textured edges with a similar event rate (about 1.2 M events in 11 s, the thesis' busiest recording).
+Runs each matcher through ``calibration_free.match`` (the streaming path a user takes, its default 40 ms
+packets) over the simulator's ``2arms-50cm`` preset when the simulator provides it, otherwise over a
+synthetic stream of moving textured edges with a similar event rate (about 1.2 M events in 11 s, the
+thesis' busiest recording).
 Prints a table and writes ``bench/results/frame.json`` and ``frame.md``.
 
 Targets (issue 4): frame-based >= 50x real time, frame-area >= 20x real time. The thesis' Matlab needed
