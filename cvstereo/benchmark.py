@@ -204,8 +204,18 @@ def run_bench(config: BenchConfig, *, progress: bool = True, log: Callable[[str]
     """Run the whole benchmark; return a JSON-ready dict (see :func:`bench_markdown`)."""
     from tqdm.auto import tqdm
 
-    combos = all_combos(config.methods)
+    from calibration_free.registry import METHODS, available_methods, matcher_class
+
+    requested = list(config.methods or METHODS)
+    for method in requested:
+        matcher_class(method)  # an unknown name is an error (it lists the known ones)
+    # Matchers whose optional extra is not installed are left out with a note, never an error.
+    installed = set(available_methods())
+    skipped = [m for m in requested if m not in installed]
+    combos = all_combos([m for m in requested if m in installed])
     log(f"matchers: {', '.join(c.label for c in combos)}")
+    if skipped:
+        log(f"skipped (not installed here): {', '.join(skipped)}; dv-semidense needs pip install 'cvstereo[compare]'")
     log("recordings: simulating the presets and extra scenes (cached after the first run) ...")
     sims = simulated_recordings(config)
     reals = real_recordings(config.shared)
@@ -231,6 +241,7 @@ def run_bench(config: BenchConfig, *, progress: bool = True, log: Callable[[str]
         "config": {"quick": config.quick, "preset_seconds": config.preset_seconds or RECORDING_SECONDS,
                    "extra_seconds": config.extra_seconds},
         "combos": {c.label: {"method": c.method, "variant": c.variant} for c in combos},
+        "skipped": skipped,
         "compile_s": compile_s,
         "runs": runs,
         "speed": speed_table(combos, runs),
@@ -310,7 +321,8 @@ def bench_markdown(results: dict) -> str:
         f"Machine: {m['processor']}, {m['cpus']} CPUs, {m['platform']}; Python {m['python']}, numpy {m['numpy']}, "
         f"OpenCV {m['opencv']}, numba {m.get('numba', '-')}; cvstereo {m['cvstereo']}; {m['date']}.",
         f"Presets: {cfg['preset_seconds']:g} s each{' (--quick)' if cfg['quick'] else ''}; extra scenes "
-        f"{cfg['extra_seconds']:g} s. Matching runs on one process, single-threaded where the library allows.",
+        f"{cfg['extra_seconds']:g} s. Matching runs on one process, single-threaded where the library allows."
+        + (f" Not installed, so not run: {', '.join(results['skipped'])}." if results.get("skipped") else ""),
         "",
         "## Accuracy against ground truth, beside the thesis' mean/std",
         "",
