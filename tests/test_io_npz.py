@@ -94,3 +94,20 @@ def test_npz_takes_no_text_options(tmp_path, rng):
     write_recording(path, random_recording(rng, 5, 5))
     with pytest.raises(ValueError, match="left_retina do"):
         read_recording(path, left_retina=1)
+
+
+def test_written_files_get_the_usual_permissions(tmp_path):
+    # The atomic writer's temporary file is private; the finished file must not be (umask decides, as open()).
+    import os
+    import stat
+
+    from cvstereo.events import make_events
+    from cvstereo.io import write_recording_npz
+    from cvstereo.recording import Recording
+
+    ev = make_events([1], [2], [3], [1])
+    out = tmp_path / "r.npz"
+    write_recording_npz(out, Recording(ev, ev))
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE(out.stat().st_mode) == 0o666 & ~umask

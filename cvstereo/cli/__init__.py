@@ -19,6 +19,7 @@ COMMANDS: dict[str, str] = {
     "evaluate": "evaluate",
     "demo": "demo",
     "bench": "bench",
+    "depth-fit": "depth_fit",
     "match": "match",
     "plot": "plot",
     "video": "video",

@@ -52,3 +52,25 @@ def load_recording(args: argparse.Namespace, path_attr: str = "recording"):
     from cvstereo.io import read_recording
 
     return read_recording(getattr(args, path_attr), getattr(args, "right", None), **format_options(args))
+
+
+def add_depth_options(p: argparse.ArgumentParser) -> None:
+    """``--depth A C`` and ``--metres/--no-metres``: a distance axis from d = A/Z - C."""
+    g = p.add_argument_group("distance in metres (d = A/Z - C)")
+    g.add_argument("--depth", type=float, nargs=2, default=None, metavar=("A", "C"),
+                   help="A = focal length (px) x baseline (m) and C (px), e.g. from `cvstereo depth-fit` "
+                   "(default: from the recording's rig, where it has one)")
+    g.add_argument("--metres", action=argparse.BooleanOptionalAction, default=True,
+                   help="show distances where a depth model is known (default: yes)")
+
+
+def depth_model(args: argparse.Namespace, recording):
+    """The DepthModel the options ask for, or None."""
+    from cvstereo.depth import DepthModel
+    from cvstereo.viz import depth_from_meta
+
+    if not args.metres:
+        return None
+    if args.depth is not None:
+        return DepthModel(a=args.depth[0], c=args.depth[1])
+    return depth_from_meta(recording.meta)

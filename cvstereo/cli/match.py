@@ -12,7 +12,9 @@ import dataclasses
 import sys
 import typing
 
-from cvstereo.cli._common import add_format_options, format_options
+import numpy as np
+
+from cvstereo.cli._common import add_depth_options, add_format_options, depth_model, format_options
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
@@ -37,6 +39,7 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
                    help="show a progress bar (default: when stderr is a terminal)")
     p.add_argument("--list-methods", action="store_true", help="list methods, variants and parameters, then exit")
+    add_depth_options(p)
     g = p.add_argument_group("rig correction (cvstereo rigcheck)")
     g.add_argument("--auto", action="store_true",
                    help="run the rig check first; swap the cameras and remove row/time offsets it finds (printed, "
@@ -75,10 +78,22 @@ def run(args: argparse.Namespace) -> int:
     result.meta["input"] = [args.recording] + ([args.right] if args.right else [])
     result.meta["format_options"] = {k: list(v) if isinstance(v, tuple) else v
                                      for k, v in format_options(args).items()}
+    depth = depth_model(args, recording)
+    if depth is not None:
+        # The matches format is a contract: distances are not a column; the model that gives them is in meta.
+        result.meta["depth"] = depth.to_dict()
     result.save(args.output)
     m = result.meta
     print(f"{len(result)} matches from {m['input_events']} events ({args.method}, {m['variant']}) in "
           f"{m['elapsed_s']:.2f} s -> {args.output}")
+    if len(result):
+        d50, d5, d95 = np.percentile(result.disparity, [50, 5, 95])
+        line = f"disparity: median {d50:.2f} px, 5-95 % {d5:.1f}..{d95:.1f} px"
+        if depth is not None:
+            z50, z5, z95 = depth.distance([d50, d95, d5])  # larger disparity, nearer
+            line += (f"; distance: median {z50:.2f} m, 5-95 % {z5:.2f}..{z95:.2f} m "
+                     f"(d = {depth.a:.2f}/Z - {depth.c:.2f})")
+        print(line)
     return 0
 
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from cvstereo.cli._common import add_format_options, format_options
+from cvstereo.cli._common import add_depth_options, add_format_options, depth_model, format_options
 
 #: Picture kind (also its file name under ``all``) -> (needs matches, what it shows).
 KINDS: dict[str, tuple[bool, str]] = {
@@ -47,28 +47,6 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p.add_argument("--dpi", type=float, default=None, help="resolution of raster pictures (default: 120)")
     add_format_options(p)
     return p
-
-
-def add_depth_options(p: argparse.ArgumentParser) -> None:
-    """``--depth A C`` and ``--metres/--no-metres``: a distance axis from d = A/Z - C."""
-    g = p.add_argument_group("distance in metres (d = A/Z - C)")
-    g.add_argument("--depth", type=float, nargs=2, default=None, metavar=("A", "C"),
-                   help="A = focal length (px) x baseline (m) and C (px), e.g. from `cvstereo depth-fit` "
-                   "(default: from the recording's rig, where it has one)")
-    g.add_argument("--metres", action=argparse.BooleanOptionalAction, default=True,
-                   help="show distances where a depth model is known (default: yes)")
-
-
-def depth_model(args: argparse.Namespace, recording):
-    """The DepthModel the options ask for, or None."""
-    from cvstereo.depth import DepthModel
-    from cvstereo.viz import depth_from_meta
-
-    if not args.metres:
-        return None
-    if args.depth is not None:
-        return DepthModel(a=args.depth[0], c=args.depth[1])
-    return depth_from_meta(recording.meta)
 
 
 def _ms_to_us(ms: float | None) -> int | None:

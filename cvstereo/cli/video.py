@@ -8,8 +8,7 @@ from __future__ import annotations
 
 import argparse
 
-from cvstereo.cli._common import add_format_options, format_options
-from cvstereo.cli.plot import add_depth_options, depth_model
+from cvstereo.cli._common import add_depth_options, add_format_options, depth_model, format_options
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:

@@ -1,0 +1,66 @@
+"""``cvstereo depth-fit FILE:DISTANCE ...``: fit d = a/Z - c from recordings at measured distances."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+
+def add_parser(sub, name: str) -> argparse.ArgumentParser:
+    p = sub.add_parser(
+        name, help="fit d = a/Z - c (disparity to metres) from recordings at measured distances",
+        description="Fit the disparity-to-distance model d = a/Z - c (a = focal length x baseline, c from axes "
+        "that are not exactly parallel) by least squares, from two or more recordings (or matches files) "
+        "made at distances you measured (the thesis used a cord). Each file's median disparity is one point. "
+        "Prints a and c and the option `--depth A C` that `match`, `plot` and `video` take.")
+    p.add_argument("points", nargs="+", metavar="FILE:DISTANCE",
+                   help="a recording or a matches .npz, and its distance in metres, e.g. arm50.npz:0.5")
+    p.add_argument("--method", default="frame", help="matcher for recordings (default: frame)")
+    p.add_argument("--variant", default=None, help="matcher variant (default: the method's first)")
+    p.add_argument("-o", "--output", default=None, metavar="DEPTH.json", help="write the model as JSON")
+    return p
+
+
+def _point(text: str) -> tuple[str, float]:
+    path, sep, dist = text.rpartition(":")
+    try:
+        z = float(dist)
+    except ValueError:
+        z = float("nan")
+    if not sep or not path or not z > 0:
+        raise ValueError(f"'{text}' is not FILE:DISTANCE with a distance in metres > 0, e.g. arm50.npz:0.5.")
+    return path, z
+
+
+def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from cvstereo.depth import fit_depth_model
+    from cvstereo.io import read_matches, read_recording
+    from cvstereo.io._atomic import write_text_atomic
+    from cvstereo.io.npz import npz_keys
+
+    points = [_point(p) for p in args.points]
+    if len({z for _, z in points}) < 2:
+        raise ValueError("give files at two or more different distances (d = a/Z - c has two unknowns).")
+    rows = []
+    for path, z in points:
+        if path.endswith(".npz") and "matches" in npz_keys(path):
+            disparity = read_matches(path).disparity
+        else:
+            from calibration_free import match
+
+            disparity = match(read_recording(path), method=args.method, variant=args.variant).disparity
+        if disparity.size == 0:
+            raise ValueError(f"{path}: no matches, so no disparity to fit; try another --method.")
+        rows.append((path, z, float(np.median(disparity)), int(disparity.size)))
+    model = fit_depth_model([r[1] for r in rows], [r[2] for r in rows])
+    print(f"{'file':40s} {'distance m':>10s} {'median d px':>11s} {'matches':>8s} {'fitted m':>9s}")
+    for path, z, d, n in rows:
+        print(f"{path:40s} {z:10.3f} {d:11.2f} {n:8d} {float(model.distance(d)):9.3f}")
+    print(f"a = {model.a:.4f} px m, c = {model.c:.4f} px   (use: --depth {model.a:.4f} {model.c:.4f})")
+    if args.output:
+        data = {**model.to_dict(), "points": [{"file": p, "distance_m": z, "median_disparity_px": d, "matches": n}
+                                              for p, z, d, n in rows]}
+        write_text_atomic(args.output, json.dumps(data, indent=2) + "\n")
+    return 0
