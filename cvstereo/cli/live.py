@@ -24,6 +24,8 @@ def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
     p.add_argument("--focal-px", type=float, default=160.0, help="focal length in px (default 160)")
     p.add_argument("--baseline-m", type=float, default=0.10, help="baseline in m (default 0.10)")
     p.add_argument("--offset-px", type=float, default=2.5, help="axis offset c in px (default 2.5)")
+    p.add_argument("--depth", type=float, nargs=2, default=None, metavar=("A", "C"),
+                   help="d = A/Z - C fitted by `cvstereo depth-fit` (overrides the three rig options above)")
     return p
 
 
@@ -39,7 +41,8 @@ def run(args: argparse.Namespace) -> int:
                          f"{', '.join(available_methods()) or 'none'}.") from None
     params = parse_param_strings(cls.Params, args.param)
     matcher = create_matcher(args.method, args.variant, **params)
-    depth = DepthModel.from_rig(focal_px=args.focal_px, baseline_m=args.baseline_m, offset_px=args.offset_px)
+    depth = (DepthModel(a=args.depth[0], c=args.depth[1]) if args.depth is not None else
+             DepthModel.from_rig(focal_px=args.focal_px, baseline_m=args.baseline_m, offset_px=args.offset_px))
     with stop_on_signals() as stop, open_rig(args) as (rig, devices):
         rig.start()
         done = (lambda: all(d.done for d in devices) and all(c.silent for c in rig.cams)) if devices else None
