@@ -185,18 +185,28 @@ def disparity_image(matches: np.ndarray, camera: int, *, resolution: tuple[int, 
     return pixel_mean(m["x"], m["y"], m["disparity"], resolution=resolution)
 
 
+#: The colour scale of disparities runs to this multiple of their 99th percentile: the scene's disparities then lie
+#: in the map's middle and upper colours, where they stand out against the grey silhouette, and matches too far
+#: out (the typical matcher error) get the map's last, dark-red colours instead of stretching the scale.
+RANGE_HEADROOM = 1.5
+
+
 def disparity_range(*arrays: np.ndarray) -> tuple[float, float]:
-    """A colour range for disparities: from min(0, 1st percentile) to the 99th percentile of all values.
+    """A colour range for disparities: from min(0, 1st percentile) to 1.5 x the 99th percentile of all values.
 
     Percentiles rather than extremes, so that a few wild matches do not wash out the colours of the rest.
+
+    Examples
+    --------
+    >>> disparity_range(np.array([10.0] * 100), np.array([np.nan]))
+    (0.0, 15.0)
     """
-    # 1st/99th percentiles: the outliers of a matcher are a small minority; these ignore them for the colour scale.
     values = np.concatenate([np.asarray(a, np.float64).ravel() for a in arrays] or [np.empty(0)])
     values = values[np.isfinite(values)]
     if values.size == 0:
         return 0.0, 1.0
     lo = min(0.0, float(np.percentile(values, 1)))
-    hi = float(np.percentile(values, 99))
+    hi = float(np.percentile(values, 99)) * RANGE_HEADROOM
     return lo, hi if hi > lo else lo + 1.0
 
 

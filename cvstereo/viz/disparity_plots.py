@@ -238,7 +238,8 @@ def plot_disparity_map(recording: Recording, result, t_end_us: int | Sequence[in
     depth : DepthModel, optional, keyword-only
         Adds distances (m) beside the colour bar.
     vmin, vmax : float, optional, keyword-only
-        Colour range, px; default: from the disparities shown (1st-99th percentile, and 0).
+        Colour range, px; default: from the disparities and truths shown (0 to 1.5 x their 99th percentile, see
+        :func:`~cvstereo.viz._images.disparity_range`).
     title : str, optional, keyword-only
 
     Returns

@@ -78,9 +78,10 @@ def write_video(recording: Recording, path: str | os.PathLike, result=None, *, f
         Only the first ``seconds`` of the recording.
     depth : DepthModel, optional, keyword-only
     vmin, vmax : float, optional, keyword-only
-        Disparity colour range, px; default: 0 (or the 1st percentile if lower) to the 99th percentile of all
-        matches and the true disparities of the anchor cameras' events, fixed for the whole video so that a colour
-        means the same disparity in every frame.
+        Disparity colour range, px; default: 0 (or the 1st percentile if lower) to 1.5 x the 99th percentile of
+        all matches and the true disparities of the anchor cameras' events (see
+        :func:`~cvstereo.viz._images.disparity_range`), fixed for the whole video so that a colour means the same
+        disparity in every frame.
 
     Returns
     -------
