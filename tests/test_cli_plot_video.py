@@ -125,3 +125,20 @@ def test_video_bad_options(files, tmp_path, capsys):
     assert "fps" in capsys.readouterr().err
     assert main(["video", str(rec), "-o", str(tmp_path / "missing" / "v.mp4")]) == 1
     assert "does not exist" in capsys.readouterr().err
+
+
+def test_depth_from_the_matches_file_wins_over_the_rig(files):
+    import argparse
+
+    from cvstereo.cli.plot import picture_depth
+    from cvstereo.depth import DepthModel
+    from cvstereo.io import read_matches, read_recording
+
+    rec, m = files
+    recording, result = read_recording(rec), read_matches(m)
+    args = argparse.Namespace(metres=True, depth=None)
+    assert picture_depth(args, recording, result) == DepthModel(a=16.5, c=0.0)  # the rig
+    result.meta["depth"] = {"a": 20.0, "c": 1.0}
+    assert picture_depth(args, recording, result) == DepthModel(a=20.0, c=1.0)
+    assert picture_depth(argparse.Namespace(metres=True, depth=[5.0, 0.0]), recording, result) == DepthModel(5.0)
+    assert picture_depth(argparse.Namespace(metres=False, depth=None), recording, result) is None

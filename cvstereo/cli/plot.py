@@ -10,6 +10,18 @@ from pathlib import Path
 
 from cvstereo.cli._common import add_depth_options, add_format_options, depth_model, format_options
 
+
+def picture_depth(args: argparse.Namespace, recording, result):
+    """The depth model for pictures: ``--depth``, else the one `cvstereo match` stored in the matches file, else
+    the recording's rig; None with ``--no-metres``."""
+    from cvstereo.viz import depth_from_meta
+
+    if args.metres and args.depth is None and result is not None:
+        stored = depth_from_meta(result.meta)
+        if stored is not None:
+            return stored
+    return depth_model(args, recording)
+
 #: Picture kind (also its file name under ``all``) -> (needs matches, what it shows).
 KINDS: dict[str, tuple[bool, str]] = {
     "events": (False, "both cameras' events of one window, ON green, OFF red (thesis fig. 3.2)"),
@@ -69,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
 
     recording = read_recording(args.recording, args.right, **format_options(args))
     result = read_matches(args.matches) if args.matches is not None else None
-    depth = depth_model(args, recording)
+    depth = picture_depth(args, recording, result)
     if args.kind != "all":
         save_figure(make_figure(args.kind, recording, result, args, depth), args.output, dpi=args.dpi)
         print(f"{args.kind} -> {args.output}")

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import argparse
 
-from cvstereo.cli._common import add_depth_options, add_format_options, depth_model, format_options
+from cvstereo.cli._common import add_depth_options, add_format_options, format_options
+from cvstereo.cli.plot import picture_depth
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
@@ -37,6 +38,6 @@ def run(args: argparse.Namespace) -> int:
     recording = read_recording(args.recording, args.right, **format_options(args))
     result = read_matches(args.matches) if args.matches is not None else None
     n = write_video(recording, args.output, result, fps=args.fps, window_us=round(args.window_ms * 1000),
-                    scale=args.scale, seconds=args.seconds, depth=depth_model(args, recording))
+                    scale=args.scale, seconds=args.seconds, depth=picture_depth(args, recording, result))
     print(f"{n} frames ({n / args.fps:.1f} s at {args.fps:g} fps) -> {args.output}")
     return 0
