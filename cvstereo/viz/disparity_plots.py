@@ -187,7 +187,9 @@ def plot_disparity_over_time(recording: Recording, result, *, window_us: int | N
         ax.set_ylim(lo - (pad if lo < 0 else 0), hi + pad)
         outside = int(np.count_nonzero((disp < ax.get_ylim()[0]) | (disp > ax.get_ylim()[1])))
         if outside:
-            ax.text(0.01, 0.98, f"{outside:,} matches ({outside / disp.size:.1%}) outside the plotted range",
+            share = outside / disp.size
+            ax.text(0.01, 0.98, f"{outside:,} matches ({'<0.1%' if share < 0.001 else f'{share:.1%}'}) outside "
+                    "the plotted range",
                     transform=ax.transAxes, va="top", fontsize="small", color="0.3")
     ax.set_xlabel("time (s)")
     ax.set_ylabel("disparity (px)")
