@@ -6,8 +6,12 @@ sign (the thesis' 3xN "comparison array": sign, left edge, right edge). Row y of
 if both list the same number of clusters with the same signs in the same order; cluster i pairs with cluster
 i if the widths differ by at most 30 %, and the disparity is the difference of the centres.
 
-Everything is vectorised over the whole frame: runs come from comparing each pixel with its row neighbours,
-rows are compared through per-row run counts (``np.bincount``), so no Python loop visits pixels or rows.
+Two implementations of steps 3-6, which the tests hold equal. :func:`row_runs`, :func:`match_runs` and
+:func:`match_frame_pair` are the readable one, vectorised with numpy over a whole frame (runs from comparing
+each pixel with its row neighbours, rows compared through per-row run counts). :class:`FrameClusterMatcher`
+runs one numba kernel per window over all its frames instead (:func:`_match_stacked_rows`): per window numpy's
+per-call overhead, not arithmetic, was the cost, and the separate ON/OFF variant, with twice the frames, fell
+short of 50x real time on a 2-core Xeon.
 
 >>> from cvstereo.events import make_events
 >>> ys, xs = np.mgrid[10:14, 40:46].reshape(2, -1).repeat(3, axis=1)   # 3 OFF events at each pixel of a patch
@@ -24,6 +28,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar, Literal, NamedTuple
 
+import numba
 import numpy as np
 
 from cvstereo.frames import (
@@ -31,10 +36,8 @@ from cvstereo.frames import (
     Polarity,
     Window,
     WindowFrameParams,
-    event_mask,
     gaussian_filter,
-    polarity_counts,
-    polarity_frames,
+    stacked_frames,
 )
 from cvstereo.matches import empty_matches, make_matches
 
@@ -216,30 +219,21 @@ class FrameClusterMatcher(FrameMatcher):
         p = self.params
         if not (window.left.size and window.right.size):
             return empty_matches()  # a frame without events has no clusters, so no row can match
-        counts = [polarity_counts(ev, resolution=self.resolution) for ev in (window.left, window.right)]
-        frames = [polarity_frames(c, polarity=p.polarity) for c in counts]
-        channels = [channel for channel, _ in frames[0]]
         height = self.resolution[1]
-        # All frames of the window (cameras x channels) go through filter, threshold and run extraction as one
-        # stacked image: same result as one by one (see match_frame_pair), half the numpy calls or fewer.
+        # All frames of the window (cameras x frames) go through the filter as one stacked image, with zero rows
+        # between them: the same as filtering each on its own with a zero border (see match_frame_pair).
         gap = p.kernel_size // 2 if p.gaussian else 0
-        stack = _stack([f for cam in frames for _, f in cam], gap)
+        stack, seen = stacked_frames((window.left, window.right), polarity=p.polarity, resolution=self.resolution,
+                                     gap=gap, seen_camera=p.anchor_camera)
+        n_frames = seen.shape[0] // height  # 2 for separate ON/OFF, else 1
         if p.gaussian:
             stack = gaussian_filter(stack, sigma=p.sigma, kernel_size=p.kernel_size)
-        signs = cluster_signs(stack, threshold=p.threshold)
-        if gap:
-            signs.reshape(-1, height + gap, signs.shape[1])[:, height:] = 0  # the blur spills into the gaps
-        runs = row_runs(signs)
-        block, y = np.divmod(runs.row, height + gap)
-        # Row key = channel * height + y, the same for both cameras, so that match_runs pairs row y of channel c.
-        n_ch = len(channels)
-        key = (block % n_ch) * height + y
-        cams = [block < n_ch, block >= n_ch]
-        left, right = (Runs(key[c], runs.left[c], runs.right[c], runs.sign[c]) for c in cams)
-        pairs = match_runs(left, right, height=n_ch * height, width_tolerance=p.width_tolerance,
-                           max_disparity=p.max_disparity, anchor_camera=p.anchor_camera)
-        seen = np.concatenate([event_mask(counts[p.anchor_camera], channel=c) for c in channels])
-        return _pixel_order(_cluster_pixels(pairs, seen, window.t_end, p.anchor_camera, height))
+        x, y, sign, disparity = _match_stacked_rows(
+            stack, seen, n_frames, height, height + gap, np.float32(p.threshold), float(p.width_tolerance),
+            float(p.max_disparity), int(p.anchor_camera))
+        matches = make_matches(window.t_end, x, y, (sign > 0).view(np.int8), p.anchor_camera, disparity)
+        # One frame: the kernel already emits (y, x) order. Two (separate ON/OFF): a pixel may be in both.
+        return matches if n_frames == 1 else _pixel_order(matches)
 
 
 def match_frame_pair(left: np.ndarray, right: np.ndarray, *, threshold: float = 1.2, width_tolerance: float = 0.3,
@@ -272,31 +266,86 @@ def match_frame_pair(left: np.ndarray, right: np.ndarray, *, threshold: float = 
                       width_tolerance=width_tolerance, max_disparity=max_disparity, anchor_camera=anchor_camera)
 
 
-def _stack(frames: list[np.ndarray], gap: int) -> np.ndarray:
-    """Frames one above the other, each followed by ``gap`` zero rows (what BORDER_CONSTANT pads with)."""
-    h, w = frames[0].shape
-    out = np.zeros((len(frames), h + gap, w), dtype=np.float32)
-    for i, f in enumerate(frames):
-        out[i, :h] = f
-    return out.reshape(-1, w)
+@numba.njit(cache=True, nogil=True, inline="always")
+def _row_clusters(stack, r, threshold, clusters, camera):  # pragma: no cover - compiled
+    """Write the clusters of row ``r`` of ``stack`` (as row_runs finds them) into ``clusters[:, camera]``.
 
-
-def _cluster_pixels(pairs: Pairs, seen: np.ndarray, t: int, camera: int, height: int) -> np.ndarray:
-    """Expand each pair to the pixels of its anchor cluster that saw events; one match per pixel.
-
-    ``pairs.row`` and the rows of ``seen`` are row keys ``channel * height + y``.
+    ``clusters`` is (3, 2, width): sign, left edge, right edge. Returns the number of clusters.
     """
-    widths = pairs.right - pairs.left + 1
-    total = int(widths.sum())
-    if total == 0:
-        return empty_matches()
-    which = np.repeat(np.arange(widths.size), widths)
-    starts = np.cumsum(widths) - widths
-    x = pairs.left[which] + (np.arange(total) - starts[which])
-    key = pairs.row[which]
-    keep = seen[key, x]
-    which, x, y = which[keep], x[keep], key[keep] % height
-    return make_matches(t, x, y, (pairs.sign[which] > 0).astype(np.int8), camera, pairs.disparity[which])
+    width = stack.shape[1]
+    kept = 0
+    for x in range(width):  # a loop without state, which the compiler vectorises: most rows keep no pixel
+        kept += abs(stack[r, x]) >= threshold
+    if kept == 0:
+        return 0
+    n = 0
+    previous = 0
+    for x in range(width):
+        s = np.int8(stack[r, x] >= threshold) - np.int8(stack[r, x] <= -threshold)  # branch-free
+        if s != previous:
+            if previous != 0:
+                clusters[2, camera, n - 1] = x - 1
+            if s != 0:
+                clusters[0, camera, n] = s
+                clusters[1, camera, n] = x
+                n += 1
+            previous = s
+    if previous != 0:
+        clusters[2, camera, n - 1] = width - 1
+    return n
+
+
+@numba.njit(cache=True, nogil=True)
+def _match_stacked_rows(stack, seen, n_channels, height, pitch, threshold, width_tolerance, max_disparity,
+                        anchor_camera):  # pragma: no cover - compiled
+    """Steps 3-6 of algorithms.md section 1 for every frame of a window, in one pass over the rows.
+
+    ``stack`` holds the filtered frames one above the other, every ``pitch`` rows: the left camera's channels,
+    then the right camera's. ``seen`` (channel * height + y, x) marks the anchor camera's pixels with events.
+    Returns x, y, sign and disparity of every reported pixel, channel by channel, row by row, x ascending.
+    Same arithmetic as :func:`row_runs` + :func:`match_runs` (float32 threshold, float64 widths and centres).
+    """
+    width = stack.shape[1]
+    capacity = n_channels * height * width
+    out_x = np.empty(capacity, np.int64)
+    out_y = np.empty(capacity, np.int64)
+    out_sign = np.empty(capacity, np.int8)
+    out_d = np.empty(capacity, np.float64)
+    # Clusters of the left (0) and right (1) camera's row: sign, left and right edge; at most ``width`` a row.
+    clusters = np.empty((3, 2, width), np.int64)
+    sign, left, right = clusters[0], clusters[1], clusters[2]
+    n = 0
+    for c in range(n_channels):
+        for y in range(height):
+            n_l = _row_clusters(stack, c * pitch + y, threshold, clusters, 0)
+            if n_l == 0:
+                continue
+            n_r = _row_clusters(stack, (n_channels + c) * pitch + y, threshold, clusters, 1)
+            if n_r != n_l:
+                continue  # unequal cluster counts: the row is not matched
+            same_order = True
+            for i in range(n_l):
+                if sign[0, i] != sign[1, i]:
+                    same_order = False
+                    break
+            if not same_order:
+                continue
+            for i in range(n_l):
+                w_l = right[0, i] - left[0, i] + 1
+                w_r = right[1, i] - left[1, i] + 1
+                if abs(w_l - w_r) > width_tolerance * max(w_l, w_r) + _EDGE_EPS:
+                    continue
+                d = (left[0, i] + right[0, i] - left[1, i] - right[1, i]) / 2.0
+                if d < 0 or d > max_disparity:
+                    continue
+                for x in range(left[anchor_camera, i], right[anchor_camera, i] + 1):
+                    if seen[c * height + y, x]:
+                        out_x[n] = x
+                        out_y[n] = y
+                        out_sign[n] = sign[0, i]
+                        out_d[n] = d
+                        n += 1
+    return out_x[:n], out_y[:n], out_sign[:n], out_d[:n]
 
 
 def _pixel_order(matches: np.ndarray) -> np.ndarray:

@@ -20,13 +20,15 @@ Gaussian of sigma 1, and report at the window's end time ``(k+1)*W``. This modul
 from __future__ import annotations
 
 import abc
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Literal, NamedTuple
 
 import cv2
+import numba
 import numpy as np
 
+from cvstereo.errors import EventFormatError
 from cvstereo.events import DEFAULT_RESOLUTION, distinct_sorted, empty_events
 from cvstereo.matcher import StreamMatcher
 from cvstereo.matches import concat_matches, empty_matches
@@ -131,6 +133,89 @@ def _channels(polarity: str) -> tuple[tuple[int, ...], ...]:
 
 def _channel_id(signs: tuple[int, ...]) -> int:
     return signs[0] if len(signs) == 1 else 0
+
+
+#: Per polarity handling -> frame index of each event polarity ``[OFF, ON]`` (-1: the event is left out).
+_CHANNEL_OF_POLARITY: dict[str, tuple[int, int]] = {
+    "shared": (0, 0),
+    "separate": (1, 0),  # frame 0 = ON, frame 1 = OFF: the order of _CHANNELS["separate"]
+    "on": (-1, 0),
+    "off": (0, -1),
+}
+
+
+def stacked_frames(cameras: Sequence[np.ndarray], *, polarity: Polarity = "shared",
+                   resolution: tuple[int, int] = DEFAULT_RESOLUTION, gap: int = 0,
+                   seen_camera: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """The signed frames of several cameras' windows, one above the other, in one pass over the events.
+
+    The same frames as :func:`polarity_frames` of each camera's :func:`polarity_counts`, laid out camera by
+    camera, frame by frame (the order of :func:`polarity_frames`), each followed by ``gap`` zero rows: a
+    filter of radius ``gap`` with a zero border then sees each frame as if it were filtered on its own.
+
+    Parameters
+    ----------
+    cameras : sequence of (N,) ndarray of EVENT_DTYPE
+        The events of each camera in the window.
+    polarity : {"shared", "separate", "on", "off"}, keyword-only
+    resolution : (width, height), keyword-only
+    gap : int, keyword-only
+        Zero rows after each frame.
+    seen_camera : int, keyword-only
+        The camera whose pixels with events are marked in ``seen``.
+
+    Returns
+    -------
+    stack : (cameras * frames * (height + gap), width) float32 ndarray
+    seen : (frames * height, width) bool ndarray
+        Pixels of frame ``c`` (rows ``c * height + y``) where camera ``seen_camera`` has events of that frame.
+
+    Raises
+    ------
+    EventFormatError
+        An event lies outside the sensor.
+
+    Examples
+    --------
+    >>> from cvstereo.events import make_events
+    >>> ev = make_events([0, 0, 0], [1, 1, 0], [0, 0, 0], [1, 1, 0])      # 2 ON at x=1, 1 OFF at x=0
+    >>> stack, seen = stacked_frames([ev], polarity="separate", resolution=(2, 1), gap=1)
+    >>> stack.tolist(), seen.tolist()
+    ([[0.0, 2.0], [0.0, 0.0], [-1.0, 0.0], [0.0, 0.0]], [[False, True], [True, False]])
+    """
+    h, w = _shape(resolution)
+    channel_of = np.array(_channel_of(polarity), dtype=np.int64)
+    n_frames = int(channel_of.max()) + 1
+    stack = np.zeros((len(cameras) * n_frames * (h + gap), w), dtype=np.float32)
+    seen = np.zeros((n_frames * h, w), dtype=np.bool_)
+    for cam, ev in enumerate(cameras):
+        bad = _stack_events(ev["x"], ev["y"], ev["p"], channel_of, cam * n_frames, h + gap, h, w, stack,
+                            seen, cam == seen_camera)
+        if bad >= 0:
+            raise EventFormatError(f"camera {cam}: event {bad} at (x={int(ev['x'][bad])}, y={int(ev['y'][bad])}) "
+                                   f"lies outside the {w}x{h} sensor.")
+    return stack, seen
+
+
+def _channel_of(polarity: str) -> tuple[int, int]:
+    _channels(polarity)  # the error message for an unknown mode
+    return _CHANNEL_OF_POLARITY[polarity]
+
+
+@numba.njit(cache=True, nogil=True)
+def _stack_events(x, y, p, channel_of, first_frame, pitch, height, width, stack, seen,
+                  mark_seen):  # pragma: no cover - compiled
+    """Add each event's sign into its frame of ``stack``; return the index of the first event off the sensor, or -1."""
+    for i in range(x.size):
+        if x[i] < 0 or x[i] >= width or y[i] < 0 or y[i] >= height:
+            return i
+        c = channel_of[p[i]]
+        if c < 0:
+            continue
+        stack[(first_frame + c) * pitch + y[i], x[i]] += np.float32(1.0) if p[i] else np.float32(-1.0)
+        if mark_seen:
+            seen[c * height + y[i], x[i]] = True
+    return -1
 
 
 def event_mask(counts: np.ndarray, *, channel: int = 0) -> np.ndarray:

@@ -72,6 +72,37 @@ def test_row_runs_equal_a_pixel_loop(rng):
             naive_runs(signs)
 
 
+def frame_events(frame):
+    """Events whose signed frame is ``frame`` (whole numbers): |v| events of the sign of v at each pixel, t = 0."""
+    f = np.asarray(frame).astype(int)
+    ys, xs = np.nonzero(f)
+    n = np.abs(f[ys, xs])
+    return make_events(np.zeros(n.sum(), int), np.repeat(xs, n), np.repeat(ys, n),
+                       np.repeat((f[ys, xs] > 0).astype(int), n))
+
+
+#: The two implementations of steps 3-6: the readable numpy one, and the matcher's numba kernel.
+IMPLEMENTATIONS = ["numpy", "matcher"]
+
+
+def cluster_disparities(impl, left, right, **params):
+    """Disparity of each matched cluster pair, in row-major order, from unfiltered frames of whole numbers.
+
+    ``numpy``: :func:`match_frame_pair` on the frames. ``matcher``: the frames as events through
+    :class:`FrameClusterMatcher` without the Gaussian; every pixel of a cluster then holds events, so the
+    matcher's one output per cluster pixel is grouped back into clusters (runs of x in a row, one polarity).
+    """
+    if impl == "numpy":
+        return match_frame_pair(left, right, **params).disparity.tolist()
+    h, w = left.shape
+    out = run_all(FrameClusterMatcher(FrameClusterParams(gaussian=False, **params), resolution=(w, h)),
+                  frame_events(left), frame_events(right))
+    y, x, p = (out[k].astype(int) for k in ("y", "x", "p"))
+    first = np.ones(out.size, bool)
+    first[1:] = (y[1:] != y[:-1]) | (x[1:] != x[:-1] + 1) | (p[1:] != p[:-1])
+    return out["disparity"][first].tolist()
+
+
 @pytest.mark.parametrize("k", [0, 1, 7, 30])
 def test_shifted_frame_gives_the_shift_for_every_cluster(rng, k):
     left = np.round(rng.normal(size=(40, 128)) * 2)
@@ -81,48 +112,79 @@ def test_shifted_frame_gives_the_shift_for_every_cluster(rng, k):
     pairs = match_frame_pair(gaussian_filter(left), gaussian_filter(right))
     assert pairs.disparity.size > 20
     np.testing.assert_array_equal(pairs.disparity, k)
+    # The matcher (Gaussian on) on events that make these frames: every pixel it reports says k.
+    out = run_all(FrameClusterMatcher(resolution=(128, 40)), frame_events(left), frame_events(right))
+    assert out.size > 40
+    np.testing.assert_array_equal(out["disparity"], k)
 
 
 def row_frames(left_row, right_row):
     return np.array([left_row], float), np.array([right_row], float)
 
 
-def test_unequal_counts_or_polarity_order_give_no_match():
+@pytest.mark.parametrize("impl", IMPLEMENTATIONS)
+def test_unequal_counts_or_polarity_order_give_no_match(impl):
     base = [0, 2, 2, 0, 0, -2, -2, 0, 0, 0, 0, 0]
-    ok = match_frame_pair(*row_frames(np.roll(base, 2), base))
-    assert ok.disparity.tolist() == [2.0, 2.0]
+    assert cluster_disparities(impl, *row_frames(np.roll(base, 2), base)) == [2.0, 2.0]
     extra = list(np.roll(base, 2))
     extra[10] = 2
-    assert match_frame_pair(*row_frames(extra, base)).disparity.size == 0  # 3 clusters against 2
+    assert cluster_disparities(impl, *row_frames(extra, base)) == []  # 3 clusters against 2
     swapped = [0, -2, -2, 0, 0, 2, 2, 0, 0, 0, 0, 0]
-    assert match_frame_pair(*row_frames(np.roll(swapped, 2), base)).disparity.size == 0  # order OFF, ON
+    assert cluster_disparities(impl, *row_frames(np.roll(swapped, 2), base)) == []  # order OFF, ON
     # Adjacent runs of opposite sign are two clusters, not one.
     touching = [0, 2, -2, 0, 0, 0]
-    assert match_frame_pair(*row_frames(touching, touching)).disparity.size == 2
+    assert cluster_disparities(impl, *row_frames(touching, touching)) == [0.0, 0.0]
+    # Rows are matched on their own: a broken row does not stop the others.
+    two_rows = np.array([np.roll(base, 2), extra], float), np.array([base, base], float)
+    assert cluster_disparities(impl, *two_rows) == [2.0, 2.0]
 
 
-@pytest.mark.parametrize(("wide", "narrow", "ok"), [(10, 7, True), (10, 6, False), (20, 14, True),
-                                                    (20, 13, False), (5, 4, True), (4, 2, False)])
+@pytest.mark.parametrize(("wide", "narrow", "tolerance", "ok"), [
+    (10, 7, 0.3, True), (10, 6, 0.3, False), (20, 14, 0.3, True), (20, 13, 0.3, False), (5, 4, 0.3, True),
+    (4, 2, 0.3, False),
+    (90, 27, 0.7, True), (90, 26, 0.7, False),  # 0.7 * 90 rounds to 62.99999999999999 in floating point
+])
 @pytest.mark.parametrize("left_is_wide", [True, False])
-def test_width_rule_at_its_edge(wide, narrow, ok, left_is_wide):
+@pytest.mark.parametrize("impl", IMPLEMENTATIONS)
+def test_width_rule_at_its_edge(wide, narrow, tolerance, ok, left_is_wide, impl):
     def row(width, start):
-        r = np.zeros(64)
+        r = np.zeros(256)
         r[start:start + width] = 3
         return r
 
     wl, wr = (wide, narrow) if left_is_wide else (narrow, wide)
-    pairs = match_frame_pair(*row_frames(row(wl, 30), row(wr, 10)))
-    assert (pairs.disparity.size == 1) is ok
-    if ok:  # centres (30 + 30 + wl - 1) / 2 and (10 + 10 + wr - 1) / 2: half pixels happen
-        assert pairs.disparity[0] == 20 + (wl - wr) / 2
+    found = cluster_disparities(impl, *row_frames(row(wl, 130), row(wr, 10)), width_tolerance=tolerance,
+                                max_disparity=200)
+    # centres (130 + 130 + wl - 1) / 2 and (10 + 10 + wr - 1) / 2: half pixels happen
+    assert found == ([120 + (wl - wr) / 2] if ok else [])
 
 
-def test_disparity_range():
+@pytest.mark.parametrize("impl", IMPLEMENTATIONS)
+def test_clusters_at_the_sensor_edges(impl):
+    left = np.zeros(64)
+    left[2:5], left[60:] = -2, 2   # the ON cluster ends at x = 63
+    right = np.zeros(64)
+    right[:3], right[55:59] = -2, 2  # the OFF cluster starts at x = 0
+    assert cluster_disparities(impl, *row_frames(left, right)) == [2.0, 5.0]
+
+
+@pytest.mark.parametrize("impl", IMPLEMENTATIONS)
+def test_disparity_range(impl):
     r = np.zeros(100)
     r[50:54] = 3
-    assert match_frame_pair(*row_frames(r, np.roll(r, 5))).disparity.size == 0  # negative: impossible side
-    assert match_frame_pair(*row_frames(r, np.roll(r, -40)), max_disparity=40).disparity.tolist() == [40.0]
-    assert match_frame_pair(*row_frames(r, np.roll(r, -41)), max_disparity=40).disparity.size == 0
+    assert cluster_disparities(impl, *row_frames(r, np.roll(r, 5))) == []  # negative: impossible side
+    assert cluster_disparities(impl, *row_frames(r, np.roll(r, -40)), max_disparity=40) == [40.0]
+    assert cluster_disparities(impl, *row_frames(r, np.roll(r, -41)), max_disparity=40) == []
+    assert cluster_disparities(impl, *row_frames(r, r), max_disparity=0) == [0.0]
+
+
+@pytest.mark.parametrize("impl", IMPLEMENTATIONS)
+def test_threshold_on_the_magnitude_at_its_edge(impl):
+    # |value| >= threshold is kept, for ON and OFF alike; just below is not.
+    row = np.zeros(40)
+    row[10:13], row[20:22] = 3, -3
+    assert cluster_disparities(impl, *row_frames(np.roll(row, 4), row), threshold=3.0) == [4.0, 4.0]
+    assert cluster_disparities(impl, *row_frames(np.roll(row, 4), row), threshold=3.0001) == []
 
 
 @pytest.mark.parametrize("variant", ["shared", "separate", "on", "off"])
@@ -176,23 +238,42 @@ def test_separate_matches_polarities_on_their_own():
     np.testing.assert_array_equal(out["disparity"], 6)
 
 
-def test_stacked_matcher_equals_frame_by_frame_reference(rng):
-    for polarity in ("shared", "separate"):
-        left, right = blob_events(rng, 25, shift=4)
-        right = right[rng.random(right.size) < 0.8]  # break some rows
-        m = FrameClusterMatcher(FrameClusterParams(polarity=polarity))
-        out = run_all(m, left, right)
-        expected = set()
-        signs = [(1, -1)] if polarity == "shared" else [(1,), (-1,)]
-        for s in signs:
-            fl, fr = (gaussian_filter(signed_frame(e, signs=s)) for e in (left, right))
-            pairs = match_frame_pair(fl, fr)
-            seen = signed_frame(left[np.isin(left["p"] * 2 - 1, s)], signs=(1, -1)) != 0
-            for y, a, b, sign, d in zip(*pairs, strict=True):
-                expected |= {(x, y, int(sign > 0), d) for x in range(a, b + 1) if seen[y, x]}
-        got = set(zip(out["x"].tolist(), out["y"].tolist(), out["p"].tolist(), out["disparity"].tolist(),
-                      strict=True))
-        assert expected and got == expected and len(got) == out.size
+def reference_window_matches(left, right, params):
+    """One window, frame by frame through the readable numpy path (match_frame_pair), in (y, x, p) order."""
+    frame_signs = {"shared": [(1, -1)], "separate": [(1,), (-1,)], "on": [(1,)], "off": [(-1,)]}[params.polarity]
+    anchor = (left, right)[params.anchor_camera]
+    rows = []
+    for s in frame_signs:
+        fl, fr = (signed_frame(e, signs=s) for e in (left, right))
+        if params.gaussian:
+            fl, fr = gaussian_filter(fl), gaussian_filter(fr)
+        pairs = match_frame_pair(fl, fr, threshold=params.threshold, anchor_camera=params.anchor_camera)
+        seen = np.zeros((128, 128), bool)  # pixels with events of this frame's polarities (ON + OFF may cancel)
+        ev = anchor[np.isin(anchor["p"] * 2 - 1, s)]
+        seen[ev["y"], ev["x"]] = True
+        for y, a, b, sign, d in zip(*pairs, strict=True):
+            rows += [(y, x, int(sign > 0), d) for x in range(a, b + 1) if seen[y, x]]
+    return sorted(rows)
+
+
+@pytest.mark.parametrize("polarity", ["shared", "separate", "on", "off"])
+@pytest.mark.parametrize("anchor_camera", [0, 1])
+@pytest.mark.parametrize("gaussian", [True, False])
+def test_matcher_kernel_equals_frame_by_frame_reference(rng, polarity, anchor_camera, gaussian):
+    # Blobs (rows that match) plus dense noise (rows with many clusters, broken counts and sign orders).
+    left, right = blob_events(rng, 40, shift=4, reps=3)
+    right = right[rng.random(right.size) < 0.9]
+    noise = [make_events(np.sort(rng.integers(0, W, 600)), rng.integers(0, 128, 600), rng.integers(0, 128, 600),
+                         rng.integers(0, 2, 600)) for _ in range(2)]
+    left, right = (np.sort(np.concatenate([e, n]), order="t") for e, n in ((left, noise[0]), (right, noise[1])))
+    params = FrameClusterParams(polarity=polarity, anchor_camera=anchor_camera, gaussian=gaussian,
+                                threshold=1.2 if gaussian else 2.0)
+    out = run_all(FrameClusterMatcher(params), left, right)
+    expected = reference_window_matches(left, right, params)
+    assert len(expected) > 100
+    got = list(zip(out["y"].tolist(), out["x"].tolist(), out["p"].tolist(), out["disparity"].tolist(), strict=True))
+    assert got == expected  # same pixels, polarities, disparities, and the same (y, x, p) order
+    assert set(out["camera"].tolist()) == {anchor_camera} and set(out["t"].tolist()) == {W}
 
 
 @settings(deadline=None, max_examples=25)

@@ -7,6 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from cvstereo.errors import EventFormatError
 from cvstereo.events import make_events
 from cvstereo.frames import (
     WindowAccumulator,
@@ -15,6 +16,7 @@ from cvstereo.frames import (
     polarity_counts,
     polarity_frames,
     signed_frame,
+    stacked_frames,
 )
 
 W = 40_000
@@ -63,6 +65,32 @@ def test_polarity_modes(rng):
     np.testing.assert_array_equal(event_mask(counts, channel=-1), off > 0)
     with pytest.raises(ValueError, match="shared, separate, on, off"):
         polarity_frames(counts, polarity="both")
+
+
+@pytest.mark.parametrize("polarity", ["shared", "separate", "on", "off"])
+@pytest.mark.parametrize("gap", [0, 2])
+@pytest.mark.parametrize("seen_camera", [0, 1])
+def test_stacked_frames_equal_the_frames_one_by_one(rng, polarity, gap, seen_camera):
+    cams = [random_events(rng, 400, size=12), random_events(rng, 300, size=12)]
+    res = (12, 10)
+    cams = [ev[ev["y"] < 10] for ev in cams]
+    stack, seen = stacked_frames(cams, polarity=polarity, resolution=res, gap=gap, seen_camera=seen_camera)
+    per_camera = [polarity_frames(polarity_counts(ev, resolution=res), polarity=polarity) for ev in cams]
+    n = len(per_camera[0])
+    assert stack.dtype == np.float32 and stack.shape == (2 * n * (10 + gap), 12) and seen.shape == (n * 10, 12)
+    blocks = stack.reshape(2 * n, 10 + gap, 12)
+    for i, (_, frame) in enumerate(per_camera[0] + per_camera[1]):
+        np.testing.assert_array_equal(blocks[i, :10], frame)
+        assert not blocks[i, 10:].any()
+    counts = polarity_counts(cams[seen_camera], resolution=res)
+    for i, (channel, _) in enumerate(per_camera[0]):
+        np.testing.assert_array_equal(seen[i * 10:(i + 1) * 10], event_mask(counts, channel=channel))
+
+
+def test_stacked_frames_reject_events_off_the_sensor():
+    ev = make_events([0, 1], [3, 16], [2, 0], [1, 0])
+    with pytest.raises(EventFormatError, match=r"camera 1: event 1 at \(x=16, y=0\) lies outside the 16x16"):
+        stacked_frames([ev[:1], ev], resolution=(16, 16))
 
 
 def test_non_square_resolution():
