@@ -6,6 +6,8 @@ frame (the sum of the signs of the events at each pixel: 10 OFF + 2 ON give -8),
 Gaussian of sigma 1, and report at the window's end time ``(k+1)*W``. This module holds those pieces:
 
 - :func:`signed_frame` / :func:`polarity_frames`: accumulation, per polarity handling;
+- :func:`stacked_frames`: the same frames of both cameras, one above the other, in one numba pass (the
+  cluster matcher filters them with one call);
 - :func:`gaussian_filter`: ``cv2.GaussianBlur`` with zero padding (as Matlab's filters pad);
 - :class:`WindowAccumulator`: streaming, emits complete windows once the stream has passed their end;
 - :class:`FrameMatcher`: the :class:`~cvstereo.matcher.StreamMatcher` base of every frame matcher, which
