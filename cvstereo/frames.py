@@ -137,15 +137,6 @@ def _channel_id(signs: tuple[int, ...]) -> int:
     return signs[0] if len(signs) == 1 else 0
 
 
-#: Per polarity handling -> frame index of each event polarity ``[OFF, ON]`` (-1: the event is left out).
-_CHANNEL_OF_POLARITY: dict[str, tuple[int, int]] = {
-    "shared": (0, 0),
-    "separate": (1, 0),  # frame 0 = ON, frame 1 = OFF: the order of _CHANNELS["separate"]
-    "on": (-1, 0),
-    "off": (0, -1),
-}
-
-
 def stacked_frames(cameras: Sequence[np.ndarray], *, polarity: Polarity = "shared",
                    resolution: tuple[int, int] = DEFAULT_RESOLUTION, gap: int = 0,
                    seen_camera: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -186,7 +177,7 @@ def stacked_frames(cameras: Sequence[np.ndarray], *, polarity: Polarity = "share
     ([[0.0, 2.0], [0.0, 0.0], [-1.0, 0.0], [0.0, 0.0]], [[False, True], [True, False]])
     """
     h, w = _shape(resolution)
-    channel_of = np.array(_channel_of(polarity), dtype=np.int64)
+    channel_of = _channel_of(polarity)
     n_frames = int(channel_of.max()) + 1
     stack = np.zeros((len(cameras) * n_frames * (h + gap), w), dtype=np.float32)
     seen = np.zeros((n_frames * h, w), dtype=np.bool_)
@@ -199,9 +190,13 @@ def stacked_frames(cameras: Sequence[np.ndarray], *, polarity: Polarity = "share
     return stack, seen
 
 
-def _channel_of(polarity: str) -> tuple[int, int]:
-    _channels(polarity)  # the error message for an unknown mode
-    return _CHANNEL_OF_POLARITY[polarity]
+def _channel_of(polarity: str) -> np.ndarray:
+    """Frame index of each event polarity ``[OFF, ON]`` (-1: left out), frames in the order of _CHANNELS."""
+    channel_of = np.full(2, -1, dtype=np.int64)
+    for frame, signs in enumerate(_channels(polarity)):
+        for s in signs:
+            channel_of[1 if s > 0 else 0] = frame
+    return channel_of
 
 
 @numba.njit(cache=True, nogil=True)
