@@ -31,13 +31,14 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cvstereo.rigcheck import check_rig
+    from cvstereo.rigcheck import RigCheckParams, check_rig
 
-    recording = load_recording(args)
-    report = check_rig(recording, max_disparity=args.max_disparity, max_row_offset=args.max_row_offset,
-                       max_time_offset_us=round(args.max_time_offset_ms * 1000))
+    params = RigCheckParams(max_disparity=args.max_disparity, max_row_offset=args.max_row_offset,
+                            max_time_offset_us=round(args.max_time_offset_ms * 1000))
+    report = check_rig(load_recording(args), params)
     if args.json:
-        print(json.dumps(report.to_dict(), indent=2))
+        # to_dict gives null for a figure that could not be estimated: strict JSON, never a bare NaN.
+        print(json.dumps(report.to_dict(), indent=2, allow_nan=False))
     else:
         print(report.summary())
     return 0

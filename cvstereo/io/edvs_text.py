@@ -44,6 +44,7 @@ from cvstereo.events import DEFAULT_RESOLUTION, validate_events
 from cvstereo.io._atomic import atomic_path
 from cvstereo.io._checked import ChunkChecker
 from cvstereo.io.stream import MONO, Chunk, RecordingStream
+from cvstereo.overlay import overlay_shift
 from cvstereo.recording import CAMERAS, Recording
 
 #: Lines per parsed block: bounds memory and keeps np.loadtxt's per-call overhead negligible.
@@ -374,45 +375,6 @@ def detect_one_based(scans: list[TextScan]) -> bool:
     return touches_size
 
 
-def overlay_shift(image_a: np.ndarray, image_b: np.ndarray, *, max_shift: int) -> tuple[int, float]:
-    """Horizontal shift ``s`` that best overlays two event images, ``x_a = x_b + s``.
-
-    Parameters
-    ----------
-    image_a, image_b : (H, W) ndarray
-        Event counts per pixel.
-    max_shift : int, keyword-only
-        Shifts ``-max_shift..max_shift`` are tried.
-
-    Returns
-    -------
-    shift : int
-        Positive when a scene point has the larger x in ``image_a`` (``a`` is the left camera).
-    score : float
-        Normalised cross-correlation at that shift, in [-1, 1].
-
-    Examples
-    --------
-    >>> b = np.zeros((4, 16)); b[:, 3] = 5
-    >>> a = np.roll(b, 2, axis=1)
-    >>> overlay_shift(a, b, max_shift=4)[0]
-    2
-    """
-    # log counts: a few hot pixels would otherwise dominate the correlation.
-    a, b = np.log1p(np.asarray(image_a, float)), np.log1p(np.asarray(image_b, float))
-    width = a.shape[1]
-    best = (0, -np.inf)
-    for s in range(-max_shift, max_shift + 1):
-        pa = a[:, max(s, 0): width + min(s, 0)]
-        pb = b[:, max(-s, 0): width - max(s, 0)]
-        pa, pb = pa - pa.mean(), pb - pb.mean()
-        norm = np.sqrt((pa * pa).sum() * (pb * pb).sum())
-        score = float((pa * pb).sum() / norm) if norm > 0 else 0.0
-        if score > best[1]:
-            best = (s, score)
-    return best
-
-
 def detect_left_retina(scan: TextScan) -> tuple[int, int, float]:
     """Which retina of a merged file is the left camera (rule in the module docstring).
 
@@ -434,6 +396,7 @@ def detect_left_retina(scan: TextScan) -> tuple[int, int, float]:
             f"{scan.path}: cannot tell which retina is the left camera without events from both; "
             "give left_retina (--left-retina 0 or 1)."
         )
+    # cvstereo.overlay's convention: x_0 = x_1 + shift, positive when retina 0 is the left camera.
     shift, score = overlay_shift(scan.images[0], scan.images[1], max_shift=scan.resolution[0] // 3)
     if shift == 0:
         raise ValueError(

@@ -1,0 +1,106 @@
+"""The rig check's pipeline: :func:`check_rig` runs the estimators in order and assembles the report."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from cvstereo.recording import Recording
+from cvstereo.rigcheck.disparity import disparity_overlays, side_and_disparity
+from cvstereo.rigcheck.params import RigCheckParams
+from cvstereo.rigcheck.report import RigReport
+from cvstereo.rigcheck.rows import row_offsets
+from cvstereo.rigcheck.stats import count_statistics
+from cvstereo.rigcheck.time_offset import time_offset
+from cvstereo.rigcorrect import RigCorrection
+
+
+def check_rig(recording: Recording, params: RigCheckParams | None = None, **overrides) -> RigReport:
+    """Estimate the rig's imperfections from the events of a recording.
+
+    Parameters
+    ----------
+    recording : Recording
+        Both cameras, in the order believed (left first).
+    params : RigCheckParams, optional
+        Search ranges, windows and tuned constants (default: ``RigCheckParams()``).
+    **overrides
+        Fields of :class:`RigCheckParams` to replace, e.g. ``max_disparity=32, max_seconds=6``.
+
+    Returns
+    -------
+    RigReport
+
+    Raises
+    ------
+    ValueError
+        Too few events in a camera, or options out of range.
+    TypeError
+        An override that is no field of :class:`RigCheckParams`.
+    """
+    params = RigCheckParams.with_overrides(params, overrides)
+    if params.max_seconds is not None:
+        recording = recording.slice_time(recording.t_start, recording.t_start + int(params.max_seconds * 1e6))
+    for name, ev in (("left", recording.left), ("right", recording.right)):
+        if ev.size < params.min_events:
+            raise ValueError(
+                f"check_rig: the {name} camera has {ev.size} events; at least {params.min_events} per camera are "
+                "needed (give a longer recording, or check that both cameras were read)."
+            )
+    width, height = res = recording.resolution
+    left, right = recording.left, recording.right
+    window_us = params.window_us
+    if window_us is None:
+        rate = min(left.size, right.size) / max(recording.duration_s, 1e-3)
+        window_us = int(np.clip(params.window_events / rate * 1e6, 10_000, 1_000_000))
+    settings = dataclasses.asdict(dataclasses.replace(params, window_us=window_us))
+
+    # 1. Row offset from the 2-D overlay of accumulated frames over (dx, dy): windows long against any time
+    #    offset, so nearly independent of it. 2. Time offset at that row shift and dominant disparity:
+    #    searching rows and lags jointly is ambiguous (an inclined edge moving sideways looks the same a few
+    #    rows lower and a few ms later), at a fixed row shift it is not. 3. The rows once more with the time
+    #    offset removed, and the time offset again if the rows or the disparity changed.
+    frame_opts = {"resolution": res, "max_row_offset": min(params.max_row_offset, height - 1),
+                  "max_disparity": min(params.max_disparity, width - 1), "window_us": window_us,
+                  "max_windows": params.max_windows, "n_bands": params.n_bands}
+    rows = row_offsets(left, right, **frame_opts)
+    tau = time_offset(left, right, row=round(rows.offset), disparity=rows.disparity, resolution=res, params=params)
+    rows2 = row_offsets(left, _shifted(right, 0, tau.offset_us, res), **frame_opts)
+    if round(rows2.offset) != round(rows.offset) or rows2.disparity != rows.disparity:
+        tau = time_offset(left, right, row=round(rows2.offset), disparity=rows2.disparity, resolution=res,
+                          params=params)
+    settings["time_offset_method"] = tau.method
+    row_offset, time_offset_us, band_offsets = rows2.offset, tau.offset_us, rows2.band_offsets
+
+    # 4. Side and disparities on the streams with both offsets removed (whole rows; time to the microsecond).
+    overlays = disparity_overlays(left, _shifted(right, row_offset, time_offset_us, res), resolution=res,
+                                  max_disparity=params.max_disparity, window_us=window_us,
+                                  max_windows=params.max_windows, block=params.block, min_ncc=params.min_ncc)
+    disp = side_and_disparity(overlays, params.disparity_percentiles)
+
+    # 5. Counts, in the orientation the report speaks of.
+    if disp.swap:
+        left, right = right, left
+        row_offset, time_offset_us = -row_offset, -time_offset_us
+        band_offsets = tuple(-b for b in band_offsets)
+    counts = count_statistics(left, right, duration_s=max(recording.duration_s, 1e-6), resolution=res,
+                              noise_window_us=params.noise_window_us, burst_window_us=params.burst_window_us)
+    confident = [b for b, c in zip(band_offsets, rows2.band_confidences, strict=True) if c >= 0.3]
+    varies = bool(len(confident) >= 2 and max(confident) - min(confident) > 1.0)
+    pct = disp.percentiles
+    return RigReport(
+        swap=disp.swap, swap_confidence=disp.swap_confidence,
+        row_offset=float(row_offset), row_offset_confidence=rows2.confidence,
+        row_offset_bands=tuple(float(b) for b in band_offsets), band_rows=rows2.band_rows,
+        row_offset_band_confidence=tuple(rows2.band_confidences), row_offset_varies=varies,
+        time_offset_us=float(time_offset_us), time_offset_confidence=tau.confidence,
+        disparity_peak=disp.peak, disparity_peaks=disp.peaks, disparity_percentiles=pct,
+        disparity_range=(pct[5], pct[95]), disparity_confidence=disp.confidence,
+        **counts._asdict(), duration_s=float(max(recording.duration_s, 1e-6)), settings=settings,
+    )
+
+
+def _shifted(right, rows, time_us, resolution):
+    """Right-camera events with ``round(rows)`` added to y and ``round(time_us)`` subtracted from t."""
+    return RigCorrection(rows, round(time_us), resolution).correct_right(right)[0]

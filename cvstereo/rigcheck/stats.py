@@ -1,0 +1,82 @@
+"""Event counts, ON share, rate imbalance and noise of the two cameras: :func:`count_statistics`."""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from cvstereo.rigcheck.peaks import clip01
+
+
+class CountStatistics(NamedTuple):
+    """Counts and noise of the two cameras (left first)."""
+
+    events: tuple[int, int]
+    rate_ratio: float
+    rate_ratio_confidence: float
+    burst_ratio_p95: float
+    on_fraction: tuple[float, float]
+    on_fraction_confidence: float
+    noise_rate_hz: tuple[float, float]
+    noise_fraction: tuple[float, float]
+    noise_confidence: float
+
+
+def count_statistics(left, right, *, duration_s, resolution, noise_window_us,
+                     burst_window_us) -> CountStatistics:
+    """Rate ratio, burst ratio, ON share and isolated-event noise, each with its confidence."""
+    n_l, n_r = int(left.size), int(right.size)
+    rate_conf = clip01(1.0 - np.sqrt(1.0 / n_l + 1.0 / n_r) / 0.1)
+    on = (float(left["p"].mean()), float(right["p"].mean()))
+    on_conf = clip01(1.0 - max(np.sqrt(f * (1 - f) / n) for f, n in zip(on, (n_l, n_r), strict=True)) / 0.05)
+    burst = burst_ratio(left, right, window_us=burst_window_us)
+    iso = [isolated_events(ev, window_us=noise_window_us, resolution=resolution) for ev in (left, right)]
+    return CountStatistics(
+        events=(n_l, n_r), rate_ratio=float(n_r / n_l), rate_ratio_confidence=rate_conf,
+        burst_ratio_p95=burst, on_fraction=on, on_fraction_confidence=on_conf,
+        noise_rate_hz=(float(iso[0] / duration_s), float(iso[1] / duration_s)),
+        noise_fraction=(float(iso[0] / n_l), float(iso[1] / n_r)),
+        noise_confidence=clip01(1.0 - 1.0 / np.sqrt(1.0 + min(iso))),
+    )
+
+
+def burst_ratio(left, right, *, window_us):
+    """95th percentile, over windows with at least 5 events in each camera, of the larger count over the
+    smaller; NaN without such a window."""
+    t0 = min(int(left["t"][0]), int(right["t"][0]))
+    n = (max(int(left["t"][-1]), int(right["t"][-1])) - t0) // window_us + 1
+    a = np.bincount((left["t"] - t0) // window_us, minlength=n)
+    b = np.bincount((right["t"] - t0) // window_us, minlength=n)
+    both = (a >= 5) & (b >= 5)
+    if not both.any():
+        return float("nan")
+    r = np.maximum(a[both] / b[both], b[both] / a[both])
+    return float(np.percentile(r, 95))
+
+
+def isolated_events(ev, *, window_us, resolution):
+    """Number of events with no event at any of the 8 neighbouring pixels within ``window_us`` either side.
+
+    Events are sorted by (pixel, t); for each neighbour offset, a binary search finds the neighbour pixel's
+    events nearest in time. The own pixel does not count: a hot pixel firing alone is noise too.
+    """
+    width, height = resolution
+    pix = ev["y"].astype(np.int64) * width + ev["x"]
+    t = ev["t"] - int(ev["t"][0])
+    span = int(t[-1]) + 2 * window_us + 2
+    key = np.sort(pix * span + t)
+    # Queries in key order are (nearly) sorted too, which keeps the binary searches cache-friendly.
+    pix, t = key // span, key % span
+    x, y = pix % width, pix // width
+    has = np.zeros(ev.size, bool)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            if dx == 0 and dy == 0:
+                continue
+            inside = (x + dx >= 0) & (x + dx < width) & (y + dy >= 0) & (y + dy < height)
+            q = (pix + dy * width + dx) * span + t
+            lo = np.searchsorted(key, q - window_us, side="left")
+            hi = np.searchsorted(key, q + window_us, side="right")
+            has |= inside & (hi > lo)
+    return int((~has).sum())

@@ -1,0 +1,287 @@
+"""Time offset between the streams: pixel coincidences and shift-velocity regression (:func:`time_offset`).
+
+Two estimators of ``tau`` (``t_right ~ t_left + tau``): the histogram of time differences between events at
+corresponding pixels (:func:`time_offset_pairs`), precise when the disparities are whole pixels or the scene
+nearly static; and the regression of the cameras' apparent shift on the image velocity over short windows
+and image tiles (:func:`time_offset_regression`), which on sideways sweeps is not fooled by a disparity error
+``e`` that the histogram takes for a time offset ``e / v``.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import cv2
+import numpy as np
+
+from cvstereo.rigcheck.params import RigCheckParams
+from cvstereo.rigcheck.peaks import contrast, fft_len, half_width, smooth_lags, subsample_peak, support
+
+PAIRS = "pixel coincidences"
+REGRESSION = "shift-velocity regression"
+
+
+class TimeOffset(NamedTuple):
+    """A time-offset estimate."""
+
+    offset_us: float
+    """How much later the right camera stamps the same change, us."""
+    confidence: float
+    method: str
+    """:data:`PAIRS` or :data:`REGRESSION`: the estimator that answered."""
+
+
+class PairsEstimate(NamedTuple):
+    """What :func:`time_offset_pairs` found."""
+
+    offset_us: float
+    confidence: float
+    half_width_us: float
+    """Half width of the histogram's peak at half its height (inf without any pair)."""
+
+
+class SlopeFit(NamedTuple):
+    """A fitted slope and its standard error."""
+
+    slope: float
+    standard_error: float
+
+
+def time_offset(left, right, *, row, disparity, resolution, params: RigCheckParams) -> TimeOffset:
+    """How much later the right camera stamps the same change.
+
+    The pixel-coincidence histogram answers when its peak is sharp (at most ``params.pairs_sharp_us`` half
+    width) or the shift-velocity regression is undetermined (nearly static scenes, too few busy windows) or
+    below ``params.reg_min_confidence``; the regression otherwise.
+    """
+    reg = time_offset_regression(left, right, row=row, disparity=disparity, resolution=resolution, params=params)
+    pairs = time_offset_pairs(left, right, row=row, disparity=disparity, resolution=resolution,
+                              max_lag_us=params.max_time_offset_us, bin_us=params.time_bin_us)
+    # The histogram is biased by (disparity error) / speed on moving scenes, and then also broad: pairs at the
+    # neighbouring disparities land (1 px) / speed away. A sharp peak means the disparities were right (or the
+    # scene nearly static) and the histogram is the more precise; a broad one defers to the regression.
+    if pairs.half_width_us > params.pairs_sharp_us and reg is not None and reg.confidence >= params.reg_min_confidence:
+        return TimeOffset(reg.offset_us, reg.confidence, REGRESSION)
+    return TimeOffset(pairs.offset_us, pairs.confidence, PAIRS)
+
+
+def time_offset_regression(left, right, *, row, disparity, resolution,
+                           params: RigCheckParams) -> TimeOffset | None:
+    """Time offset as the slope of the cameras' apparent shift against the image velocity.
+
+    In a short window the right camera's image is the left one shifted by ``s = d + v * tau``: it shows the
+    scene ``tau`` earlier, when things stood ``v * tau`` px further back (``v`` the horizontal image velocity,
+    px/us). Per window (``params.reg_window_us``) and image tile (``params.reg_tiles``), ``s`` is the sub-pixel
+    peak of the horizontal cross-correlation of the two cameras' smoothed signed frames (rows lined up by
+    ``row``) and ``v`` the shift between the windows before and after, in either camera, over their distance.
+    A weighted least-squares fit of ``s`` on ``v`` with one intercept per tile (the disparity varies over the
+    image: depth, lens distortion) then gives ``tau`` as the common slope; windows whose residual exceeds
+    ``params.reg_trim_mad`` robust standard deviations are dropped and the fit repeated. A sweep to and fro
+    gives ``v`` of both signs and many sizes, which pins ``tau`` independently of the disparity; a steady drift
+    does not, and the slope's standard error (from the residuals, deflated for their correlation between
+    neighbouring windows) then says so.
+
+    Known limit: a disparity that changes in step with the speed (an arm wobbling in depth while it sweeps,
+    over a clip of a few sweeps) is indistinguishable from a time offset; longer recordings average it out.
+
+    Returns None when too few windows move (e.g. a nearly static scene).
+    """
+    width, height = resolution
+    window_us, gap, max_lag_us = params.reg_window_us, params.reg_gap, params.max_time_offset_us
+    y = right["y"].astype(np.int64) + row
+    keep = (y >= 0) & (y < height)
+    right = right[keep].copy()
+    right["y"] = y[keep]
+    if right.size < params.min_events:
+        return None
+    t0 = min(int(left["t"][0]), int(right["t"][0]))
+    t1 = max(int(left["t"][-1]), int(right["t"][-1])) + 1
+    starts = np.arange(t0, t1, window_us)
+    counts = [np.diff(np.searchsorted(ev["t"], np.append(starts, starts[-1] + window_us))) for ev in (left, right)]
+    busy = (counts[0] >= params.reg_min_window_events) & (counts[1] >= params.reg_min_window_events)
+    # A window is measured when it and its neighbours at +-gap are busy; at most reg_max_windows of them,
+    # evenly spread (enough for the fit; bounds the time on long recordings).
+    centre = np.flatnonzero(busy[gap:-gap] & busy[:-2 * gap] & busy[2 * gap:]) + gap
+    if centre.size < params.reg_min_windows:
+        return None
+    if centre.size > params.reg_max_windows:
+        centre = centre[np.linspace(0, centre.size - 1, params.reg_max_windows).round().astype(int)]
+    search = params.reg_shift_px + int(np.ceil(params.reg_max_speed * max_lag_us))
+    n_cols, n_rows = params.reg_tiles
+    col_edges = np.linspace(0, width, n_cols + 1).round().astype(int)
+    row_edges = np.linspace(0, height, n_rows + 1).round().astype(int)
+    col_masks = np.zeros((n_cols, 1, 1, width), np.float32)
+    col_masks_r = np.zeros_like(col_masks)
+    for col in range(n_cols):
+        col_masks[col, ..., col_edges[col]:col_edges[col + 1]] = 1
+        # The right camera sees a tile's content ``disparity`` columns further left.
+        lo_r, hi_r = col_edges[col] - int(disparity), col_edges[col + 1] - int(disparity)
+        col_masks_r[col, ..., max(lo_r, 0):max(hi_r, 0)] = 1
+    lag_v = int(np.ceil(params.reg_max_speed * 2 * gap * window_us))
+    nfft = fft_len(width + search + abs(int(disparity)) + 1)
+    fine = {"nfft": nfft, "upsample": params.reg_upsample}
+    tiles, shifts, s_weight, speeds, v_weight = [], [], [], [], []
+    # Chunks of measured windows bound the memory on long recordings.
+    for lo in range(0, centre.size, params.reg_chunk):
+        chunk = centre[lo:lo + params.reg_chunk]
+        needed, where = np.unique(np.concatenate([chunk - gap, chunk, chunk + gap]), return_inverse=True)
+        before, inner, after = where.reshape(3, chunk.size)
+        fl, fr = (_window_stack(ev, starts[needed], width, height, window_us, params.reg_blur_px)
+                  for ev in (left, right))
+        # Spectra along x, once per camera and once per column tile; a row tile is a sum over its rows.
+        spec_l, spec_r = np.fft.rfft(fl, nfft, axis=2), np.fft.rfft(fr, nfft, axis=2)
+        energy_l, energy_r = (fl * fl).sum(axis=2), (fr * fr).sum(axis=2)
+        for col in range(n_cols):
+            tl = np.fft.rfft(fl * col_masks[col], nfft, axis=2)
+            tr = np.fft.rfft(fr * col_masks_r[col], nfft, axis=2)
+            el, er = (fl * fl * col_masks[col]).sum(axis=2), (fr * fr * col_masks_r[col]).sum(axis=2)
+            for band in range(n_rows):
+                rs = slice(row_edges[band], row_edges[band + 1])
+                s, hs = _fine_shift(tl[inner, rs], spec_r[inner, rs], el[inner, rs], energy_r[inner, rs],
+                                    disparity - search, disparity + search, **fine)
+                ul, hl = _fine_shift(tl[after, rs], spec_l[before, rs],
+                                     el[after, rs], energy_l[before, rs], -lag_v, lag_v, **fine)
+                ur, hr = _fine_shift(tr[after, rs], spec_r[before, rs],
+                                     er[after, rs], energy_r[before, rs], -lag_v, lag_v, **fine)
+                tiles.append(np.full(inner.size, band * n_cols + col))
+                shifts.append(s)
+                s_weight.append(hs)
+                speeds.append((ul + ur) / (2 * 2 * gap * window_us))
+                v_weight.append(np.minimum(hl, hr))
+    n_tiles = n_cols * n_rows
+    tile, s, v = np.concatenate(tiles), np.concatenate(shifts), np.concatenate(speeds)
+    s_weight, v_weight = np.concatenate(s_weight), np.concatenate(v_weight)
+    w = s_weight * v_weight
+    w[(s_weight < params.reg_min_ncc) | (v_weight < params.reg_min_ncc)] = 0.0
+    fit = _fixed_effects_slope(tile, s, v, w, n_tiles, params)
+    if fit is None:
+        return None
+    tau, se = fit
+    if not abs(tau) <= max_lag_us:
+        return None
+    conf = 1.0 / (1.0 + (se / params.reg_se_scale_us) ** 2) * support(left.size, right.size)
+    return TimeOffset(float(tau), float(conf), REGRESSION)
+
+
+def _window_stack(ev, starts, width, height, window_us, blur_px):
+    """(K, H, W) float32 signed event frames of the windows ``[starts[k], starts[k] + window_us)`` (sorted,
+    not overlapping), Gaussian-smoothed."""
+    k = np.searchsorted(starts, ev["t"], side="right") - 1
+    ok = (k >= 0) & (ev["t"] < starts[np.maximum(k, 0)] + window_us)
+    n = starts.size
+    flat = (k[ok] * height + ev["y"][ok].astype(np.int64)) * width + ev["x"][ok]
+    f = np.bincount(flat, weights=2.0 * ev["p"][ok] - 1.0, minlength=n * height * width)
+    f = f.astype(np.float32).reshape(n, height, width)
+    for i in range(n):
+        # Smoothing makes the correlation peak broad enough to interpolate without locking to whole pixels.
+        f[i] = cv2.GaussianBlur(f[i], (0, 0), blur_px, borderType=cv2.BORDER_CONSTANT)
+    return f
+
+
+def _fine_shift(spec_a, spec_b, energy_a, energy_b, lo, hi, *, nfft, upsample):
+    """Per window, the sub-pixel ``s`` in ``[lo, hi]`` maximising ``sum_y sum_x a(x, y) b(x - s, y)``, and that
+    maximum normalised like a correlation coefficient (0 when the peak sits at the end of the search range).
+
+    ``spec_a``, ``spec_b``: (K, rows, nfft // 2 + 1) spectra along x of the frames (zero-padded to ``nfft``);
+    ``energy_a``, ``energy_b``: (K, rows) sums of their squares per row. The rows' cross-spectra are summed
+    and transformed back on a grid ``upsample`` times finer than a pixel (exact interpolation of the
+    band-limited correlation); a parabola through the finest samples then places the peak. A parabola on
+    whole pixels alone biases sub-pixel shifts towards integers, which would leak into the slope.
+    """
+    spec = (spec_a * np.conj(spec_b)).sum(axis=1)
+    n = nfft * upsample
+    lags = np.arange(lo * upsample, hi * upsample + 1)
+    c = (np.fft.irfft(spec, n, axis=-1) * upsample)[:, lags % n]
+    i = c.argmax(axis=1)
+    at_end = (i == 0) | (i == lags.size - 1)
+    i = np.clip(i, 1, lags.size - 2)
+    k = np.arange(c.shape[0])
+    p, q, r = c[k, i - 1], c[k, i], c[k, i + 1]
+    den = p - 2 * q + r
+    off = np.where(den < 0, 0.5 * (p - r) / np.where(den < 0, den, -1.0), 0.0)
+    norm = np.sqrt(energy_a.sum(axis=1) * energy_b.sum(axis=1))
+    height = np.where(at_end | (norm <= 0), 0.0, q / np.maximum(norm, 1e-12))
+    return (lags[i] + np.clip(off, -0.5, 0.5)) / upsample, height
+
+
+def _fixed_effects_slope(tile, s, v, w, n_tiles, params: RigCheckParams) -> SlopeFit | None:
+    """Weighted, iteratively trimmed least squares of ``s = d[tile] + tau * v``.
+
+    None when fewer than ``params.reg_min_windows`` windows remain or the speeds do not vary within tiles.
+    """
+    good = np.isfinite(s) & np.isfinite(v) & (w > 0)
+    design = np.concatenate([np.eye(n_tiles)[tile], v[:, None]], axis=1)
+    for _ in range(params.reg_iterations):
+        if good.sum() < params.reg_min_windows:
+            return None
+        sw = np.sqrt(w[good])
+        # Scale v to px/ms so that the columns are of similar size (conditioning).
+        a = design[good] * np.append(np.ones(n_tiles), 1e3)
+        coef, *_ = np.linalg.lstsq(a * sw[:, None], s[good] * sw, rcond=None)
+        res = s - design @ (coef * np.append(np.ones(n_tiles), 1e3))
+        spread = 1.4826 * float(np.median(np.abs(res[good])))
+        new = np.isfinite(s) & np.isfinite(v) & (w > 0) & (np.abs(res) <= params.reg_trim_mad * max(spread, 1e-3))
+        if np.array_equal(new, good):
+            break
+        good = new
+    if good.sum() < params.reg_min_windows:
+        return None
+    # Standard error of the slope: weighted residual variance over the weighted within-tile spread of v.
+    wg, vg, rg, tg = w[good], v[good], res[good], tile[good]
+    v_mean = np.bincount(tg, wg * vg, n_tiles) / np.maximum(np.bincount(tg, wg, n_tiles), 1e-12)
+    sxx = float((wg * (vg - v_mean[tg]) ** 2).sum())
+    used = np.unique(tg).size
+    dof = good.sum() - used - 1
+    if sxx <= 0 or dof < 1:
+        return None
+    sigma2 = float((wg * rg * rg).sum()) / dof
+    # Neighbouring windows of one tile share slow errors (a wobble in depth): fewer independent samples.
+    same = tg[1:] == tg[:-1]
+    rho = 0.0
+    if same.sum() > 2:
+        rho = float(np.clip(np.corrcoef(rg[1:][same], rg[:-1][same])[0, 1], 0.0, 0.95))
+    se = np.sqrt(sigma2 / sxx * (1 + rho) / (1 - rho))
+    return SlopeFit(float(coef[-1] * 1e3), float(se))
+
+
+def time_offset_pairs(left, right, *, row, disparity, resolution, max_lag_us, bin_us,
+                      max_events=200_000) -> PairsEstimate:
+    """How much later the right camera fires than the left at corresponding pixels.
+
+    For every left event at (x, y), the right events of the same polarity at (x - d, y - row) for d within one
+    pixel of the dominant ``disparity`` and within ``max_lag_us`` form pairs; their time differences pile up
+    at the time offset (the same edge crosses both pixels), pairs of unrelated events spread evenly. The
+    histogram's peak, interpolated below ``bin_us``, is the estimate.
+    """
+    width, height = resolution
+    if left.size > max_events:
+        left = left[np.linspace(0, left.size - 1, max_events).round().astype(np.int64)]
+    key_r = (right["y"].astype(np.int64) * width + right["x"]) * 2 + right["p"]
+    order = np.lexsort((right["t"], key_r))
+    keys, times = key_r[order], right["t"][order]
+    lag = int(np.ceil(max_lag_us / bin_us))
+    hist = np.zeros(2 * lag + 1)
+    for d in (disparity - 1, disparity, disparity + 1):
+        x, y = left["x"].astype(np.int64) - d, left["y"].astype(np.int64) - row
+        ok = (x >= 0) & (x < width) & (y >= 0) & (y < height)
+        k = ((y * width + x) * 2 + left["p"])[ok]
+        lo = np.searchsorted(keys, k, side="left")
+        hi = np.searchsorted(keys, k, side="right")
+        n = hi - lo
+        if not n.sum():
+            continue
+        # All pairs (left event, right event at its corresponding pixel), then keep those within the lag range.
+        first = np.repeat(lo - np.concatenate([[0], np.cumsum(n)[:-1]]), n) + np.arange(n.sum())
+        dt = times[first] - np.repeat(left["t"][ok], n)
+        dt = dt[np.abs(dt) <= lag * bin_us]
+        hist += np.bincount(np.round(dt / bin_us).astype(np.int64) + lag, minlength=2 * lag + 1)[:2 * lag + 1]
+    if hist.sum() == 0:
+        return PairsEstimate(0.0, 0.0, float("inf"))
+    corr = smooth_lags(hist - np.median(hist), sigma=1.5)
+    k = int(np.argmax(corr))
+    time = float((subsample_peak(corr, k) - lag) * bin_us)
+    # The lags where the peak stays above half its height belong to the peak itself (the sensors' latencies
+    # jitter by a few ms on real rigs and widen it); the confidence compares it with the lags beyond.
+    width_bins = half_width(corr, k)
+    conf = contrast(corr, k, exclude=width_bins) * support(left.size, right.size)
+    return PairsEstimate(time, conf, float(width_bins * bin_us))

@@ -1,0 +1,48 @@
+"""Signed event frames of busy windows, the input of the row and disparity stages."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import NamedTuple
+
+import cv2
+import numpy as np
+
+
+class WindowFrames(NamedTuple):
+    """One window busy in both cameras."""
+
+    left: np.ndarray
+    """(H, W) float32 Gaussian-smoothed signed frame of the left camera."""
+    right: np.ndarray
+    """The same of the right camera."""
+    left_events: np.ndarray
+    """(H, W) bool: pixels where the left camera had events."""
+
+
+def signed_frame(ev, width, height):
+    """(height, width) float32 sum of event signs (ON +1, OFF -1) per pixel."""
+    f = np.zeros(height * width, np.float32)
+    np.add.at(f, ev["y"].astype(np.int64) * width + ev["x"], 2.0 * ev["p"] - 1.0)
+    return f.reshape(height, width)
+
+
+def window_frames(left, right, *, resolution, window_us, max_windows) -> Iterator[WindowFrames]:
+    """Yield :class:`WindowFrames` for windows of ``window_us`` with at least 10 events in each camera.
+
+    At most ``max_windows`` windows, evenly spread over the recording.
+    """
+    width, height = resolution
+    t0 = min(int(left["t"][0]), int(right["t"][0]))
+    t1 = max(int(left["t"][-1]), int(right["t"][-1])) + 1
+    starts = np.arange(t0 - t0 % window_us, t1, window_us)
+    edges = np.append(starts, starts[-1] + window_us)
+    idx = [np.searchsorted(ev["t"], edges) for ev in (left, right)]
+    busy = np.flatnonzero((np.diff(idx[0]) >= 10) & (np.diff(idx[1]) >= 10))
+    if busy.size > max_windows:
+        busy = busy[np.linspace(0, busy.size - 1, max_windows).round().astype(int)]
+    for k in busy:
+        frames = [signed_frame(ev[i[k]:i[k + 1]], width, height) for ev, i in ((left, idx[0]), (right, idx[1]))]
+        # A little smoothing so that events one pixel apart still overlay (jitter, distortion).
+        gl, gr = (cv2.GaussianBlur(f, (3, 3), 0.8, borderType=cv2.BORDER_CONSTANT) for f in frames)
+        yield WindowFrames(gl, gr, frames[0] != 0)
