@@ -1,16 +1,30 @@
-"""Fan_disp8.dat: share of a matcher's estimates within 1 px of 8 px, before and after ``--auto``.
+"""The rig check's speed on the three real files, and what ``--auto`` does for the matchers on Fan_disp8.dat.
 
-"Before" is the recording as read with retina 0 as the left camera (wrong for this file, README) and with the
-README's retina 1; "after" runs the rig check first and applies its findings (swap, row and time offset), as
-``cvstereo match --auto`` does. Prints a table and writes bench/results/rigcheck.md and .json.
+1. **Speed**: ``check_rig`` time as a share of each recording's duration, for the code at a base revision
+   (``--before REV``, default ``main``; extracted with ``git archive`` and run in its own process) and for
+   this tree, alternately in the same run, with the load average before and after each timing. Each is
+   repeated until two runs agree within 10 % (at most ``--repeats``); the best agreeing pair's mean is shown.
+2. **Accuracy**: share of a matcher's estimates within 1 px of 8 px on Fan_disp8.dat, before and after
+   ``--auto``. "Before" is the recording as read with retina 0 as the left camera (wrong for this file,
+   README) and with the README's retina 1; "after" runs the rig check first and applies its findings (swap,
+   row and time offset), as ``cvstereo match --auto`` does.
 
-Run: ``.venv/bin/python bench/bench_rigcheck.py`` (needs the shared data; $CVSTEREO_SHARED or ../shared).
+Prints the tables and writes bench/results/rigcheck.md and .json.
+
+Run: ``.venv/bin/python bench/bench_rigcheck.py [--before REV] [--skip-accuracy]`` (needs the shared data;
+$CVSTEREO_SHARED or ../shared).
 """
 
 from __future__ import annotations
 
+import argparse
+import itertools
 import json
 import os
+import subprocess
+import sys
+import tarfile
+import tempfile
 import time
 from pathlib import Path
 
@@ -18,7 +32,26 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 SHARED = Path(os.environ.get("CVSTEREO_SHARED", ROOT.parent / "shared"))
-FAN = SHARED / "data" / "tum-stereo" / "Fan_disp8.dat"
+TUM = SHARED / "data" / "tum-stereo"
+FAN = TUM / "Fan_disp8.dat"
+REAL_FILES = ("Fan_disp8.dat", "NSTlogo_disp12-8-3.dat", "movingPersons.dat")
+#: Two timings agree when they differ by at most this share (a loaded machine must not pass for slow code).
+AGREE = 0.10
+
+#: Run in a child process on the code under test: reads a file (retina 0 as left, as a user who does not
+#: know), times check_rig on it and prints JSON.
+_TIMER = """
+import json, os, sys, time
+from cvstereo.io import read_recording
+from cvstereo.rigcheck import check_rig
+rec = read_recording(sys.argv[1], left_retina=0)
+load = os.getloadavg()[0]
+start = time.perf_counter()
+report = check_rig(rec)
+elapsed = time.perf_counter() - start
+print(json.dumps({"elapsed_s": elapsed, "duration_s": rec.duration_s, "load_before": load,
+                  "load_after": os.getloadavg()[0], "swap": bool(report.swap)}))
+"""
 #: Matchers tried, in order of preference (frame and event-time first).
 METHODS = ("frame", "event-time", "frame-area", "event-area", "event-vector")
 NOMINAL_PX = 8.0
@@ -29,7 +62,93 @@ def share_near(disparity: np.ndarray, target: float = NOMINAL_PX, tol: float = 1
     return float(np.mean(np.abs(disparity - target) <= tol)) if disparity.size else float("nan")
 
 
+def time_check(code_dir: Path | None, path: Path) -> dict:
+    """One timing of check_rig on ``path`` in a child process running the code in ``code_dir`` (None: this
+    tree as installed)."""
+    env = dict(os.environ)
+    if code_dir is not None:
+        env["PYTHONPATH"] = str(code_dir) + os.pathsep + env.get("PYTHONPATH", "")
+    out = subprocess.run([sys.executable, "-c", _TIMER, str(path)], capture_output=True, text=True, env=env,
+                         check=True, cwd=code_dir or ROOT)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def agreeing(runs: list[dict]) -> dict | None:
+    """The two runs closest in time if they agree within :data:`AGREE`, as their mean (with both loads)."""
+    times = sorted(runs, key=lambda r: r["elapsed_s"])
+    pairs = [(b["elapsed_s"] - a["elapsed_s"], a, b) for a, b in itertools.pairwise(times)]
+    if not pairs:
+        return None
+    _, a, b = min(pairs, key=lambda p: p[0])
+    if b["elapsed_s"] > (1 + AGREE) * a["elapsed_s"]:
+        return None
+    return {"elapsed_s": (a["elapsed_s"] + b["elapsed_s"]) / 2, "duration_s": a["duration_s"],
+            "load_before": min(a["load_before"], b["load_before"]), "load_after": max(a["load_after"],
+                                                                                       b["load_after"]),
+            "agreed": True}
+
+
+def speed(before: str, repeats: int) -> tuple[list[str], list[dict]]:
+    """Timings of the base revision and this tree on the real files, alternately: (markdown lines, rows)."""
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        archive = Path(tmp) / "base.tar"
+        subprocess.run(["git", "-C", str(ROOT), "archive", "-o", str(archive), before], check=True)
+        base_dir = Path(tmp) / "base"
+        with tarfile.open(archive) as tar:
+            tar.extractall(base_dir, filter="data")
+        for name in REAL_FILES:
+            runs = {"before": [], "after": []}
+            for _ in range(repeats):
+                for label, code in (("before", base_dir), ("after", None)):
+                    if agreeing(runs[label]) is None:
+                        runs[label].append(time_check(code, TUM / name))
+                if all(agreeing(r) is not None for r in runs.values()):
+                    break
+            for label, r in runs.items():
+                best = agreeing(r) or {**min(r, key=lambda x: x["elapsed_s"]), "agreed": False}
+                rows.append({"file": name, "code": label, "runs": len(r), **best,
+                             "share": best["elapsed_s"] / best["duration_s"]})
+                print(f"{name:24s} {label:6s} {best['elapsed_s']:.2f} s = {rows[-1]['share']:.1%} of "
+                      f"{best['duration_s']:.1f} s (load {best['load_before']:.1f} -> {best['load_after']:.1f}, "
+                      f"{len(r)} runs{'' if best['agreed'] else ', no two within 10 %'})", flush=True)
+    lines = [
+        f"## Speed: `check_rig` time as a share of the recording's duration (before = `{before}`, after = this "
+        "tree)", "",
+        "Each cell: the mean of the two runs that agree within 10 % (in a child process, file already read, "
+        "retina 0 given as left), with the 1-minute load average on this 2-core machine before and after. "
+        "Before and after ran alternately in the same run.", "",
+        "| file | duration | before: time (share) | after: time (share) | load before -> after |",
+        "|---|---|---|---|---|",
+    ]
+    for name in REAL_FILES:
+        b, a = (next(r for r in rows if r["file"] == name and r["code"] == c) for c in ("before", "after"))
+
+        def cell(r):
+            return f"{r['elapsed_s']:.2f} s ({r['share']:.1%})" + ("" if r["agreed"] else " *")
+        lines.append(f"| {name} | {b['duration_s']:.1f} s | {cell(b)} | {cell(a)} | "
+                     f"{min(a['load_before'], b['load_before']):.1f} -> {max(a['load_after'], b['load_after']):.1f} |")
+    lines += ["", "`*`: no two runs agreed within 10 % (the fastest is shown).", ""]
+    return lines, rows
+
+
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--before", default="main", help="base revision for the speed comparison")
+    parser.add_argument("--repeats", type=int, default=4, help="timings per file and code at most")
+    parser.add_argument("--skip-accuracy", action="store_true", help="only the speed table")
+    args = parser.parse_args()
+    speed_lines, speed_rows = speed(args.before, args.repeats)
+    if args.skip_accuracy:
+        out = ROOT / "bench" / "results"
+        (out / "rigcheck.md").write_text("# Rig self-check\n\n" + "\n".join(speed_lines))
+        print("\n".join(speed_lines))
+        return
+    accuracy(speed_lines, speed_rows)
+
+
+def accuracy(speed_lines: list[str], speed_rows: list[dict]) -> None:
+    """The --auto table on Fan_disp8.dat; writes both tables."""
     from calibration_free.registry import available_methods
     from calibration_free.run import match
     from cvstereo.io import read_recording
@@ -55,7 +174,8 @@ def main() -> None:
                   f"{before.size} -> {rows[-1]['share_after']:.3f} of {after.size} "
                   f"(auto: swap={report.swap}, {kwargs})", flush=True)
     lines = [
-        "# Rig self-check on Fan_disp8.dat: share of estimates within 1 px of 8 px, before and after `--auto`",
+        "# Rig self-check", "", *speed_lines,
+        "## Fan_disp8.dat: share of estimates within 1 px of 8 px, before and after `--auto`",
         "",
         "Generated by `bench/bench_rigcheck.py`. 'Before': the recording as read with the given retina as left "
         "(README: retina 1 is the left camera in this file). 'After': `check_rig` first, then its swap and "
@@ -75,7 +195,8 @@ def main() -> None:
     out = ROOT / "bench" / "results"
     out.mkdir(parents=True, exist_ok=True)
     (out / "rigcheck.md").write_text("\n".join(lines))
-    (out / "rigcheck.json").write_text(json.dumps({"rows": rows, "reports": reports}, indent=2, default=float))
+    (out / "rigcheck.json").write_text(json.dumps({"speed": speed_rows, "rows": rows, "reports": reports},
+                                                  indent=2, default=float))
     print("\n".join(lines))
 
 

@@ -60,13 +60,16 @@ def check_rig(recording: Recording, params: RigCheckParams | None = None, **over
     #    offset, so nearly independent of it. 2. Time offset at that row shift and dominant disparity:
     #    searching rows and lags jointly is ambiguous (an inclined edge moving sideways looks the same a few
     #    rows lower and a few ms later), at a fixed row shift it is not. 3. The rows once more with the time
-    #    offset removed, and the time offset again if the rows or the disparity changed.
+    #    offset removed (when it is large enough to matter), and the time offset again if the rows or the
+    #    disparity changed.
     frame_opts = {"resolution": res, "max_row_offset": min(params.max_row_offset, height - 1),
                   "max_disparity": min(params.max_disparity, width - 1), "window_us": window_us,
                   "max_windows": params.max_windows, "n_bands": params.n_bands}
     rows = row_offsets(left, right, **frame_opts)
     tau = time_offset(left, right, row=round(rows.offset), disparity=rows.disparity, resolution=res, params=params)
-    rows2 = row_offsets(left, _shifted(right, 0, tau.offset_us, res), **frame_opts)
+    rows2 = rows
+    if abs(tau.offset_us) >= params.rows_again_share * window_us:
+        rows2 = row_offsets(left, _shifted(right, 0, tau.offset_us, res), **frame_opts)
     if round(rows2.offset) != round(rows.offset) or rows2.disparity != rows.disparity:
         tau = time_offset(left, right, row=round(rows2.offset), disparity=rows2.disparity, resolution=res,
                           params=params)

@@ -53,8 +53,21 @@ def support(n_left, n_right, scale=500.0):
 
 
 def fft_len(n):
-    """The next power of two >= n (pocketfft is fastest there)."""
-    return 1 << int(np.ceil(np.log2(max(2, n))))
+    """The smallest even length >= n whose only prime factors are 2, 3 and 5 (pocketfft is fast there, and
+    such lengths lie much closer above n than the next power of two)."""
+    n = max(2, int(n))
+    best = 1 << int(np.ceil(np.log2(n)))
+    p5 = 1
+    while p5 < best:
+        p35 = p5
+        while p35 < best:
+            m = p35 * 2
+            while m < n:
+                m *= 2
+            best = min(best, m)
+            p35 *= 3
+        p5 *= 5
+    return best
 
 
 def clip01(v):

@@ -54,14 +54,17 @@ def time_offset(left, right, *, row, disparity, resolution, params: RigCheckPara
     width) or the shift-velocity regression is undetermined (nearly static scenes, too few busy windows) or
     below ``params.reg_min_confidence``; the regression otherwise.
     """
-    reg = time_offset_regression(left, right, row=row, disparity=disparity, resolution=resolution, params=params)
     pairs = time_offset_pairs(left, right, row=row, disparity=disparity, resolution=resolution,
                               max_lag_us=params.max_time_offset_us, bin_us=params.time_bin_us)
     # The histogram is biased by (disparity error) / speed on moving scenes, and then also broad: pairs at the
     # neighbouring disparities land (1 px) / speed away. A sharp peak means the disparities were right (or the
-    # scene nearly static) and the histogram is the more precise; a broad one defers to the regression.
-    if pairs.half_width_us > params.pairs_sharp_us and reg is not None and reg.confidence >= params.reg_min_confidence:
-        return TimeOffset(reg.offset_us, reg.confidence, REGRESSION)
+    # scene nearly static) and the histogram is the more precise; a broad one defers to the regression, which
+    # (the costlier estimator) is only run then.
+    if pairs.half_width_us > params.pairs_sharp_us:
+        reg = time_offset_regression(left, right, row=row, disparity=disparity, resolution=resolution,
+                                     params=params)
+        if reg is not None and reg.confidence >= params.reg_min_confidence:
+            return reg
     return TimeOffset(pairs.offset_us, pairs.confidence, PAIRS)
 
 
@@ -105,7 +108,7 @@ def time_offset_regression(left, right, *, row, disparity, resolution,
     if centre.size < params.reg_min_windows:
         return None
     if centre.size > params.reg_max_windows:
-        centre = centre[np.linspace(0, centre.size - 1, params.reg_max_windows).round().astype(int)]
+        centre = _runs(centre, params.reg_max_windows, params.reg_run_windows)
     search = params.reg_shift_px + int(np.ceil(params.reg_max_speed * max_lag_us))
     n_cols, n_rows = params.reg_tiles
     col_edges = np.linspace(0, width, n_cols + 1).round().astype(int)
@@ -161,6 +164,15 @@ def time_offset_regression(left, right, *, row, disparity, resolution,
         return None
     conf = 1.0 / (1.0 + (se / params.reg_se_scale_us) ** 2) * support(left.size, right.size)
     return TimeOffset(float(tau), float(conf), REGRESSION)
+
+
+def _runs(centre, count, run):
+    """About ``count`` of the sorted window indices ``centre``, in runs of ``run`` consecutive entries evenly
+    spread over them: neighbouring windows share their frames (a window and its neighbours at +-gap are
+    needed), so runs cost about ``(run + 2 * gap) / run`` frames per measured window instead of 3."""
+    n_runs = max(1, int(np.ceil(count / run)))
+    first = np.linspace(0, centre.size - run, n_runs).round().astype(int)
+    return np.unique(centre[(first[:, None] + np.arange(run)[None, :]).ravel()])
 
 
 def _window_stack(ev, starts, width, height, window_us, blur_px):
@@ -256,24 +268,31 @@ def time_offset_pairs(left, right, *, row, disparity, resolution, max_lag_us, bi
     width, height = resolution
     if left.size > max_events:
         left = left[np.linspace(0, left.size - 1, max_events).round().astype(np.int64)]
-    key_r = (right["y"].astype(np.int64) * width + right["x"]) * 2 + right["p"]
-    order = np.lexsort((right["t"], key_r))
-    keys, times = key_r[order], right["t"][order]
     lag = int(np.ceil(max_lag_us / bin_us))
+    reach = lag * bin_us
+    # Right events sorted by (pixel and polarity, time) in one int64 key whose time part leaves room for the
+    # search range, so that one binary search each way finds exactly the right events at a left event's
+    # corresponding pixel within +-reach of it (all pairs of a busy pixel over the whole recording would be
+    # many times more).
+    t0 = min(int(left["t"][0]), int(right["t"][0]))
+    span = max(int(left["t"][-1]), int(right["t"][-1])) - t0 + 2 * reach + 2
+    pix_r = (right["y"].astype(np.int64) * width + right["x"]) * 2 + right["p"]
+    keys = np.sort(pix_r * span + (right["t"] - t0))
+    times = keys % span
     hist = np.zeros(2 * lag + 1)
     for d in (disparity - 1, disparity, disparity + 1):
         x, y = left["x"].astype(np.int64) - d, left["y"].astype(np.int64) - row
         ok = (x >= 0) & (x < width) & (y >= 0) & (y < height)
-        k = ((y * width + x) * 2 + left["p"])[ok]
-        lo = np.searchsorted(keys, k, side="left")
-        hi = np.searchsorted(keys, k, side="right")
+        t_left = left["t"][ok].astype(np.int64) - t0
+        k = ((y * width + x) * 2 + left["p"])[ok] * span + t_left
+        lo = np.searchsorted(keys, k - reach, side="left")
+        hi = np.searchsorted(keys, k + reach, side="right")
         n = hi - lo
         if not n.sum():
             continue
-        # All pairs (left event, right event at its corresponding pixel), then keep those within the lag range.
+        # Every pair (left event, right event at its corresponding pixel within the lag range).
         first = np.repeat(lo - np.concatenate([[0], np.cumsum(n)[:-1]]), n) + np.arange(n.sum())
-        dt = times[first] - np.repeat(left["t"][ok], n)
-        dt = dt[np.abs(dt) <= lag * bin_us]
+        dt = times[first] - np.repeat(t_left, n)
         hist += np.bincount(np.round(dt / bin_us).astype(np.int64) + lag, minlength=2 * lag + 1)[:2 * lag + 1]
     if hist.sum() == 0:
         return PairsEstimate(0.0, 0.0, float("inf"))
