@@ -69,7 +69,9 @@ def time_check(code_dir: Path | None, path: Path) -> dict:
     if code_dir is not None:
         env["PYTHONPATH"] = str(code_dir) + os.pathsep + env.get("PYTHONPATH", "")
     out = subprocess.run([sys.executable, "-c", _TIMER, str(path)], capture_output=True, text=True, env=env,
-                         check=True, cwd=code_dir or ROOT)
+                         cwd=code_dir or ROOT)
+    if out.returncode:
+        raise RuntimeError(f"timing {path.name} with {code_dir or 'this tree'} failed:\n{out.stderr}")
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 

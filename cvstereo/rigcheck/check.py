@@ -75,6 +75,7 @@ def check_rig(recording: Recording, params: RigCheckParams | None = None, **over
                           params=params)
     settings["time_offset_method"] = tau.method
     row_offset, time_offset_us, band_offsets = rows2.offset, tau.offset_us, rows2.band_offsets
+    alternatives = tuple(float(a) for a in tau.alternatives_us)
 
     # 4. Side and disparities on the streams with both offsets removed (whole rows; time to the microsecond).
     overlays = disparity_overlays(left, _shifted(right, row_offset, time_offset_us, res), resolution=res,
@@ -87,6 +88,7 @@ def check_rig(recording: Recording, params: RigCheckParams | None = None, **over
         left, right = right, left
         row_offset, time_offset_us = -row_offset, -time_offset_us
         band_offsets = tuple(-b for b in band_offsets)
+        alternatives = tuple(-a for a in alternatives)
     counts = count_statistics(left, right, duration_s=max(recording.duration_s, 1e-6), resolution=res,
                               noise_window_us=params.noise_window_us, burst_window_us=params.burst_window_us)
     confident = [b for b, c in zip(band_offsets, rows2.band_confidences, strict=True) if c >= 0.3]
@@ -98,6 +100,8 @@ def check_rig(recording: Recording, params: RigCheckParams | None = None, **over
         row_offset_bands=tuple(float(b) for b in band_offsets), band_rows=rows2.band_rows,
         row_offset_band_confidence=tuple(rows2.band_confidences), row_offset_varies=varies,
         time_offset_us=float(time_offset_us), time_offset_confidence=tau.confidence,
+        time_offset_ambiguous=bool(tau.alternatives_us), time_offset_alternatives_us=alternatives,
+        time_offset_period_us=float(tau.period_us),
         disparity_peak=disp.peak, disparity_peaks=disp.peaks, disparity_percentiles=pct,
         disparity_range=(pct[5], pct[95]), disparity_confidence=disp.confidence,
         **counts._asdict(), duration_s=float(max(recording.duration_s, 1e-6)), settings=settings,

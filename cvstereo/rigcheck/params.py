@@ -101,6 +101,11 @@ class RigCheckParams:
         The pixel-coincidence histogram is trusted over the regression when its peak's half width at half
         height is at most this (sensor jitter and latency spread a true coincidence peak by a few hundred us;
         a disparity off by a fraction of a pixel on a slow sweep spreads it by several ms).
+    time_equal_share : float
+        Peaks of the pixel-coincidence histogram that fall short of the highest by at most this share of its
+        height (or by two standard deviations of their Poisson counts) are taken as equal: a periodic scene
+        (a fan's blades) gives one per period, the search prefers the one nearest zero offset, and the time
+        offset is then ambiguous (reported, and not applied by ``match --auto``).
     time_apply_confidence : float
         Confidence a time offset needs before :meth:`RigReport.match_kwargs` (and so ``match --auto``)
         applies it. Higher than for rows: on the simulated arms, whose depth wobbles, wrong time offsets of
@@ -143,6 +148,7 @@ class RigCheckParams:
     reg_min_confidence: float = 0.1
     rows_again_share: float = 0.05
     pairs_sharp_us: int = 1_000
+    time_equal_share: float = 0.1
     time_apply_confidence: float = 0.6
 
     def __post_init__(self) -> None:

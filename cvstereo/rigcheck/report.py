@@ -38,6 +38,14 @@ class RigReport:
     time_offset_us : float
         How much later the right camera stamps the same change (``t_right ~ t_left + time_offset_us``).
     time_offset_confidence : float
+    time_offset_ambiguous : bool
+        True when the pixel coincidences peak as high at other offsets too (a periodic scene such as a fan:
+        one peak per blade period): the reported offset is the one nearest 0, and :meth:`match_kwargs` does
+        not apply it (:meth:`time_offset_applicable`).
+    time_offset_alternatives_us : tuple of float
+        Those other offsets, nearest to the reported one first (empty when not ambiguous).
+    time_offset_period_us : float
+        Their spacing (the scene's period), NaN when not ambiguous.
     disparity_peak : float
         The disparity that overlays the most events (sub-pixel), px.
     disparity_peaks : tuple of float
@@ -81,6 +89,9 @@ class RigReport:
     row_offset_varies: bool
     time_offset_us: float
     time_offset_confidence: float
+    time_offset_ambiguous: bool
+    time_offset_alternatives_us: tuple[float, ...]
+    time_offset_period_us: float
     disparity_peak: float
     disparity_peaks: tuple[float, ...]
     disparity_percentiles: dict
@@ -102,17 +113,27 @@ class RigReport:
         """The recording with the cameras exchanged if :attr:`swap` (with at least ``min_confidence``)."""
         return recording.swapped() if self.swap and self.swap_confidence >= min_confidence else recording
 
+    def time_offset_applicable(self, *, min_confidence: float | None = None) -> bool:
+        """Whether the time offset may be applied: confident enough and not ambiguous.
+
+        ``min_confidence`` defaults to ``RigCheckParams.time_apply_confidence`` of the run. An ambiguous offset
+        (:attr:`time_offset_ambiguous`, a periodic scene) is never applicable: one period off ruins the
+        event-time matcher's matches, while an unapplied offset only costs some of them.
+        """
+        if min_confidence is None:
+            min_confidence = self.settings.get("time_apply_confidence", RigCheckParams.time_apply_confidence)
+        return bool(self.time_offset_confidence >= min_confidence and not self.time_offset_ambiguous)
+
     def match_kwargs(self, *, min_confidence: float = 0.3, min_time_confidence: float | None = None) -> dict:
         """``row_offset`` and ``time_offset_us`` for :func:`calibration_free.match`.
 
-        An offset whose confidence is below ``min_confidence`` (rows) or ``min_time_confidence`` (time;
-        default ``RigCheckParams.time_apply_confidence`` of the run) is left at 0; the row offset is rounded
+        An offset whose confidence is below ``min_confidence`` (rows) is left at 0, and so is the time offset
+        unless :meth:`time_offset_applicable` (with ``min_time_confidence``); the row offset is rounded
         (matchers work on whole rows), the time offset to whole microseconds.
         """
-        if min_time_confidence is None:
-            min_time_confidence = self.settings.get("time_apply_confidence", RigCheckParams.time_apply_confidence)
         row = round(self.row_offset) if self.row_offset_confidence >= min_confidence else 0
-        dt = round(self.time_offset_us) if self.time_offset_confidence >= min_time_confidence else 0
+        apply_time = self.time_offset_applicable(min_confidence=min_time_confidence)
+        dt = round(self.time_offset_us) if apply_time else 0
         return {"row_offset": int(row), "time_offset_us": int(dt)}
 
     def to_dict(self) -> dict:
@@ -139,6 +160,7 @@ class RigReport:
             f"    per band:    {bands}" + ("  -> varies across the image" if self.row_offset_varies else ""),
             f"  time offset:   {_fmt(self.time_offset_us / 1000, '+.2f')} ms (right camera later) "
             f"{c(self.time_offset_confidence)}",
+            *self._ambiguity(),
             f"  disparity:     peak {_fmt(self.disparity_peak, '.1f')} px, 5-95 % {_fmt(pct[5], '.0f')}.."
             f"{_fmt(pct[95], '.0f')} px, median {_fmt(pct[50], '.0f')} px, profile peaks "
             + (", ".join(_fmt(d, ".1f") for d in self.disparity_peaks) or "none")
@@ -152,6 +174,15 @@ class RigReport:
             f"{c(self.noise_confidence)}",
         ]
         return "\n".join(lines)
+
+
+    def _ambiguity(self) -> list[str]:
+        """The time offset's period ambiguity as summary lines (none when there is none)."""
+        if not self.time_offset_ambiguous:
+            return []
+        also = ", ".join(_fmt(a / 1000, "+.1f") for a in self.time_offset_alternatives_us[:3])
+        return [f"    ambiguous:   peaks as high every {_fmt(self.time_offset_period_us / 1000, '.1f')} ms (also at "
+                f"{also} ms: a periodic scene); the one nearest 0 is reported, --auto does not apply it"]
 
 
 def _fmt(value: float, spec: str) -> str:

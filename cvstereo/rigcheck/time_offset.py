@@ -29,6 +29,10 @@ class TimeOffset(NamedTuple):
     confidence: float
     method: str
     """:data:`PAIRS` or :data:`REGRESSION`: the estimator that answered."""
+    alternatives_us: tuple[float, ...] = ()
+    """Other offsets the pixel coincidences support as well (a periodic scene), nearest first."""
+    period_us: float = float("nan")
+    """Spacing of those equal peaks (the scene's period), NaN without them."""
 
 
 class PairsEstimate(NamedTuple):
@@ -38,6 +42,10 @@ class PairsEstimate(NamedTuple):
     confidence: float
     half_width_us: float
     """Half width of the histogram's peak at half its height (inf without any pair)."""
+    alternatives_us: tuple[float, ...] = ()
+    """Lags of the other peaks as high as the chosen one within their uncertainty, nearest first."""
+    period_us: float = float("nan")
+    """Median spacing of the equal peaks, NaN when there is only one."""
 
 
 class SlopeFit(NamedTuple):
@@ -55,7 +63,8 @@ def time_offset(left, right, *, row, disparity, resolution, params: RigCheckPara
     below ``params.reg_min_confidence``; the regression otherwise.
     """
     pairs = time_offset_pairs(left, right, row=row, disparity=disparity, resolution=resolution,
-                              max_lag_us=params.max_time_offset_us, bin_us=params.time_bin_us)
+                              max_lag_us=params.max_time_offset_us, bin_us=params.time_bin_us,
+                              equal_share=params.time_equal_share)
     # The histogram is biased by (disparity error) / speed on moving scenes, and then also broad: pairs at the
     # neighbouring disparities land (1 px) / speed away. A sharp peak means the disparities were right (or the
     # scene nearly static) and the histogram is the more precise; a broad one defers to the regression, which
@@ -64,8 +73,9 @@ def time_offset(left, right, *, row, disparity, resolution, params: RigCheckPara
         reg = time_offset_regression(left, right, row=row, disparity=disparity, resolution=resolution,
                                      params=params)
         if reg is not None and reg.confidence >= params.reg_min_confidence:
-            return reg
-    return TimeOffset(pairs.offset_us, pairs.confidence, PAIRS)
+            # A periodic scene shows in the coincidences whichever estimator answers.
+            return reg._replace(alternatives_us=pairs.alternatives_us, period_us=pairs.period_us)
+    return TimeOffset(pairs.offset_us, pairs.confidence, PAIRS, pairs.alternatives_us, pairs.period_us)
 
 
 def time_offset_regression(left, right, *, row, disparity, resolution,
@@ -256,7 +266,7 @@ def _fixed_effects_slope(tile, s, v, w, n_tiles, params: RigCheckParams) -> Slop
     return SlopeFit(float(coef[-1] * 1e3), float(se))
 
 
-def time_offset_pairs(left, right, *, row, disparity, resolution, max_lag_us, bin_us,
+def time_offset_pairs(left, right, *, row, disparity, resolution, max_lag_us, bin_us, equal_share=0.1,
                       max_events=200_000) -> PairsEstimate:
     """How much later the right camera fires than the left at corresponding pixels.
 
@@ -264,6 +274,10 @@ def time_offset_pairs(left, right, *, row, disparity, resolution, max_lag_us, bi
     pixel of the dominant ``disparity`` and within ``max_lag_us`` form pairs; their time differences pile up
     at the time offset (the same edge crosses both pixels), pairs of unrelated events spread evenly. The
     histogram's peak, interpolated below ``bin_us``, is the estimate.
+
+    A periodic scene (a fan's blades) piles pairs up once per period as well: of the peaks as high as the
+    highest within their uncertainty (:func:`equal_peaks`, ``equal_share``) the one nearest zero lag is
+    taken, and the others are returned as alternatives with their spacing.
     """
     width, height = resolution
     if left.size > max_events:
@@ -296,11 +310,33 @@ def time_offset_pairs(left, right, *, row, disparity, resolution, max_lag_us, bi
         hist += np.bincount(np.round(dt / bin_us).astype(np.int64) + lag, minlength=2 * lag + 1)[:2 * lag + 1]
     if hist.sum() == 0:
         return PairsEstimate(0.0, 0.0, float("inf"))
-    corr = smooth_lags(hist - np.median(hist), sigma=1.5)
-    k = int(np.argmax(corr))
+    sigma = 1.5
+    corr = smooth_lags(hist - np.median(hist), sigma=sigma)
+    # Counts are Poisson: the smoothed histogram's variance is the counts smoothed by the squared kernel.
+    var = smooth_lags(hist, sigma=sigma / np.sqrt(2)) / (2 * np.sqrt(np.pi) * sigma)
+    equal = equal_peaks(corr, var, equal_share=equal_share)
+    k = min(equal, key=lambda i: (abs(i - lag), i))
     time = float((subsample_peak(corr, k) - lag) * bin_us)
     # The lags where the peak stays above half its height belong to the peak itself (the sensors' latencies
     # jitter by a few ms on real rigs and widen it); the confidence compares it with the lags beyond.
     width_bins = half_width(corr, k)
+    others = sorted((i for i in equal if abs(i - k) > width_bins), key=lambda i: (abs(i - k), i))
+    period = float(np.median(np.diff(sorted([k, *others]))) * bin_us) if others else float("nan")
     conf = contrast(corr, k, exclude=width_bins) * support(left.size, right.size)
-    return PairsEstimate(time, conf, float(width_bins * bin_us))
+    return PairsEstimate(time, conf, float(width_bins * bin_us),
+                         tuple(float((subsample_peak(corr, i) - lag) * bin_us) for i in others), period)
+
+
+def equal_peaks(v, var, *, equal_share, z=2.0):
+    """Indices of the local maxima of ``v`` as high as its highest within their uncertainty, the highest first.
+
+    A peak is as high when it falls short of the highest by at most ``equal_share`` of the highest's height
+    above the median, or by ``z`` standard deviations of the difference (``var``: each sample's variance).
+    """
+    best = int(np.argmax(v))
+    base = float(np.median(v))
+    top = float(v[best])
+    inner = np.flatnonzero((v[1:-1] >= v[:-2]) & (v[1:-1] > v[2:])) + 1
+    tol = np.maximum(equal_share * (top - base), z * np.sqrt(np.maximum(var[best] + var[inner], 0.0)))
+    near = inner[(top - v[inner] <= tol) & (v[inner] > base) & (inner != best)]
+    return [best, *near[np.argsort(-v[near], kind="stable")].tolist()]
