@@ -27,7 +27,10 @@ removed, and the disparity stage on the corrected streams. Known limit: a dispar
 with the speed (an arm wobbling in depth while it sweeps, over a clip of only a few sweeps) cannot be told
 from a time offset by any estimator; on 2 s of the simulated arm presets that leaves errors of 1-4 ms at
 confidences mostly below the 0.6 that ``--auto`` needs, and slow one-way drifts (1 arm at 100 cm) are not
-determined at all (confidence below 0.2).
+determined at all (confidence below 0.2). On a periodic scene (a fan: the same blade pattern passes every
+pixel once per blade period) the coincidences peak once per period: of the peaks as high as the highest
+within their uncertainty the one nearest 0 is reported, and the report marks the offset ambiguous (with the
+other peaks and the period), which keeps ``--auto`` from applying it.
 
 Reported offsets and disparities refer to the recording *as it should be used*: after exchanging the
 cameras when ``swap`` is True (:meth:`RigReport.prepare` does that), so that ``row_offset`` and

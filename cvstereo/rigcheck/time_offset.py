@@ -4,7 +4,9 @@ Two estimators of ``tau`` (``t_right ~ t_left + tau``): the histogram of time di
 corresponding pixels (:func:`time_offset_pairs`), precise when the disparities are whole pixels or the scene
 nearly static; and the regression of the cameras' apparent shift on the image velocity over short windows
 and image tiles (:func:`time_offset_regression`), which on sideways sweeps is not fooled by a disparity error
-``e`` that the histogram takes for a time offset ``e / v``.
+``e`` that the histogram takes for a time offset ``e / v``. On a periodic scene the histogram peaks once per
+period; :func:`equal_peaks` finds the peaks as high as the highest, the one nearest 0 is taken and the others
+are reported (the offset is then ambiguous).
 """
 
 from __future__ import annotations
