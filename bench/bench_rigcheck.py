@@ -145,7 +145,7 @@ def update_speed(speed_lines: list[str], speed_rows: list[dict]) -> None:
     rest = md.read_text() if md.exists() else ""
     cut = rest.find("## Fan_disp8.dat")
     rest = rest[cut:] if cut >= 0 else ""
-    md.write_text("\n".join(["# Rig self-check", "", *speed_lines]) + rest)
+    md.write_text("\n".join(["# Rig self-check", "", *speed_lines, rest]))
     data = json.loads(js.read_text()) if js.exists() else {}
     js.write_text(json.dumps({**data, "speed": speed_rows}, indent=2, default=float))
     print("\n".join(speed_lines))
