@@ -23,6 +23,13 @@ _CHUNK_FRAMES = 200
 #: interpolation between instants then places event timestamps within a fraction of the edge's passage.
 DEFAULT_RENDER_HZ = 1000.0
 
+#: Longest recording simulate() makes: it holds every event in memory (10 minutes of the busiest preset are
+#: about 33 M events per camera, some 2 GB at the peak); make longer ones in pieces.
+MAX_SECONDS = 600.0
+
+#: Highest render rate: frames are rendered one by one, so seconds x render_hz bounds the work.
+MAX_RENDER_HZ = 100_000.0
+
 
 def simulate(scene, *, rig: Rig | None = None, seconds: float = 1.0, seed: int = 0,
              render_hz: float = DEFAULT_RENDER_HZ, progress: bool = False) -> Recording:
@@ -52,10 +59,11 @@ def simulate(scene, *, rig: Rig | None = None, seconds: float = 1.0, seed: int =
         ``meta`` holds the rig, the scene and the generator's settings.
     """
     rig = Rig() if rig is None else rig
-    if not seconds > 0:
-        raise ValueError(f"seconds must be positive, got {seconds}.")
-    if not render_hz > 0:
-        raise ValueError(f"render_hz must be positive, got {render_hz}.")
+    if not 0 < seconds <= MAX_SECONDS:
+        raise ValueError(f"seconds must lie in (0, {MAX_SECONDS:g}] (the simulator keeps every event in memory), "
+                         f"got {seconds}.")
+    if not 0 < render_hz <= MAX_RENDER_HZ:
+        raise ValueError(f"render_hz must lie in (0, {MAX_RENDER_HZ:g}], got {render_hz}.")
     n_steps = max(1, round(seconds * render_hz))
     times_s = np.arange(n_steps + 1) * (seconds / n_steps)
     duration_us = seconds * 1e6
@@ -82,10 +90,14 @@ def simulate(scene, *, rig: Rig | None = None, seconds: float = 1.0, seed: int =
             t, x, y, p, z = (np.concatenate(col) for col in zip(*parts, strict=True))
             truth = rig.disparity_from_depth(index, x, y, z).astype(np.float32)
             nt, nx, ny, npol = background_noise(sensor, (h, w), duration_us, rng)
-            t = np.concatenate([t, nt])
+            t, x, y, p = (np.concatenate(pair) for pair in ((t, nt), (x, nx), (y, ny), (p, npol)))
             truth = np.concatenate([truth, np.full(nt.size, np.nan, np.float32)])
-            events = make_events(jitter(t, sensor, duration_us, rng), np.concatenate([x, nx]),
-                                 np.concatenate([y, ny]), np.concatenate([p, npol]))
+            if index == 1 and rig.time_offset_us:
+                # The right camera's clock: its stamps are shifted, and what falls outside the recording is lost.
+                t = t + rig.time_offset_us
+                kept = (t >= 0) & (t < duration_us)
+                t, x, y, p, truth = t[kept], x[kept], y[kept], p[kept], truth[kept]
+            events = make_events(jitter(t, sensor, duration_us, rng), x, y, p)
             order = np.argsort(events["t"], kind="stable")
             results.append((events[order], truth[order]))
     (left, left_truth), (right, right_truth) = results
