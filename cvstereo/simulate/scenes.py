@@ -8,6 +8,7 @@ linear intensity and depth, each (T, H, W) float32 (see :mod:`cvstereo.simulate.
 - :class:`ArmsScene`: one or two arms moving through the view in front of a wall (the thesis' recordings).
 - :class:`RotationScene`: the rig turning in a static room with objects at several depths (a mobile robot).
 - :class:`MotorcycleScene`: the view panning over the Middlebury motorcycle pair that scikit-image ships.
+- :class:`~cvstereo.simulate.fan.FanScene`: a rotating fan (the real TUM recordings), in its own module.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import cv2
 import numpy as np
 
 from cvstereo.simulate import textures
+from cvstereo.simulate.fan import FanScene
 from cvstereo.simulate.render import layer_hits, render_image, render_planes
 from cvstereo.simulate.rig import Rig
 
@@ -457,4 +459,5 @@ class MotorcycleScene:
                 "disparity_scale": self.scale}
 
 
-SCENES = {"arms": ArmsScene, "rotation": RotationScene, "motorcycle": MotorcycleScene}
+#: Scene name -> parameter class, as ``cvstereo simulate --scene`` offers them.
+SCENES = {"arms": ArmsScene, "rotation": RotationScene, "motorcycle": MotorcycleScene, "fan": FanScene}
