@@ -55,7 +55,7 @@ def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     """Run the subcommand; returns the exit code."""
-    from cvstereo.simulate import FAN_RENDER_HZ, MAX_SECONDS, PRESETS, SCENES, simulate, simulate_preset
+    from cvstereo.simulate import MAX_SECONDS, PRESETS, SCENES, simulate, simulate_preset
 
     if args.list_presets:
         for name, preset in PRESETS.items():
@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
             params["arms"] = args.arms or 1
         scene = SCENES[args.scene](**params)
         rec = simulate(scene, seconds=2.0 if args.seconds is None else args.seconds, seed=args.seed,
-                       render_hz=FAN_RENDER_HZ if args.scene == "fan" else 1000.0, progress=progress)
+                       progress=progress)
 
     from cvstereo.io.npz import write_recording_npz
 

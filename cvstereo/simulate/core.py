@@ -32,7 +32,7 @@ MAX_RENDER_HZ = 100_000.0
 
 
 def simulate(scene, *, rig: Rig | None = None, seconds: float = 1.0, seed: int = 0,
-             render_hz: float = DEFAULT_RENDER_HZ, progress: bool = False) -> Recording:
+             render_hz: float | None = None, progress: bool = False) -> Recording:
     """Simulate a stereo pair of DVS128 looking at a scene: events of both cameras with per-event truth.
 
     Parameters
@@ -46,8 +46,10 @@ def simulate(scene, *, rig: Rig | None = None, seconds: float = 1.0, seed: int =
         Length of the recording.
     seed : int, keyword-only
         Seeds threshold mismatch, noise and jitter; the same seed gives the same events.
-    render_hz : float, keyword-only
-        Rate at which each camera's view is rendered; event times are interpolated between renders.
+    render_hz : float or None, keyword-only
+        Rate at which each camera's view is rendered; event times are interpolated between renders. None:
+        the scene's ``render_hz`` attribute if it has one (a fast scene such as the fan needs more), else
+        :data:`DEFAULT_RENDER_HZ`.
     progress : bool, keyword-only
         Show a progress bar on stderr (only when stderr is a terminal).
 
@@ -59,6 +61,8 @@ def simulate(scene, *, rig: Rig | None = None, seconds: float = 1.0, seed: int =
         ``meta`` holds the rig, the scene and the generator's settings.
     """
     rig = Rig() if rig is None else rig
+    if render_hz is None:
+        render_hz = float(getattr(scene, "render_hz", DEFAULT_RENDER_HZ))
     if not 0 < seconds <= MAX_SECONDS:
         raise ValueError(f"seconds must lie in (0, {MAX_SECONDS:g}] (the simulator keeps every event in memory), "
                          f"got {seconds}.")

@@ -125,6 +125,7 @@ class FanScene:
     clockwise: bool = True
     seed: int = 0
     kind = "fan"
+    render_hz = FAN_RENDER_HZ  # what simulate() renders it at unless told otherwise
 
     def __post_init__(self):
         if int(self.blades) != self.blades or self.blades < 1:

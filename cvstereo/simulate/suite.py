@@ -27,7 +27,7 @@ import numpy as np
 
 from cvstereo.recording import Recording
 from cvstereo.simulate.core import DEFAULT_RENDER_HZ, GENERATOR_VERSION, MAX_SECONDS, simulate
-from cvstereo.simulate.fan import FAN_RENDER_HZ, FanScene
+from cvstereo.simulate.fan import FanScene
 from cvstereo.simulate.presets import _seeded, default_cache_dir, get_preset
 from cvstereo.simulate.rig import Rig
 from cvstereo.simulate.scenes import ArmsScene
@@ -126,8 +126,8 @@ FACTORS: dict[str, Factor] = {
 #: Factors of the joint random draws (not the clock offset: one recording tests it on its own).
 JOINT_FACTORS = ("threshold_scale", "noise_hz", "jitter_ms", "speed_scale", "texture", "distance_m", "sensor")
 
-#: Scenes a suite recording may replace the base preset's arms with; each with its render rate.
-SUITE_SCENES = {"fan": (FanScene, FAN_RENDER_HZ)}
+#: Scenes a suite recording may replace the base preset's arms with.
+SUITE_SCENES = {"fan": FanScene}
 
 
 def draw_joint(seed: int) -> dict:
@@ -292,8 +292,8 @@ def parse_suite(data: dict, *, where: str = "suite", seconds: float | None = Non
         if "scene" in entry:
             if entry["scene"] not in SUITE_SCENES:
                 raise ValueError(f"{here}: scene must be one of {', '.join(SUITE_SCENES)}, got {entry['scene']!r}.")
-            cls, render_hz = SUITE_SCENES[entry["scene"]]
-            scene = cls(seed=rec_seed)
+            scene = SUITE_SCENES[entry["scene"]](seed=rec_seed)
+            render_hz = float(getattr(scene, "render_hz", DEFAULT_RENDER_HZ))
         rig = preset.rig
         for factor, value in settings.items():
             if factor not in FACTORS:
