@@ -99,6 +99,7 @@ def test_each_recording_is_labelled_and_scaled(suite):
     ({"name": "a", "scene": "fan", "set": {"speed_scale": 1.5}}, "applies to the arms scene only"),
     ({"name": "a", "scene": "pond"}, "scene must be one of"),
     ({"name": "a", "colour": 1}, "unknown key"),
+    ({"name": "a", "set": "noise_hz"}, "must be a table"),
     ({"set": {}}, "unique name"),
 ])
 def test_bad_suite_entries_are_refused_with_their_place(entry, match):

@@ -286,6 +286,8 @@ def parse_suite(data: dict, *, where: str = "suite", seconds: float | None = Non
         unknown = sorted(set(entry) - {"name", "set", "scene", "seed", "note"})
         if unknown:
             raise ValueError(f"{here}: unknown key(s) {', '.join(unknown)}; allowed: name, set, scene, seed, note.")
+        if not isinstance(entry.get("set", {}), dict):
+            raise ValueError(f"{here}: 'set' must be a table of factor = value, e.g. set = {{ noise_hz = 0.5 }}.")
         settings = dict(entry.get("set", {}))
         rec_seed = int(entry.get("seed", seed))
         scene, render_hz = _seeded(preset.scene, rec_seed), DEFAULT_RENDER_HZ
