@@ -15,9 +15,12 @@ from cvstereo.simulate.rig import Rig
 #: Bump whenever a change alters the events a seed produces: cached presets carry it in their key.
 GENERATOR_VERSION = 2
 
-#: Frames rendered per batch: large enough to amortise the per-call overhead, small enough that a batch of
-#: intensity and depth frames (2 x 4 bytes x 128 x 128 x 200 = 26 MB) stays cheap.
+#: Frames rendered per batch on a 128x128 sensor: large enough to amortise the per-call overhead, small enough
+#: that a batch of intensity and depth frames (2 x 4 bytes x 128 x 128 x 200 = 26 MB) stays cheap. Larger
+#: sensors get proportionally fewer frames per batch (the same memory); frames are independent, so the
+#: batch size never changes the events.
 _CHUNK_FRAMES = 200
+_CHUNK_PIXELS = _CHUNK_FRAMES * 128 * 128
 
 #: Render rate. An arm at 50 cm sweeps at up to about 250 px/s, i.e. 0.25 px per 1 ms step: linear
 #: interpolation between instants then places event timestamps within a fraction of the edge's passage.
@@ -73,6 +76,7 @@ def simulate(scene, *, rig: Rig | None = None, seconds: float = 1.0, seed: int =
     duration_us = seconds * 1e6
     cam_seeds = np.random.SeedSequence(seed).spawn(2)
     w, h = rig.resolution
+    chunk = max(4, min(_CHUNK_FRAMES, _CHUNK_PIXELS // (w * h)))
     results = []
     with tqdm(total=2 * (n_steps + 1), unit="frame", file=sys.stderr, disable=None if progress else True,
               desc="simulate") as bar:
@@ -81,8 +85,8 @@ def simulate(scene, *, rig: Rig | None = None, seconds: float = 1.0, seed: int =
             sensor = rig.sensor(index)
             pixels = PixelArray(sensor, (h, w), rng)
             parts = []
-            for lo in range(0, n_steps + 1, _CHUNK_FRAMES):
-                ts = times_s[lo:lo + _CHUNK_FRAMES]
+            for lo in range(0, n_steps + 1, chunk):
+                ts = times_s[lo:lo + chunk]
                 intensity, depth = scene.render(rig, index, ts)
                 logi = log_intensity(intensity, out=intensity)
                 if lo == 0:
