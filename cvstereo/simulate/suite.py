@@ -43,8 +43,10 @@ SENSORS = ("128x128", "240x180", "346x260", "640x480")
 _WALL_GAP_M = 1.5
 
 
-def _sensors(rig: Rig, k: float) -> Rig:
-    return dataclasses.replace(rig, left=dataclasses.replace(rig.left, **k), right=dataclasses.replace(rig.right, **k))
+def _sensors(rig: Rig, changes: dict) -> Rig:
+    """The rig with the same fields of both sensor models changed."""
+    return dataclasses.replace(rig, left=dataclasses.replace(rig.left, **changes),
+                               right=dataclasses.replace(rig.right, **changes))
 
 
 def _arms(scene, what: str) -> ArmsScene:
