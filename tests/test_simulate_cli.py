@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -55,3 +56,56 @@ def test_usage_errors_exit_2(args, tmp_path):
     out = _run(*args, cwd=tmp_path)
     assert out.returncode == 2
     assert "usage" in out.stderr and "Traceback" not in out.stderr
+
+
+def test_seconds_beyond_the_limit_is_one_line_naming_the_option(tmp_path):
+    out = _run("--preset", "1arm-50cm", "--seconds", "1e12", "-o", str(tmp_path / "x.npz"))
+    assert out.returncode == 1
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and "--seconds" in lines[0] and "600" in lines[0] and "Traceback" not in out.stderr
+    assert not (tmp_path / "x.npz").exists()
+
+
+def test_fan_scene_writes_a_fan_recording(tmp_path):
+    out = _run("--scene", "fan", "--distance", "1.5", "--seconds", "0.05", "-o", str(tmp_path / "f.npz"),
+               "--no-progress")
+    assert out.returncode == 0, out.stderr
+    rec = read_recording_npz(tmp_path / "f.npz")
+    assert rec.meta["scene"]["type"] == "fan" and rec.meta["scene"]["blade_period_s"] == 0.018
+    assert rec.meta["render_hz"] == 5000.0
+    truth = rec.left_disparity[np.isfinite(rec.left_disparity)]
+    assert truth.size > 100 and abs(np.median(truth) - 8.0) < 0.5  # 1.5 m on the thesis' rig
+
+
+def test_list_suites_names_every_recording():
+    out = _run("--list-suites")
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.splitlines()
+    assert lines[0].startswith("robustness (v1): 29 recordings")
+    names = [line.split()[0] for line in lines[1:]]
+    assert names[0] == "base" and "fan-right-3ms-early" in names and len(names) == 29
+
+
+def test_suite_output_must_be_a_folder(tmp_path):
+    (tmp_path / "file.npz").write_bytes(b"keep")
+    out = _run("--suite", "robustness", "-o", str(tmp_path / "file.npz"))
+    assert out.returncode == 1 and "folder" in out.stderr and len(out.stderr.strip().splitlines()) == 1
+    assert (tmp_path / "file.npz").read_bytes() == b"keep"
+
+
+@pytest.mark.slow
+def test_suite_fills_the_cache_and_copies_each_recording(tmp_path):
+    env = {**os.environ, "CVSTEREO_CACHE": str(tmp_path / "cache")}
+    out = subprocess.run([sys.executable, "-m", "cvstereo", "simulate", "--suite", "robustness", "--seconds", "0.05",
+                          "-o", str(tmp_path / "suite"), "--no-progress"], capture_output=True, text=True,
+                         timeout=600, env=env)
+    assert out.returncode == 0, out.stderr
+    rows = out.stdout.splitlines()
+    assert len(rows) == 29 and "29 recordings ready" in out.stderr
+    rec = read_recording_npz(tmp_path / "suite" / "sensor-640x480.npz")
+    assert rec.resolution == (640, 480) and rec.meta["suite"]["factor"] == "sensor"
+    assert rec.meta["suite"]["max_disparity"] == 320
+    assert len(list((tmp_path / "cache").glob("robustness_*.npz"))) == 29
+    again = subprocess.run([sys.executable, "-m", "cvstereo", "simulate", "--suite", "robustness", "--seconds", "0.05"],
+                           capture_output=True, text=True, timeout=600, env=env)
+    assert again.returncode == 0 and "generated" not in again.stderr  # all from the cache

@@ -8,16 +8,22 @@
   offsets) and the sensors' pixel models (thresholds, mismatch, refractory period, noise, jitter).
 - :mod:`~cvstereo.simulate.scenes`: arms, the rotating rig in a room, the motorcycle pair, textured layers.
 - :mod:`~cvstereo.simulate.render`, :mod:`~cvstereo.simulate.dvs`: rendering and event generation.
+- :mod:`~cvstereo.simulate.fan`: a rotating fan (the real TUM recordings' scene).
 - :mod:`~cvstereo.simulate.presets`: the thesis' six recordings and a cache (:func:`cached_preset`).
+- :mod:`~cvstereo.simulate.suite`: suites of recordings committed as data (``suites/*.toml``), cached like
+  the presets (:func:`suite_recordings`).
 """
 
-from cvstereo.simulate.core import DEFAULT_RENDER_HZ, GENERATOR_VERSION, simulate
+from cvstereo.simulate.core import DEFAULT_RENDER_HZ, GENERATOR_VERSION, MAX_SECONDS, simulate
+from cvstereo.simulate.fan import FAN_RENDER_HZ, FanScene
 from cvstereo.simulate.presets import PRESETS, Preset, cached_preset, default_cache_dir, get_preset, simulate_preset
 from cvstereo.simulate.rig import EDVS1_RIGHT, EDVS2_LEFT, Rig, SensorModel
 from cvstereo.simulate.scenes import SCENES, ArmsScene, LayeredScene, Motion, MotorcycleScene, PlaneLayer, RotationScene
+from cvstereo.simulate.suite import FACTORS, SUITES, load_suite, suite_recordings
 
 __all__ = [
-    "DEFAULT_RENDER_HZ", "EDVS1_RIGHT", "EDVS2_LEFT", "GENERATOR_VERSION", "PRESETS", "SCENES", "ArmsScene",
-    "LayeredScene", "Motion", "MotorcycleScene", "PlaneLayer", "Preset", "Rig", "RotationScene", "SensorModel",
-    "cached_preset", "default_cache_dir", "get_preset", "simulate", "simulate_preset",
+    "DEFAULT_RENDER_HZ", "EDVS1_RIGHT", "EDVS2_LEFT", "FACTORS", "FAN_RENDER_HZ", "GENERATOR_VERSION", "MAX_SECONDS",
+    "PRESETS", "SCENES", "SUITES", "ArmsScene", "FanScene", "LayeredScene", "Motion", "MotorcycleScene",
+    "PlaneLayer", "Preset", "Rig", "RotationScene", "SensorModel", "cached_preset", "default_cache_dir",
+    "get_preset", "load_suite", "simulate", "simulate_preset", "suite_recordings",
 ]

@@ -164,6 +164,10 @@ class Rig:
     resolution : (width, height)
     left, right : SensorModel
         The pixel models of the left (thesis: eDVS2) and right (eDVS1) sensors.
+    time_offset_us : float
+        How much later the right camera stamps the same change than the left one (its clock runs behind):
+        ``t_right = t_left + time_offset_us``, the convention of :mod:`cvstereo.rigcheck`. Negative: the right
+        camera stamps early. Events whose stamp falls outside the recording are lost, as with a real late start.
     """
 
     baseline_m: float = 0.10
@@ -177,9 +181,12 @@ class Rig:
     resolution: tuple[int, int] = DEFAULT_RESOLUTION
     left: SensorModel = EDVS2_LEFT
     right: SensorModel = EDVS1_RIGHT
+    time_offset_us: float = 0.0
 
     def __post_init__(self):
         object.__setattr__(self, "resolution", (int(self.resolution[0]), int(self.resolution[1])))
+        if not np.isfinite(self.time_offset_us):
+            raise ValueError(f"Rig.time_offset_us must be finite, got {self.time_offset_us}.")
         if self.baseline_m < 0:
             raise ValueError(f"Rig.baseline_m must be >= 0, got {self.baseline_m}.")
         if not self.focal_px > 0:
@@ -197,6 +204,19 @@ class Rig:
     def ideal(self) -> Rig:
         """The same rig without distortion, axis offset or vertical offset."""
         return dataclasses.replace(self, axis_offset_px=0.0, vertical_offset_px=0.0, distortion_k1=0.0)
+
+    def for_sensor(self, resolution: tuple[int, int]) -> Rig:
+        """The same optics on a sensor of another size: the view angle stays, so everything in pixels scales.
+
+        Focal length, axis offset and vertical offset scale with the width (``resolution[0] / width``): the
+        same lens on a sensor with more pixels across, so disparities in pixels (hence the disparity range a
+        matcher needs, e.g. ``round(64 * width / 128)``) scale by the same factor. ``k1`` stays (it acts on
+        normalised coordinates).
+        """
+        scale = int(resolution[0]) / self.resolution[0]
+        return dataclasses.replace(self, resolution=(int(resolution[0]), int(resolution[1])),
+                                   focal_px=self.focal_px * scale, axis_offset_px=self.axis_offset_px * scale,
+                                   vertical_offset_px=self.vertical_offset_px * scale)
 
     def sensor(self, index: int) -> SensorModel:
         """The sensor model of camera 0 (left) or 1 (right)."""

@@ -8,6 +8,7 @@ linear intensity and depth, each (T, H, W) float32 (see :mod:`cvstereo.simulate.
 - :class:`ArmsScene`: one or two arms moving through the view in front of a wall (the thesis' recordings).
 - :class:`RotationScene`: the rig turning in a static room with objects at several depths (a mobile robot).
 - :class:`MotorcycleScene`: the view panning over the Middlebury motorcycle pair that scikit-image ships.
+- :class:`~cvstereo.simulate.fan.FanScene`: a rotating fan (the real TUM recordings), in its own module.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import cv2
 import numpy as np
 
 from cvstereo.simulate import textures
+from cvstereo.simulate.fan import FanScene
 from cvstereo.simulate.render import layer_hits, render_image, render_planes
 from cvstereo.simulate.rig import Rig
 
@@ -195,11 +197,11 @@ class LayeredScene:
 
 
 class _Built:
-    """Mixin for parameter dataclasses that build a LayeredScene once per focal length."""
+    """Mixin for parameter dataclasses that build a LayeredScene once per focal length and sensor size."""
 
     def render(self, rig: Rig, index: int, times_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Intensity and depth, each (T, H, W) float32, of camera ``index`` at ``times_s`` (T,)."""
-        return self.build(rig.focal_px).render(rig, index, times_s)
+        return self.build(rig.focal_px, rig.resolution).render(rig, index, times_s)
 
     def describe(self) -> dict:
         return {"type": self.kind, **dataclasses.asdict(self)}
@@ -228,7 +230,10 @@ class ArmsScene(_Built):
     wobble_m : float
         Amplitude of the depth wobble.
     sleeve_contrast : float
-        Contrast of the shirt's check pattern (see :func:`cvstereo.simulate.textures.arm`).
+        Contrast of the shirt's pattern (see :func:`cvstereo.simulate.textures.arm`).
+    sleeve_pattern : str
+        The shirt's pattern: ``checks`` (soft plaid, the presets'), ``stripes`` (vertical, one period only),
+        ``checker`` (hard checkerboard) or ``natural`` (a patch of a photo from scikit-image's data).
     seed : int
         Textures and motion phases.
     """
@@ -240,6 +245,7 @@ class ArmsScene(_Built):
     sweep_fraction: float = 0.8
     wobble_m: float = 0.02
     sleeve_contrast: float = 0.35
+    sleeve_pattern: str = "checks"
     seed: int = 0
     kind = "arms"
 
@@ -251,27 +257,33 @@ class ArmsScene(_Built):
                              f"(background_m={self.background_m}).")
         if self.sweep_period_s <= 0:
             raise ValueError(f"ArmsScene.sweep_period_s must be positive, got {self.sweep_period_s}.")
+        if self.sleeve_pattern not in textures.SLEEVE_PATTERNS:
+            raise ValueError(f"ArmsScene.sleeve_pattern must be one of {', '.join(textures.SLEEVE_PATTERNS)}, "
+                             f"got {self.sleeve_pattern!r}.")
 
     @functools.lru_cache(maxsize=4)  # noqa: B019 -- frozen, hashable parameters; a handful of focal lengths
-    def build(self, focal_px: float) -> LayeredScene:
-        """The layers for a rig of focal length ``focal_px`` (textures are sampled for it)."""
+    def build(self, focal_px: float, resolution: tuple[int, int] = (128, 128)) -> LayeredScene:
+        """The layers for a rig of focal length ``focal_px`` and sensor ``resolution`` (textures are sampled
+        for the focal length; the motion spans the view)."""
         rng = np.random.default_rng([self.seed, 0xA5])
-        half_width = 64 / focal_px
+        half_width, half_height = resolution[0] / 2 / focal_px, resolution[1] / 2 / focal_px
         wall_texel = textures.texel_size(self.background_m, focal_px, texels_per_pixel=1.5)
-        wall_size = (2.6 * half_width * self.background_m + 0.4, 2.6 * half_width * self.background_m + 0.4)
+        wall_size = (2.6 * half_width * self.background_m + 0.4, 2.6 * half_height * self.background_m + 0.4)
         wall_i, wall_a = textures.wall(rng, wall_size, wall_texel,
                                        blur_texels=textures.OPTICS_BLUR_PX * 1.5)
         layers = [PlaneLayer("wall", wall_i, wall_a, wall_texel, Motion((0.0, 0.0, self.background_m)))]
         for k in range(self.arms):
             z = self.distance_m + 0.02 * k
             texel = textures.texel_size(z, focal_px)
+            # long enough to leave the view at the bottom (the fingertips are at -0.55 of the half-height)
             arm_i, arm_a = textures.arm(rng, texel, sleeve_contrast=self.sleeve_contrast,
+                                        pattern=self.sleeve_pattern, length_m=max(1.1, 1.7 * half_height * z),
                                         blur_texels=textures.OPTICS_BLUR_PX * 2)
             if k == 1:  # the other hand: mirrored, a lighter shirt
                 arm_i, arm_a = arm_i[:, ::-1].copy() * 1.3, arm_a[:, ::-1].copy()
             length = arm_i.shape[0] * texel
-            view_half = half_width * z
-            top = -0.55 * view_half  # fingertips in the upper part of the view
+            view_half, view_half_y = half_width * z, half_height * z
+            top = -0.55 * view_half_y  # fingertips in the upper part of the view
             amp = self.sweep_fraction * view_half
             phases = rng.uniform(0, 2 * np.pi, 4)
             start = phases[0] if k == 0 else phases[0] + np.pi  # two arms sweep against each other
@@ -279,7 +291,7 @@ class ArmsScene(_Built):
                 f"arm{k + 1}", arm_i, arm_a, texel,
                 Motion((0.0, top + length / 2, z), terms=(
                     (0, amp, self.sweep_period_s * (1 + 0.27 * k), start),
-                    (1, 0.08 * view_half, 2.3 + 0.4 * k, phases[1]),
+                    (1, 0.08 * view_half_y, 2.3 + 0.4 * k, phases[1]),
                     (2, 0.7 * self.wobble_m, 3.1 + 0.5 * k, phases[2]),
                     (2, 0.3 * self.wobble_m, 1.3, phases[3]),
                 )),
@@ -311,8 +323,9 @@ class RotationScene(_Built):
     kind = "rotation"
 
     @functools.lru_cache(maxsize=4)  # noqa: B019 -- frozen, hashable parameters; a handful of focal lengths
-    def build(self, focal_px: float) -> LayeredScene:
-        """The layers for a rig of focal length ``focal_px``."""
+    def build(self, focal_px: float, resolution: tuple[int, int] = (128, 128)) -> LayeredScene:
+        """The layers for a rig of focal length ``focal_px`` (the room is larger than any view: ``resolution``
+        does not change it)."""
         rng = np.random.default_rng([self.seed, 0x5A])
         blur = textures.OPTICS_BLUR_PX * 1.5
         x0, x1, z0, z1, y_floor, y_ceiling = -2.5, 2.5, -3.0, 3.5, 1.2, -1.4
@@ -446,4 +459,5 @@ class MotorcycleScene:
                 "disparity_scale": self.scale}
 
 
-SCENES = {"arms": ArmsScene, "rotation": RotationScene, "motorcycle": MotorcycleScene}
+#: Scene name -> parameter class, as ``cvstereo simulate --scene`` offers them.
+SCENES = {"arms": ArmsScene, "rotation": RotationScene, "motorcycle": MotorcycleScene, "fan": FanScene}

@@ -14,6 +14,15 @@ import numpy as np
 #: silhouette cross a pixel over two render steps or more, so that event timestamps follow the edge.
 OPTICS_BLUR_PX = 0.6
 
+#: Patterns of the arm's sleeve (:func:`arm`).
+SLEEVE_PATTERNS = ("checks", "stripes", "checker", "natural")
+
+#: Photos of scikit-image's data that ``natural`` sleeves take a patch from (shipped with it, no download).
+NATURAL_IMAGES = ("camera", "grass", "gravel", "brick", "coins", "moon")
+
+#: Metres per photo pixel on a ``natural`` sleeve (a 512-pixel photo spans 1 m).
+NATURAL_PIXEL_M = 0.002
+
 
 def texel_size(distance_m: float, focal_px: float, *, texels_per_pixel: float = 2.0) -> float:
     """Metres per texel for a texture seen from ``distance_m``: ``texels_per_pixel`` texels per sensor pixel."""
@@ -50,7 +59,8 @@ def smooth_noise(rng: np.random.Generator, shape: tuple[int, int], scale_texels:
 
 
 def arm(rng: np.random.Generator, texel_m: float, *, sleeve_contrast: float = 0.35, sleeve_level: float = 0.30,
-        skin_level: float = 0.65, length_m: float = 1.1, blur_texels: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+        skin_level: float = 0.65, length_m: float = 1.1, pattern: str = "checks",
+        blur_texels: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """A raised forearm and hand, fingers up, seen from the palm side: (intensity, alpha).
 
     The texture's top row is just above the fingertips; the sleeve (a checked shirt, shaded like a
@@ -63,10 +73,15 @@ def arm(rng: np.random.Generator, texel_m: float, *, sleeve_contrast: float = 0.
     texel_m : float
         Metres per texel.
     sleeve_contrast : float
-        Relative amplitude of the shirt's check pattern; sets how many events the sleeve gives.
+        Relative amplitude of the shirt's pattern; sets how many events the sleeve gives.
     sleeve_level, skin_level : float
         Mean linear intensities of sleeve and skin.
     length_m : float
+    pattern : str
+        One of :data:`SLEEVE_PATTERNS`: ``checks`` a soft plaid (two square waves of 28 mm crossing);
+        ``stripes`` vertical stripes of 28 mm (one period: stereo's repetitive case); ``checker`` a hard
+        checkerboard of 14 mm squares; ``natural`` a patch of one of :data:`NATURAL_IMAGES`. All have the
+        plaid's standard deviation, so ``sleeve_contrast`` means the same.
     blur_texels : float
         Optical blur (texels).
 
@@ -105,11 +120,8 @@ def arm(rng: np.random.Generator, texel_m: float, *, sleeve_contrast: float = 0.
     sleeve_a = sleeve.astype(np.float32) / 255
     yy, xx = np.mgrid[0:h, 0:w].astype(np.float32) * texel_m
     xx -= (w - 1) / 2 * texel_m
-    period = 0.028
     phase = rng.uniform(0, 2 * np.pi, 2)
-    # A checked shirt: two square waves (softened) crossing, plus folds (low-frequency shading)
-    checks = (np.tanh(3 * np.sin(2 * np.pi * xx / period + phase[0]))
-              + np.tanh(3 * np.sin(2 * np.pi * yy / period + phase[1]))) / 2
+    checks = sleeve_pattern(pattern, xx, yy, phase, texel_m)
     folds = smooth_noise(rng, (h, w), 0.02 / texel_m)
     # cylinder shading across the sleeve: a lit centre line, darker flanks
     shade = 0.75 + 0.25 * np.cos(np.clip(xx / half, -1, 1) * np.pi / 2)
@@ -117,6 +129,52 @@ def arm(rng: np.random.Generator, texel_m: float, *, sleeve_contrast: float = 0.
     value = value * (1 - sleeve_a) + sleeve_v * sleeve_a
     alpha = np.maximum(alpha, sleeve_a)
     return blur(np.clip(value, 0.0, None), alpha, blur_texels)
+
+
+def sleeve_pattern(pattern: str, xx: np.ndarray, yy: np.ndarray, phase: np.ndarray, texel_m: float) -> np.ndarray:
+    """A shirt's pattern around zero, at metric coordinates ``xx``, ``yy`` (H, W), phases ``phase`` (2,).
+
+    See :func:`arm`. The phases (drawn by the caller for every pattern, so that the random stream after
+    them does not depend on the pattern) shift the pattern, and pick the photo and patch for ``natural``.
+    """
+    period = 0.028
+    sx = np.tanh(3 * np.sin(2 * np.pi * xx / period + phase[0]))
+    sy = np.tanh(3 * np.sin(2 * np.pi * yy / period + phase[1]))
+    checks = (sx + sy) / 2  # the presets' plaid: two softened square waves crossing
+    if pattern == "checks":
+        return checks
+    if pattern == "stripes":
+        out = sx
+    elif pattern == "checker":
+        out = np.tanh(3 * np.sin(np.pi * xx / period + phase[0])) * np.tanh(3 * np.sin(np.pi * yy / period + phase[1]))
+    elif pattern == "natural":
+        out = natural_patch(xx, yy, phase, texel_m)
+    else:
+        raise ValueError(f"unknown sleeve pattern {pattern!r}; choose one of {', '.join(SLEEVE_PATTERNS)}.")
+    out = out - out.mean()
+    return (out * (checks.std() / max(float(out.std()), 1e-9))).astype(np.float32)
+
+
+def natural_patch(xx: np.ndarray, yy: np.ndarray, phase: np.ndarray, texel_m: float) -> np.ndarray:
+    """A patch of a scikit-image photo, :data:`NATURAL_PIXEL_M` metres per photo pixel, sampled at ``xx``, ``yy``.
+
+    ``phase[0]`` picks the photo, ``phase[1]`` where the patch starts; the photo is mirrored at its borders.
+    """
+    from skimage import data
+
+    name = NATURAL_IMAGES[int(phase[0] / (2 * np.pi) * len(NATURAL_IMAGES)) % len(NATURAL_IMAGES)]
+    img = getattr(data, name)().astype(np.float32)
+    if img.ndim == 3:
+        img = img.mean(axis=2)
+    img = ((img / 255) ** 2.2).astype(np.float32)  # sRGB to linear
+    # smooth to the texel size first when texels are coarser than the photo's pixels (no aliasing)
+    if texel_m > NATURAL_PIXEL_M:
+        img = cv2.GaussianBlur(img, (0, 0), 0.5 * texel_m / NATURAL_PIXEL_M, borderType=cv2.BORDER_REFLECT)
+    start = phase[1] / (2 * np.pi) * img.shape[1]
+    map_x = (xx - xx.min()) / NATURAL_PIXEL_M + start
+    map_y = (yy - yy.min()) / NATURAL_PIXEL_M
+    return cv2.remap(img, map_x.astype(np.float32), map_y.astype(np.float32), cv2.INTER_LINEAR,
+                     borderMode=cv2.BORDER_REFLECT_101)
 
 
 def wall(rng: np.random.Generator, size_m: tuple[float, float], texel_m: float, *, level: float = 0.55,
