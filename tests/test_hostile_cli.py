@@ -338,6 +338,12 @@ CASES = {
     "video-window-nan": _c("video rec.npz -o v.mp4 --window-ms nan", 1, "--window-ms"),
     "match-packet-zero": _c("match rec.npz -o m2.npz --packet-us 0", 1, "--packet-us"),
     "match-packet-negative": _c("match rec.npz -o m2.npz --packet-us -5", 1, "--packet-us"),
+    "match-row-offset-huge": _c("match rec.npz -o m2.npz --row-offset 999999999999", 1, ("--row-offset", "127")),
+    "match-row-offset-sensor": _c("match rec.npz -o m2.npz --row-offset -128", 1, "--row-offset"),
+    "match-time-offset-huge": _c("match rec.npz -o m2.npz --time-offset-us 99999999999999999999", 1,
+                                 "--time-offset-us"),
+    "match-time-offset-negative-huge": _c("match rec.npz -o m2.npz --time-offset-us -99999999999999999999", 1,
+                                          "--time-offset-us"),
 }
 
 

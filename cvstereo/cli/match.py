@@ -25,6 +25,9 @@ from cvstereo.cli._common import (
 )
 from cvstereo.cli._text import number
 
+#: Largest --time-offset-us either way: a day (real rigs are off by milliseconds).
+MAX_TIME_OFFSET_US = 86_400_000_000
+
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p = sub.add_parser(
@@ -75,6 +78,9 @@ def run(args: argparse.Namespace) -> int:
     # Validate variant and values before reading a possibly long recording.
     cls.make_params(args.variant, **overrides)
     require_range(args.packet_us, "--packet-us", gt=0)
+    if args.time_offset_us is not None and abs(args.time_offset_us) > MAX_TIME_OFFSET_US:
+        raise ValueError(f"--time-offset-us must be within +-{MAX_TIME_OFFSET_US:,} us (a day), got "
+                         f"{args.time_offset_us:,}.")
     refuse_other_format(args.output, "a matches file (.npz)", ".npz")
     check_files([args.recording, args.right], [args.output])
     if args.depth is not None:
@@ -83,6 +89,10 @@ def run(args: argparse.Namespace) -> int:
     from cvstereo.cli._common import load_recording
 
     recording = load_recording(args)
+    height = recording.resolution[1]
+    if args.row_offset is not None and abs(args.row_offset) >= height:
+        raise ValueError(f"--row-offset must be within +-{height - 1} rows (the sensor is {height} rows high), "
+                         f"got {args.row_offset}.")
     depth = depth_model(args, recording)
     recording, rig, offsets = _rig_correction(args, recording)
     progress = sys.stderr.isatty() if args.progress is None else args.progress
