@@ -157,8 +157,9 @@ def evaluate(recording: Recording, matches, meta: Mapping | None = None) -> dict
     meta = dict(meta or {})
     anchor = meta.get("anchor", "event")
     window_us = meta.get("window_us", 0) or 0
-    if not isinstance(window_us, int | np.integer) or isinstance(window_us, bool):
-        raise ValueError(f"meta 'window_us' must be an integer number of microseconds, got {window_us!r}.")
+    integral = isinstance(window_us, int | np.integer) or (isinstance(window_us, float) and window_us.is_integer())
+    if not integral or isinstance(window_us, bool) or not 0 <= window_us <= 2**62:
+        raise ValueError(f"meta 'window_us' must be a whole number of microseconds >= 0, got {window_us!r}.")
     window_us = int(window_us)
     check_matches(recording, matches)
     disp = matches["disparity"].astype(np.float64)

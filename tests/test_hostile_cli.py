@@ -326,6 +326,8 @@ CASES = {
     "plot-start-nan": _c("plot events rec.npz -o p.png --t-start-ms nan", 1, "--t-start-ms"),
     "plot-start-negative": _c("plot events rec.npz -o p.png --t-start-ms -5", 1, "--t-start-ms"),
     "plot-start-huge": _c("plot events rec.npz -o p.png --t-start-ms 1e300", 1, "--t-start-ms"),
+    "plot-map-window-us-str": _c("plot disparity-map rec.npz m_wusabc.npz -o p.png", 1, "m_wusabc.npz"),
+    "plot-error-hist-no-truth": _c("plot error-hist bare.npz m.npz -o p.png", 1, ("bare.npz", "ground truth")),
     "plot-windows-zero": _c("plot disparity-map rec.npz m.npz -o p.png --windows 0", 1, "--windows"),
     "plot-windows-huge": _c("plot disparity-map rec.npz m.npz -o p.png --windows 100000", 1, "--windows"),
     "video-fps-zero": _c("video rec.npz -o v.mp4 --fps 0", 1, "--fps"),

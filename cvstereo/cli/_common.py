@@ -91,7 +91,7 @@ def check_files(inputs: Iterable, outputs: Iterable = (), *, option: str = "-o")
 
 @contextlib.contextmanager
 def naming(*paths) -> Iterator[None]:
-    """Prefix the first path to a ValueError/OSError raised inside that names none of ``paths``."""
+    """Prefix ``paths`` (those given) to a ValueError/OSError raised inside that names none of them."""
     names = [os.fspath(p) for p in paths if p is not None]
     try:
         yield
@@ -99,7 +99,7 @@ def naming(*paths) -> Iterator[None]:
         text = str(exc)
         if not names or any(n in text or os.path.basename(n) in text for n in names):
             raise
-        message = f"{names[0]}: {text or type(exc).__name__}"
+        message = f"{', '.join(names)}: {text or type(exc).__name__}"
         try:
             renamed = type(exc)(message)
         except Exception:  # an exception class with another signature: keep the family

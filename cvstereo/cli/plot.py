@@ -114,7 +114,9 @@ def run(args: argparse.Namespace) -> int:
     result = load_matches(args.matches) if args.matches is not None else None
     depth = picture_depth(args, recording, result)
     if args.kind != "all":
-        save_figure(make_figure(args.kind, recording, result, args, depth), args.output, dpi=args.dpi)
+        with naming(args.recording, args.matches):
+            figure = make_figure(args.kind, recording, result, args, depth)
+        save_figure(figure, args.output, dpi=args.dpi)
         print(f"{args.kind} -> {args.output}")
         return 0
     folder.mkdir(parents=True, exist_ok=True)
@@ -126,7 +128,9 @@ def run(args: argparse.Namespace) -> int:
             print(f"{kind}: skipped (the recording has no ground truth)")
             continue
         path = folder / f"{kind}.png"
-        save_figure(make_figure(kind, recording, result, args, depth), path, dpi=args.dpi)
+        with naming(args.recording, args.matches):
+            figure = make_figure(kind, recording, result, args, depth)
+        save_figure(figure, path, dpi=args.dpi)
         print(f"{kind} -> {path}")
     return 0
 
