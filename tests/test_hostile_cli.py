@@ -462,6 +462,7 @@ def _env() -> dict:
     return {**os.environ, "PYTHONPATH": root + os.pathsep + os.environ.get("PYTHONPATH", "")}
 
 
+@pytest.mark.timeout(240)
 def test_info_into_head_exits_quietly(work):
     # More output than a pipe holds (64 KiB), so that writes fail once the reader has gone.
     cmd = [sys.executable, "-m", "cvstereo", "info", *["rec.npz", "m.npz"] * 300]
@@ -514,11 +515,12 @@ sys.exit(main(sys.argv[1:]))
 def _start_slow(work: Path, *argv: str) -> subprocess.Popen:
     proc = subprocess.Popen([sys.executable, "-c", _SLOW_WRITER, *argv], cwd=work, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=_env())
-    line = proc.stdout.readline()
+    line = proc.stdout.readline()  # blocks until the writer stalls (or the process ends)
     assert line.strip().endswith("WRITING"), (line, proc.stderr.read() if proc.poll() is not None else "")
     return proc
 
 
+@pytest.mark.timeout(240)  # a fresh interpreter may compile the matcher's kernels first: slow on a busy machine
 @pytest.mark.parametrize("argv", [("convert", "rec.npz", "-o", "out.npz"),
                                   ("match", "rec.npz", "-o", "out.npz"),
                                   ("video", "rec.npz", "m.npz", "-o", "out.mp4", "--scale", "1")],
@@ -529,7 +531,7 @@ def test_signal_mid_write_leaves_no_temporary(work, argv, sig):
     proc = _start_slow(work, *argv)
     assert _leftovers(work), "the slow writer should have a temporary file open"
     proc.send_signal(sig)
-    _, err = proc.communicate(timeout=60)
+    _, err = proc.communicate(timeout=120)
     assert proc.returncode == 128 + sig, err
     assert "Traceback" not in err and f"stopped by {signal.Signals(sig).name}" in err
     assert not _leftovers(work)
@@ -537,6 +539,7 @@ def test_signal_mid_write_leaves_no_temporary(work, argv, sig):
     assert _snapshot(work) == before
 
 
+@pytest.mark.timeout(240)
 def test_sigkill_mid_write_is_cleaned_up_by_the_next_run(work):
     proc = _start_slow(work, "match", "rec.npz", "-o", "out.npz")
     assert _leftovers(work)
