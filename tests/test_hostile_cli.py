@@ -551,6 +551,15 @@ def test_sigkill_mid_write_is_cleaned_up_by_the_next_run(work):
     assert read_matches(work / "out.npz").matches.size
 
 
+def test_info_summarises_a_matches_file(work, capsys):
+    assert main(["info", "m.npz"]) == 0
+    out = capsys.readouterr().out
+    disparity = read_matches(work / "m.npz").disparity
+    assert f"{disparity.size:,} matches" in out and "method frame" in out
+    assert f"median {np.median(disparity):.2f} px" in out
+    assert f"rec.npz ({read_recording(work / 'rec.npz').left.size * 2:,} events)" in out
+
+
 def test_evaluate_accepts_a_renamed_copy_of_the_recording(work, capsys):
     # The refusal is about the recording (event count, sensor), not its file name.
     shutil.copy(work / "rec.npz", work / "renamed.npz")

@@ -33,8 +33,10 @@ def run(args: argparse.Namespace) -> int:
         check_files([path])
         with naming(path):
             matches = _matches_file(path, options)
-            lines = describe_matches(path, matches) if matches is not None else describe(open_recording(path,
-                                                                                                         **options))
+            if matches is not None:
+                lines = describe_matches(path, matches)
+            else:
+                lines = describe(open_recording(path, **options))
         if k:
             print()
         print("\n".join(lines))
@@ -70,6 +72,7 @@ def describe_matches(path, result) -> list[str]:
         d50, d5, d95 = np.percentile(result.disparity, [50, 5, 95])
         lines.append(f"  disparity: median {number(d50)} px, 5-95 % {number(d5, '.1f')}..{number(d95, '.1f')} px")
     return [printable(line, collapse=False) for line in lines]
+
 
 def describe(stream) -> list[str]:
     """Lines describing a :class:`~cvstereo.io.stream.RecordingStream` (header lines, then a table)."""
