@@ -32,6 +32,21 @@ class DepthModel:
     a: float
     c: float = 0.0
 
+    def __post_init__(self):
+        # A zero, negative or infinite a gives "distance 0.00 m" (or nonsense) for every match: refuse it here,
+        # where every model is made (--depth, a rig's meta, a fit).
+        try:
+            a, c = float(self.a), float(self.c)
+        except (TypeError, ValueError):
+            raise ValueError(f"depth model d = a/Z - c needs numbers, got a={self.a!r}, c={self.c!r}.") from None
+        if not (np.isfinite(a) and a > 0):
+            raise ValueError(f"depth model d = a/Z - c: a (focal length px x baseline m) must be a finite number "
+                             f"> 0, got {a:g}.")
+        if not np.isfinite(c):
+            raise ValueError(f"depth model d = a/Z - c: c (px) must be a finite number, got {c:g}.")
+        object.__setattr__(self, "a", a)
+        object.__setattr__(self, "c", c)
+
     @classmethod
     def from_rig(cls, *, focal_px: float, baseline_m: float, offset_px: float = 0.0) -> DepthModel:
         """The model of a rig with known focal length, baseline and axis offset."""
@@ -70,7 +85,8 @@ def fit_depth_model(distances_m, disparities_px, *, weights=None) -> DepthModel:
     Raises
     ------
     ValueError
-        Fewer than two distinct distances, non-positive distances, mismatched lengths, or non-finite values.
+        Fewer than two distinct distances, non-positive distances, mismatched lengths, non-finite values, or
+        disparities that do not shrink with distance (no model d = a/Z - c with a > 0 fits them).
     """
     z = np.asarray(distances_m, dtype=np.float64).ravel()
     d = np.asarray(disparities_px, dtype=np.float64).ravel()
@@ -84,8 +100,14 @@ def fit_depth_model(distances_m, disparities_px, *, weights=None) -> DepthModel:
         raise ValueError("fitting a and c needs recordings at two or more different distances.")
     # Linear in (a, c): d = a * (1/Z) - c.
     design = np.column_stack([1.0 / z, -np.ones_like(z)])
+    if np.ptp(d) == 0:
+        raise ValueError(f"every disparity is {d[0]:g} px at every distance: distance cannot be told from "
+                         "disparity; check the files and the distances given.")
     if weights is not None:
         w = np.sqrt(np.asarray(weights, dtype=np.float64).ravel())
         design, d = design * w[:, None], d * w
     (a, c), *_ = np.linalg.lstsq(design, d, rcond=None)
+    if not a > 0:
+        raise ValueError(f"the disparities grow with distance (fit: a = {a:.4g} <= 0); nearer objects must have "
+                         "larger disparities: check the distances given (or the cameras are swapped).")
     return DepthModel(a=float(a), c=float(c))

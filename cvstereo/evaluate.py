@@ -156,7 +156,12 @@ def evaluate(recording: Recording, matches, meta: Mapping | None = None) -> dict
         matches = matches.matches
     meta = dict(meta or {})
     anchor = meta.get("anchor", "event")
-    window_us = int(meta.get("window_us", 0) or 0)
+    window_us = meta.get("window_us", 0) or 0
+    integral = isinstance(window_us, int | np.integer) or (isinstance(window_us, float) and window_us.is_integer())
+    if not integral or isinstance(window_us, bool) or not 0 <= window_us <= 2**62:
+        raise ValueError(f"meta 'window_us' must be a whole number of microseconds >= 0, got {window_us!r}.")
+    window_us = int(window_us)
+    check_matches(recording, matches)
     disp = matches["disparity"].astype(np.float64)
     n = int(disp.size)
     fig = dict.fromkeys(FIGURES, math.nan)
@@ -185,7 +190,7 @@ def evaluate(recording: Recording, matches, meta: Mapping | None = None) -> dict
         fig["median_ae"] = float(np.median(err))
         fig["bad1"] = float(np.mean(err > 1.0))
         fig["bad2"] = float(np.mean(err > 2.0))
-    cameras = meta.get("anchor_cameras")
+    cameras = _anchor_cameras(meta.get("anchor_cameras"))
     if cameras is None:
         cameras = sorted({int(c) for c in np.unique(matches["camera"])}) or [0, 1]
     possible = covered = 0
@@ -198,6 +203,63 @@ def evaluate(recording: Recording, matches, meta: Mapping | None = None) -> dict
     if possible:
         fig["coverage"] = covered / possible
     return fig
+
+
+def check_matches(recording: Recording, matches: np.ndarray) -> None:
+    """Refuse matches that cannot be scored on ``recording``: a pixel outside its sensor (it would be scored
+    against another pixel's truth) or a disparity that is NaN or infinite.
+
+    Raises
+    ------
+    ValueError
+        Naming the first bad match's index and values.
+    """
+    w, h = recording.resolution
+    outside = np.flatnonzero((matches["x"] < 0) | (matches["x"] >= w) | (matches["y"] < 0) | (matches["y"] >= h))
+    if outside.size:
+        i = int(outside[0])
+        raise ValueError(f"match {i} is at pixel x={int(matches['x'][i])}, y={int(matches['y'][i])}, outside the "
+                         f"recording's {w}x{h} sensor ({outside.size:,} such matches); is it the right recording?")
+    bad = np.flatnonzero(~np.isfinite(matches["disparity"]))
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(f"match {i} has disparity {float(matches['disparity'][i])} ({bad.size:,} matches are NaN or "
+                         "infinite); a matches file holds finite disparities in px.")
+
+
+def _anchor_cameras(value) -> list[int] | None:
+    if value is None:
+        return None
+    ok = isinstance(value, list | tuple) and 0 < len(value) <= 2 and len(set(map(repr, value))) == len(value) \
+        and all(isinstance(c, int | np.integer) and not isinstance(c, bool) and c in (0, 1) for c in value)
+    if not ok:
+        raise ValueError(f"meta 'anchor_cameras' must list the cameras 0 and/or 1 once each, got {value!r}.")
+    return [int(c) for c in value]
+
+
+def check_same_recording(recording: Recording, meta: Mapping) -> None:
+    """Refuse scoring matches computed on another recording: the event count and sensor size stored in the
+    matches' meta (``input_events``, ``resolution``) must be the recording's.
+
+    Raises
+    ------
+    ValueError
+        Saying what differs and which input the matches file names.
+    """
+    source = meta.get("input")
+    source = ", ".join(map(str, source)) if isinstance(source, list) else source
+    where = f" (the matches file names {source} as its input)" if source else ""
+    n = int(recording.left.size + recording.right.size)
+    stored = meta.get("input_events")
+    if stored is not None and stored != n:
+        raise ValueError(f"the matches were computed on {stored} events but this recording has {n:,}{where}: "
+                         "they come from another recording (or a clip of it); give the recording they were "
+                         "computed on, or --force to score them anyway.")
+    res = meta.get("resolution")
+    if res is not None and list(res) != list(recording.resolution):
+        w, h = recording.resolution
+        raise ValueError(f"the matches were computed on a {res} sensor, this recording is {w}x{h}{where}; give "
+                         "the recording they were computed on, or --force to score them anyway.")
 
 
 def to_json(figures: Mapping, **kwargs) -> str:

@@ -1,14 +1,21 @@
 """The ``cvstereo`` command line: one module per subcommand, each with ``add_parser`` and ``run``.
 
 User errors (bad files, bad values, missing extras, unplugged sensors) print one line on stderr and exit
-1; usage errors exit 2 (argparse); nothing prints a traceback.
+1; usage errors exit 2 (argparse); nothing prints a traceback. File names and contents in messages are
+escaped (no raw terminal codes). SIGTERM and SIGHUP stop a command like Ctrl-C does (temporary files are
+removed; exit 128 + signal number); a closed stdout (``cvstereo info a b | head -1``) ends it quietly (141).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import os
+import select
+import signal
 import sys
+import threading
 
 import cvstereo
 
@@ -45,20 +52,89 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP arrived: raised in the main thread so that cleanup (``finally``, ``except
+    BaseException``) runs as for Ctrl-C; code that stops gracefully on KeyboardInterrupt stops so here too."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+#: Signals that stop a command through :class:`Terminated`.
+STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated(signum)
+
+
+@contextlib.contextmanager
+def _stop_signals_raise():
+    """Turn SIGTERM/SIGHUP into :class:`Terminated` while a command runs (main thread only); restore after."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {s: signal.signal(s, _raise_terminated) for s in STOP_SIGNALS}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; return the exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return int(args._run(args) or 0)
+        with _stop_signals_raise():
+            return int(args._run(args) or 0)
+    except Terminated as exc:
+        print(f"cvstereo {args.command}: stopped by {signal.Signals(exc.signum).name}", file=sys.stderr)
+        return 128 + exc.signum
     except KeyboardInterrupt:
         print("cvstereo: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError as exc:
+        if _stdout_closed():
+            return 141  # as a shell reports a reader gone (128 + SIGPIPE); nothing to say: nobody reads
+        print(f"cvstereo {args.command}: error: {_one_line(exc)}", file=sys.stderr)
+        return 1
     except (ValueError, OSError, ImportError, TimeoutError, RuntimeError) as exc:
         print(f"cvstereo {args.command}: error: {_one_line(exc)}", file=sys.stderr)
         return 1
 
 
+def _stdout_closed() -> bool:
+    """Whether stdout's reader has gone; if so, point stdout at /dev/null so that the final flush at exit
+    does not fail again (the Python docs' recipe for SIGPIPE)."""
+    try:
+        sys.stdout.flush()
+    except BrokenPipeError:
+        closed = True
+    except (OSError, ValueError):
+        closed = False
+    else:
+        closed = _pipe_reader_gone()
+    if closed:
+        with contextlib.suppress(OSError, ValueError, AttributeError):
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+            os.close(devnull)
+    return closed
+
+
+def _pipe_reader_gone() -> bool:
+    try:
+        poller = select.poll()
+        poller.register(sys.stdout.fileno(), 0)  # POLLERR is reported on a pipe with no reader
+        return any(ev & select.POLLERR for _, ev in poller.poll(0))
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
 def _one_line(exc: BaseException) -> str:
-    text = str(exc) or type(exc).__name__
-    return " ".join(text.split())
+    from cvstereo.cli._text import printable
+
+    return printable(str(exc) or type(exc).__name__)

@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import math
+import os
+from collections.abc import Iterable, Iterator
 
 
 def add_recording_arguments(parser: argparse.ArgumentParser, *, right: bool = True) -> None:
@@ -48,10 +52,72 @@ def format_options(args: argparse.Namespace) -> dict:
 
 
 def load_recording(args: argparse.Namespace, path_attr: str = "recording"):
-    """Read the recording named on the command line with its format options."""
+    """Read the recording named on the command line with its format options (errors name the file)."""
     from cvstereo.io import read_recording
 
-    return read_recording(getattr(args, path_attr), getattr(args, "right", None), **format_options(args))
+    path, right = getattr(args, path_attr), getattr(args, "right", None)
+    check_files([path, right])
+    with naming(path, right):
+        return read_recording(path, right, **format_options(args))
+
+
+def load_matches(path: str | os.PathLike):
+    """Read a matches file named on the command line (errors name the file)."""
+    from cvstereo.io import read_matches
+
+    check_files([path])
+    with naming(path):
+        return read_matches(path)
+
+
+def check_files(inputs: Iterable, outputs: Iterable = (), *, option: str = "-o") -> None:
+    """Before reading anything: every input is a regular file, and no output is one of the inputs.
+
+    Raises
+    ------
+    OSError
+        An input is missing, a folder, a FIFO or a device (said as such).
+    cvstereo.io._paths.OutputIsInputError
+        An output resolves (through symlinks or hard links too) to an input.
+    """
+    from cvstereo.io._paths import refuse_output_over_input, require_input_file
+
+    inputs = [p for p in inputs if p is not None]
+    for path in inputs:
+        require_input_file(path)
+    for out in outputs:
+        refuse_output_over_input(out, inputs, option=option)
+
+
+@contextlib.contextmanager
+def naming(*paths) -> Iterator[None]:
+    """Prefix ``paths`` (those given) to a ValueError/OSError raised inside that names none of them."""
+    names = [os.fspath(p) for p in paths if p is not None]
+    try:
+        yield
+    except (ValueError, OSError) as exc:
+        text = str(exc)
+        if not names or any(n in text or os.path.basename(n) in text for n in names):
+            raise
+        message = f"{', '.join(names)}: {text or type(exc).__name__}"
+        try:
+            renamed = type(exc)(message)
+        except Exception:  # an exception class with another signature: keep the family
+            renamed = (OSError if isinstance(exc, OSError) else ValueError)(message)
+        raise renamed from exc
+
+
+def require_range(value, option: str, *, gt: float | None = None, ge: float | None = None,
+                  le: float | None = None) -> None:
+    """Raise a ValueError naming ``option`` and its limits unless ``value`` is finite and within them."""
+    if value is None:
+        return
+    ok = isinstance(value, int | float) and math.isfinite(value)
+    ok = ok and (gt is None or value > gt) and (ge is None or value >= ge) and (le is None or value <= le)
+    if not ok:
+        limits = [f"> {gt:g}" if gt is not None else None, f">= {ge:g}" if ge is not None else None,
+                  f"<= {le:g}" if le is not None else None]
+        raise ValueError(f"{option} must be a finite number {' and '.join(x for x in limits if x)}, got {value:g}.")
 
 
 def add_depth_options(p: argparse.ArgumentParser) -> None:
@@ -67,10 +133,23 @@ def add_depth_options(p: argparse.ArgumentParser) -> None:
 def depth_model(args: argparse.Namespace, recording):
     """The DepthModel the options ask for, or None."""
     from cvstereo.depth import DepthModel
-    from cvstereo.viz import depth_from_meta
 
     if not args.metres:
         return None
     if args.depth is not None:
-        return DepthModel(a=args.depth[0], c=args.depth[1])
-    return depth_from_meta(recording.meta)
+        try:
+            return DepthModel(a=args.depth[0], c=args.depth[1])
+        except ValueError as exc:
+            raise ValueError(f"--depth A C: {exc}") from None
+    return meta_depth(recording.meta, getattr(args, "recording", None) or "the recording")
+
+
+def meta_depth(meta, source):
+    """The depth model stored in a file's meta (rig or ``depth``), or None; a bad one names ``source``."""
+    from cvstereo.viz import depth_from_meta
+
+    try:
+        return depth_from_meta(meta)
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"{source}: its meta holds no valid depth model ({exc}); give --depth A C or "
+                         "--no-metres.") from None

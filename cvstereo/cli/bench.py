@@ -25,6 +25,10 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
+    out = Path(args.output)
+    if out.exists() and not out.is_dir():
+        raise NotADirectoryError(f"-o {out}: exists and is not a folder; bench writes results.json and results.md "
+                                 "into a folder.")
     import cv2
 
     from cvstereo.benchmark import BenchConfig, run_bench, write_results

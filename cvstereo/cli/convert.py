@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from cvstereo.cli._common import add_format_options, format_options
+from cvstereo.cli._common import add_format_options, check_files, format_options, naming
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
@@ -31,30 +31,28 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cvstereo.io import open_recording, write_recording
+    from cvstereo.io import open_recording, output_format, write_recording
     from cvstereo.recording import Recording
 
-    to = args.to or ("edvs-text" if len(args.output) == 2 else None)
     if len(args.inputs) > 2 or len(args.output) > 2:
         return _usage("give at most two inputs (left, right) and two outputs (left, right)")
-    if (to == "edvs-text") != (len(args.output) == 2):
+    if args.to is not None and (args.to == "edvs-text") != (len(args.output) == 2):
         return _usage("--to edvs-text writes two files: give -o LEFT RIGHT (and only then two outputs)")
-    stream = open_recording(args.inputs[0], args.inputs[1] if len(args.inputs) == 2 else None,
-                            **format_options(args))
-    rec = stream.read()
+    right_out = args.output[1] if len(args.output) == 2 else None
+    # Everything about the outputs is checked before a possibly long read: format, names, inputs.
+    to = output_format(args.output[0], format=args.to, right=right_out)
+    check_files(args.inputs, args.output)
+    with naming(*args.inputs):
+        stream = open_recording(args.inputs[0], args.inputs[1] if len(args.inputs) == 2 else None,
+                                **format_options(args))
+        rec = stream.read()
     # The reader's decisions (left retina, one-based, ...) stay in meta, marked as the source's.
     meta = {**rec.meta, "converted_from": {"format": stream.format, "files": list(stream.files)}}
     rec = Recording(rec.left, rec.right, rec.left_disparity, rec.right_disparity, rec.resolution, meta)
-    write_recording(args.output[0], rec, format=to, right=args.output[1] if len(args.output) == 2 else None,
-                    left_retina=args.out_left_retina)
+    write_recording(args.output[0], rec, format=to, right=right_out, left_retina=args.out_left_retina)
     print(f"wrote {' and '.join(args.output)}: {rec.left.size:,} left and {rec.right.size:,} right events"
-          + (" (ground truth dropped: only .npz keeps it)" if rec.has_truth and not _is_npz(to, args.output[0])
-             else ""))
+          + (" (ground truth dropped: only .npz keeps it)" if rec.has_truth and to != "npz" else ""))
     return 0
-
-
-def _is_npz(to: str | None, path: str) -> bool:
-    return to == "npz" or (to is None and path.lower().endswith(".npz"))
 
 
 def _usage(message: str) -> int:

@@ -61,6 +61,9 @@ def _real_recordings(shared: Path) -> None:
 
 def run(args: argparse.Namespace) -> int:
     out = Path(args.output)
+    if out.exists() and not out.is_dir():
+        raise NotADirectoryError(f"-o {out}: exists and is not a folder; the demo writes its tables and figures "
+                                 "into a folder.")
     out.mkdir(parents=True, exist_ok=True)
     _real_recordings(shared_folder(args.shared))
     print()

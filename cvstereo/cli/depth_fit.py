@@ -4,6 +4,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
+
+from cvstereo.cli._common import check_files, naming
+from cvstereo.cli._text import number
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
@@ -27,8 +31,8 @@ def _point(text: str) -> tuple[str, float]:
         z = float(dist)
     except ValueError:
         z = float("nan")
-    if not sep or not path or not z > 0:
-        raise ValueError(f"'{text}' is not FILE:DISTANCE with a distance in metres > 0, e.g. arm50.npz:0.5.")
+    if not sep or not path or not (z > 0 and math.isfinite(z)):
+        raise ValueError(f"'{text}' is not FILE:DISTANCE with a finite distance in metres > 0, e.g. arm50.npz:0.5.")
     return path, z
 
 
@@ -43,21 +47,27 @@ def run(args: argparse.Namespace) -> int:
     points = [_point(p) for p in args.points]
     if len({z for _, z in points}) < 2:
         raise ValueError("give files at two or more different distances (d = a/Z - c has two unknowns).")
+    check_files([p for p, _ in points], [args.output])
     rows = []
     for path, z in points:
-        if path.endswith(".npz") and "matches" in npz_keys(path):
-            disparity = read_matches(path).disparity
-        else:
-            from calibration_free import match
+        with naming(path):
+            if path.endswith(".npz") and "matches" in npz_keys(path):
+                disparity = read_matches(path).disparity
+            else:
+                from calibration_free import match
 
-            disparity = match(read_recording(path), method=args.method, variant=args.variant).disparity
+                disparity = match(read_recording(path), method=args.method, variant=args.variant).disparity
         if disparity.size == 0:
             raise ValueError(f"{path}: no matches, so no disparity to fit; try another --method.")
         rows.append((path, z, float(np.median(disparity)), int(disparity.size)))
-    model = fit_depth_model([r[1] for r in rows], [r[2] for r in rows])
+    try:
+        model = fit_depth_model([r[1] for r in rows], [r[2] for r in rows])
+    except ValueError as exc:
+        medians = ", ".join(f"{p}: {d:.2f} px at {z:g} m" for p, z, d, _ in rows)
+        raise ValueError(f"no depth model fits the files' median disparities ({medians}): {exc}") from None
     print(f"{'file':40s} {'distance m':>10s} {'median d px':>11s} {'matches':>8s} {'fitted m':>9s}")
     for path, z, d, n in rows:
-        print(f"{path:40s} {z:10.3f} {d:11.2f} {n:8d} {float(model.distance(d)):9.3f}")
+        print(f"{path:40s} {z:10.3f} {d:11.2f} {n:8d} {number(model.distance(d), '.3f'):>9s}")
     print(f"a = {model.a:.4f} px m, c = {model.c:.4f} px   (use: --depth {model.a:.4f} {model.c:.4f})")
     if args.output:
         data = {**model.to_dict(), "points": [{"file": p, "distance_m": z, "median_disparity_px": d, "matches": n}

@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from cvstereo.cli._common import add_format_options, format_options
+from cvstereo.cli._common import add_format_options, check_files, format_options, load_matches, naming
+from cvstereo.cli._text import printable
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
@@ -20,18 +21,26 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p.add_argument("matches", metavar="MATCHES", help="matches .npz written by `cvstereo match`")
     p.add_argument("--right", default=None, help="the right camera's file, for one-file-per-camera formats")
     p.add_argument("--json", action="store_true", help="print a JSON object instead of a table")
+    p.add_argument("--force", action="store_true",
+                   help="score even when the matches file says it was computed on another recording (other "
+                   "event count or sensor size)")
     add_format_options(p)
     return p
 
 
 def run(args: argparse.Namespace) -> int:
-    from cvstereo.evaluate import FIGURES, evaluate, markdown_table, to_json
-    from cvstereo.io import read_matches, read_recording
+    from cvstereo.evaluate import FIGURES, check_same_recording, evaluate, markdown_table, to_json
+    from cvstereo.io import read_recording
     from cvstereo.thesis import thesis_disparity
 
-    recording = read_recording(args.recording, args.right, **format_options(args))
-    result = read_matches(args.matches)
-    figures = evaluate(recording, result)
+    check_files([args.recording, args.right, args.matches])
+    with naming(args.recording, args.right):
+        recording = read_recording(args.recording, args.right, **format_options(args))
+    result = load_matches(args.matches)
+    with naming(args.matches):
+        if not args.force:
+            check_same_recording(recording, result.meta)
+        figures = evaluate(recording, result)
     meta = result.meta
     if args.json:
         print(to_json({"recording": str(args.recording), "matches_file": str(args.matches),
@@ -40,8 +49,9 @@ def run(args: argparse.Namespace) -> int:
         return 0
     name = Path(args.recording).stem
     pub = thesis_disparity(str(meta.get("method")), str(meta.get("variant")), name)
-    print(f"method {meta.get('method')} ({meta.get('variant')}), anchor {meta.get('anchor')}, "
-          f"recording {args.recording}" + ("" if recording.has_truth else " (no ground truth: mean/std only)"))
+    print(printable(f"method {meta.get('method')} ({meta.get('variant')}), anchor {meta.get('anchor')}, "
+                    f"recording {args.recording}" + ("" if recording.has_truth else
+                                                     " (no ground truth: mean/std only)")))
     print(markdown_table({name: figures}, columns=[f for f in FIGURES if f != "truth_mean"] if recording.has_truth
                          else ["matches", "mean", "std", "events_per_s", "realtime_x"],
                          thesis={name: pub} if pub else None))

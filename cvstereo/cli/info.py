@@ -6,7 +6,8 @@ import argparse
 
 import numpy as np
 
-from cvstereo.cli._common import add_format_options, format_options
+from cvstereo.cli._common import add_format_options, check_files, format_options, naming
+from cvstereo.cli._text import number, printable
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
@@ -18,7 +19,8 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
         "formats that cannot say, which retina was taken as left and whether coordinates count from 1, "
         "with how that was decided. A file holding one camera is described on its own.",
     )
-    p.add_argument("files", metavar="FILE", nargs="+", help="recording files (.npz, .txt/.dat, .aedat)")
+    p.add_argument("files", metavar="FILE", nargs="+",
+                   help="recording files (.npz, .txt/.dat, .aedat); a matches .npz is summarised as such")
     add_format_options(p)
     return p
 
@@ -28,11 +30,48 @@ def run(args: argparse.Namespace) -> int:
 
     options = format_options(args)
     for k, path in enumerate(args.files):
-        stream = open_recording(path, **options)
+        check_files([path])
+        with naming(path):
+            matches = _matches_file(path, options)
+            if matches is not None:
+                lines = describe_matches(path, matches)
+            else:
+                lines = describe(open_recording(path, **options))
         if k:
             print()
-        print("\n".join(describe(stream)))
+        print("\n".join(lines))
     return 0
+
+
+def _matches_file(path, options: dict):
+    """The MatchResult when ``path`` is a matches .npz (written by `cvstereo match`), else None."""
+    from cvstereo.io import read_matches
+    from cvstereo.io.npz import npz_keys
+
+    if options.get("format", "npz") != "npz" or not str(path).lower().endswith(".npz"):
+        return None
+    keys = npz_keys(path)
+    return read_matches(path) if "matches" in keys and "left" not in keys else None
+
+
+def describe_matches(path, result) -> list[str]:
+    """Lines describing a matches file: method, what it was computed on, disparities."""
+    meta = result.meta
+    source = meta.get("input")
+    source = ", ".join(map(str, source)) if isinstance(source, list) else source
+    lines = [f"{path}: matches file (written by `cvstereo match`), method {meta.get('method', '?')} "
+             f"({meta.get('variant', '?')}), {len(result):,} matches"]
+    if source is not None or "input_events" in meta:
+        lines.append(f"  computed on {source or '?'}"
+                     + (f" ({int(meta['input_events']):,} events)" if isinstance(meta.get("input_events"), int)
+                        else ""))
+    anchor = meta.get("anchor")
+    lines.append(f"  anchors: {anchor or '?'}" + (f", windows of {meta.get('window_us')} us" if anchor == "window"
+                                                   else ""))
+    if len(result):
+        d50, d5, d95 = np.percentile(result.disparity, [50, 5, 95])
+        lines.append(f"  disparity: median {number(d50)} px, 5-95 % {number(d5, '.1f')}..{number(d95, '.1f')} px")
+    return [printable(line, collapse=False) for line in lines]
 
 
 def describe(stream) -> list[str]:
@@ -52,7 +91,7 @@ def describe(stream) -> list[str]:
         how = meta["left_retina_from"]
         if how == "detected":
             how = (f"detected: the retinas' event images overlay best {meta['overlay_shift_px']} px apart, "
-                   f"correlation {meta['overlay_score']:.2f}")
+                   f"correlation {number(meta['overlay_score'])}")
         else:
             how = _FROM[how]
         left = meta["left_retina"]
@@ -64,7 +103,8 @@ def describe(stream) -> list[str]:
         lines.append(f"  special (sync) events skipped: {meta['special_events']:,}")
     rows = [_camera_stats(name, stream) for name in stream.cameras]
     lines.extend("  " + line for line in _table(rows, truth=stream.has_truth))
-    return lines
+    # Names and meta come from the file: no raw terminal codes.
+    return [printable(line, collapse=False) for line in lines]
 
 
 _FROM = {"given": "given", "header": "from the file's header", "default": "default", "detected": "detected"}

@@ -9,12 +9,24 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import sys
 import typing
 
 import numpy as np
 
-from cvstereo.cli._common import add_depth_options, add_format_options, depth_model, format_options
+from cvstereo.cli._common import (
+    add_depth_options,
+    add_format_options,
+    check_files,
+    depth_model,
+    format_options,
+    require_range,
+)
+from cvstereo.cli._text import number
+
+#: Largest --time-offset-us either way: a day (real rigs are off by milliseconds).
+MAX_TIME_OFFSET_US = 86_400_000_000
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
@@ -65,10 +77,23 @@ def run(args: argparse.Namespace) -> int:
     overrides = parse_param_strings(cls.Params, args.param)  # ValueError listing the allowed names
     # Validate variant and values before reading a possibly long recording.
     cls.make_params(args.variant, **overrides)
+    require_range(args.packet_us, "--packet-us", gt=0)
+    if args.time_offset_us is not None and abs(args.time_offset_us) > MAX_TIME_OFFSET_US:
+        raise ValueError(f"--time-offset-us must be within +-{MAX_TIME_OFFSET_US:,} us (a day), got "
+                         f"{args.time_offset_us:,}.")
+    refuse_other_format(args.output, "a matches file (.npz)", ".npz")
+    check_files([args.recording, args.right], [args.output])
+    if args.depth is not None:
+        depth_model(args, None)  # a bad --depth is said before the matching, not after
     from calibration_free.run import DEFAULT_PACKET_US, match
     from cvstereo.cli._common import load_recording
 
     recording = load_recording(args)
+    height = recording.resolution[1]
+    if args.row_offset is not None and abs(args.row_offset) >= height:
+        raise ValueError(f"--row-offset must be within +-{height - 1} rows (the sensor is {height} rows high), "
+                         f"got {args.row_offset}.")
+    depth = depth_model(args, recording)
     recording, rig, offsets = _rig_correction(args, recording)
     progress = sys.stderr.isatty() if args.progress is None else args.progress
     result = match(recording, method=args.method, variant=args.variant, progress=progress,
@@ -78,7 +103,6 @@ def run(args: argparse.Namespace) -> int:
     result.meta["input"] = [args.recording] + ([args.right] if args.right else [])
     result.meta["format_options"] = {k: list(v) if isinstance(v, tuple) else v
                                      for k, v in format_options(args).items()}
-    depth = depth_model(args, recording)
     if depth is not None:
         # The matches format is a contract: distances are not a column; the model that gives them is in meta.
         result.meta["depth"] = depth.to_dict()
@@ -88,13 +112,24 @@ def run(args: argparse.Namespace) -> int:
           f"{m['elapsed_s']:.2f} s -> {args.output}")
     if len(result):
         d50, d5, d95 = np.percentile(result.disparity, [50, 5, 95])
-        line = f"disparity: median {d50:.2f} px, 5-95 % {d5:.1f}..{d95:.1f} px"
+        line = f"disparity: median {number(d50)} px, 5-95 % {number(d5, '.1f')}..{number(d95, '.1f')} px"
         if depth is not None:
             z50, z5, z95 = depth.distance([d50, d95, d5])  # larger disparity, nearer
-            line += (f"; distance: median {z50:.2f} m, 5-95 % {z5:.2f}..{z95:.2f} m "
-                     f"(d = {depth.a:.2f}/Z - {depth.c:.2f})")
+            line += (f"; distance: median {number(z50, '.2f', ' m')}, 5-95 % {number(z5)}..{number(z95, '.2f', ' m')}"
+                     f" (d = {depth.a:.2f}/Z - {depth.c:.2f})")
         print(line)
     return 0
+
+
+def refuse_other_format(path, what: str, *suffixes: str) -> None:
+    """Refuse an output name whose extension says another format than the one written (``-o m.txt`` for a
+    matches file would be read back as eDVS text). Names without a known extension (``/dev/null``) pass."""
+    from cvstereo.io import AEDAT_SUFFIXES, TEXT_SUFFIXES
+
+    suffix = os.path.splitext(os.fspath(path))[1].lower()
+    if suffix in (".npz", *TEXT_SUFFIXES, *AEDAT_SUFFIXES) and suffix not in suffixes:
+        raise ValueError(f"-o {path}: '{suffix}' names another format; this writes {what}: name it "
+                         f"{' or '.join(suffixes)}.")
 
 
 def _rig_correction(args: argparse.Namespace, recording):

@@ -8,19 +8,40 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from cvstereo.cli._common import add_depth_options, add_format_options, depth_model, format_options
+from cvstereo.cli._common import (
+    add_depth_options,
+    add_format_options,
+    check_files,
+    depth_model,
+    format_options,
+    load_matches,
+    meta_depth,
+    naming,
+    require_range,
+)
+
+#: Largest --dpi: print quality; a figure at 100000 dpi would need gigabytes.
+MAX_DPI = 1200
+#: Largest --windows of a disparity map (one row of pictures each).
+MAX_WINDOWS = 50
+#: Largest window and start time in ms (an hour; 10^13 ms keeps microseconds within int64).
+MAX_WINDOW_MS, MAX_TIME_MS = 3_600_000, 1e13
 
 
 def picture_depth(args: argparse.Namespace, recording, result):
     """The depth model for pictures: ``--depth``, else the one `cvstereo match` stored in the matches file, else
     the recording's rig; None with ``--no-metres``."""
-    from cvstereo.viz import depth_from_meta
-
     if args.metres and args.depth is None and result is not None:
-        stored = depth_from_meta(result.meta)
+        stored = meta_depth(result.meta, getattr(args, "matches", None) or "the matches file")
         if stored is not None:
             return stored
     return depth_model(args, recording)
+
+
+def check_window_options(args: argparse.Namespace) -> None:
+    """``--window-ms`` (and ``--t-start-ms`` where the command has it) finite and within their limits."""
+    require_range(args.window_ms, "--window-ms", gt=0, le=MAX_WINDOW_MS)
+    require_range(getattr(args, "t_start_ms", None), "--t-start-ms", ge=0, le=MAX_TIME_MS)
 
 #: Picture kind (also its file name under ``all``) -> (needs matches, what it shows).
 KINDS: dict[str, tuple[bool, str]] = {
@@ -69,24 +90,35 @@ def run(args: argparse.Namespace) -> int:
     from cvstereo.viz._mpl import require_matplotlib
 
     require_matplotlib()  # before reading anything: a missing extra is said at once
-    if args.window_ms <= 0:
-        raise ValueError(f"--window-ms must be > 0, got {args.window_ms:g}.")
-    if args.windows < 1:
-        raise ValueError(f"--windows must be >= 1, got {args.windows}.")
+    check_window_options(args)
+    if not 1 <= args.windows <= MAX_WINDOWS:
+        raise ValueError(f"--windows must be between 1 and {MAX_WINDOWS}, got {args.windows}.")
+    require_range(args.dpi, "--dpi", gt=0, le=MAX_DPI)
     if args.kind != "all" and KINDS[args.kind][0] and args.matches is None:
         raise ValueError(f"plot {args.kind} shows matches: give the MATCHES file written by `cvstereo match` "
                          f"after RECORDING (e.g. cvstereo plot {args.kind} rec.npz matches.npz -o out.png).")
-    from cvstereo.io import read_matches, read_recording
+    from cvstereo.io import read_recording
     from cvstereo.viz import save_figure
 
-    recording = read_recording(args.recording, args.right, **format_options(args))
-    result = read_matches(args.matches) if args.matches is not None else None
+    inputs = [args.recording, args.right, args.matches]
+    folder = Path(args.output)
+    if args.kind == "all":
+        if folder.exists() and not folder.is_dir():
+            raise NotADirectoryError(f"-o {folder}: exists and is not a folder; plot all writes one picture per "
+                                     "kind into a folder.")
+        check_files(inputs, [folder / f"{kind}.png" for kind in KINDS])
+    else:
+        check_files(inputs, [args.output])
+    with naming(args.recording, args.right):
+        recording = read_recording(args.recording, args.right, **format_options(args))
+    result = load_matches(args.matches) if args.matches is not None else None
     depth = picture_depth(args, recording, result)
     if args.kind != "all":
-        save_figure(make_figure(args.kind, recording, result, args, depth), args.output, dpi=args.dpi)
+        with naming(args.recording, args.matches):
+            figure = make_figure(args.kind, recording, result, args, depth)
+        save_figure(figure, args.output, dpi=args.dpi)
         print(f"{args.kind} -> {args.output}")
         return 0
-    folder = Path(args.output)
     folder.mkdir(parents=True, exist_ok=True)
     for kind, (needs_matches, _) in KINDS.items():
         if needs_matches and result is None:
@@ -96,7 +128,9 @@ def run(args: argparse.Namespace) -> int:
             print(f"{kind}: skipped (the recording has no ground truth)")
             continue
         path = folder / f"{kind}.png"
-        save_figure(make_figure(kind, recording, result, args, depth), path, dpi=args.dpi)
+        with naming(args.recording, args.matches):
+            figure = make_figure(kind, recording, result, args, depth)
+        save_figure(figure, path, dpi=args.dpi)
         print(f"{kind} -> {path}")
     return 0
 

@@ -8,8 +8,19 @@ from __future__ import annotations
 
 import argparse
 
-from cvstereo.cli._common import add_depth_options, add_format_options, format_options
-from cvstereo.cli.plot import picture_depth
+from cvstereo.cli._common import (
+    add_depth_options,
+    add_format_options,
+    check_files,
+    format_options,
+    load_matches,
+    naming,
+    require_range,
+)
+from cvstereo.cli.plot import check_window_options, picture_depth
+
+#: Limits of the video options: a frame rate a player shows, and a frame size that fits in memory.
+MAX_FPS, MAX_SCALE = 1000.0, 32
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
@@ -30,14 +41,20 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cvstereo.io import read_matches, read_recording
+    from cvstereo.io import read_recording
     from cvstereo.viz import write_video
 
-    if args.window_ms <= 0:
-        raise ValueError(f"--window-ms must be > 0, got {args.window_ms:g}.")
-    recording = read_recording(args.recording, args.right, **format_options(args))
-    result = read_matches(args.matches) if args.matches is not None else None
+    check_window_options(args)
+    require_range(args.fps, "--fps", gt=0, le=MAX_FPS)
+    if not 1 <= args.scale <= MAX_SCALE:
+        raise ValueError(f"--scale must be between 1 and {MAX_SCALE} video pixels per sensor pixel, got {args.scale}.")
+    require_range(args.seconds, "--seconds", gt=0)
+    check_files([args.recording, args.right, args.matches], [args.output])
+    with naming(args.recording, args.right):
+        recording = read_recording(args.recording, args.right, **format_options(args))
+    result = load_matches(args.matches) if args.matches is not None else None
     n = write_video(recording, args.output, result, fps=args.fps, window_us=round(args.window_ms * 1000),
                     scale=args.scale, seconds=args.seconds, depth=picture_depth(args, recording, result))
     print(f"{n} frames ({n / args.fps:.1f} s at {args.fps:g} fps) -> {args.output}")
     return 0
+

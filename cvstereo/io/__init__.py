@@ -149,6 +149,50 @@ def _check_options(fmt: str, path, **given) -> None:
                          "does not apply.")
 
 
+#: Output extensions -> the formats a reader takes a file of that name for (.dat is also jAER's AEDAT).
+_SUFFIX_FORMATS = {".npz": ("npz",), **dict.fromkeys(AEDAT_SUFFIXES, ("aedat2",)),
+                   **dict.fromkeys(TEXT_SUFFIXES, ("edvs-text", "edvs-merged")),
+                   ".dat": ("edvs-text", "edvs-merged", "aedat2")}
+
+
+def output_format(path: str | os.PathLike, *, format: str | None = None,
+                  right: str | os.PathLike | None = None) -> str:
+    """The format :func:`write_recording` writes to ``path`` (and ``right``), checked before any work.
+
+    The format follows the extension; a ``format`` given must agree with a known extension (an ``.aedat``
+    name holding eDVS text could not be read back). Names without a known extension take ``format``.
+
+    Raises
+    ------
+    ValueError
+        No format given or implied; a format the extension contradicts; two files for a one-file format.
+    """
+    suffix = Path(path).suffix.lower()
+    fmt = format or {".npz": "npz", **dict.fromkeys(AEDAT_SUFFIXES, "aedat2"),
+                     **dict.fromkeys(TEXT_SUFFIXES, "edvs-merged" if right is None else "edvs-text")}.get(suffix)
+    if fmt is None:
+        raise ValueError(f"{path}: cannot tell the output format from '{suffix}'; give one of: {', '.join(FORMATS)}.")
+    if fmt not in FORMATS:
+        raise ValueError(f"cannot write format '{fmt}'; choose one of: {', '.join(FORMATS)}.")
+    if (fmt == "edvs-text") != (right is not None):
+        raise ValueError(f"{path}: format 'edvs-text' and only it writes two files (one per camera, named "
+                         f"{'/'.join(TEXT_SUFFIXES)}): give the right camera's file exactly for it (format here: "
+                         f"'{fmt}', from {'the name' if format is None else 'the option'}).")
+    if right is not None:
+        from cvstereo.io._paths import refuse_output_over_input
+
+        refuse_output_over_input(right, [path], option="the right camera's output", what="left camera's output")
+    for p in (path, right):
+        if p is None:
+            continue
+        allowed = _SUFFIX_FORMATS.get(Path(p).suffix.lower())
+        if allowed is not None and fmt not in allowed:
+            raise ValueError(f"{p}: a '{Path(p).suffix}' file is read as {' or '.join(allowed)}, but format '{fmt}' "
+                             "would be written into it; name the file for its format or choose the format its "
+                             "name says.")
+    return fmt
+
+
 def write_recording(path: str | os.PathLike, recording: Recording, *, format: str | None = None,
                     right: str | os.PathLike | None = None, left_retina: int = 0) -> None:
     """Write a recording (atomically) in the format given or implied by the extension.
@@ -170,23 +214,14 @@ def write_recording(path: str | os.PathLike, recording: Recording, *, format: st
     -----
     Ground truth is kept by ``npz`` only; ``aedat2`` needs a 128x128 recording with timestamps below 2**32.
     """
-    suffix = Path(path).suffix.lower()
-    fmt = format or {".npz": "npz", **dict.fromkeys(AEDAT_SUFFIXES, "aedat2"),
-                     **dict.fromkeys(TEXT_SUFFIXES, "edvs-merged" if right is None else "edvs-text")}.get(suffix)
-    if fmt is None:
-        raise ValueError(f"{path}: cannot tell the output format from '{suffix}'; give one of: {', '.join(FORMATS)}.")
-    if (fmt == "edvs-text") != (right is not None):
-        raise ValueError(f"{path}: format 'edvs-text' and only it writes two files: give the right camera's file "
-                         f"exactly for it (format here: '{fmt}').")
+    fmt = output_format(path, format=format, right=right)
     if fmt == "npz":
         return write_recording_npz(path, recording)
     if fmt == "edvs-text":
         return write_edvs_pair(path, right, recording)
     if fmt == "edvs-merged":
         return write_edvs_merged(path, recording, left_retina=left_retina)
-    if fmt == "aedat2":
-        return write_aedat2(path, recording)
-    raise ValueError(f"cannot write format '{fmt}'; choose one of: {', '.join(FORMATS)}.")
+    return write_aedat2(path, recording)
 
 
 __all__ = [
@@ -194,6 +229,7 @@ __all__ = [
     "RecordingStream",
     "detect_format",
     "open_recording",
+    "output_format",
     "read_matches",
     "read_recording",
     "read_recording_npz",

@@ -1,0 +1,578 @@
+"""Hostile and careless command lines (issue 13): outputs over inputs, devices, FIFOs, symlinks, signals,
+nonsense values and lying files.
+
+Every case runs ``cvstereo.cli.main`` in-process on files generated under ``tmp_path`` and asserts the exit
+code, a fragment of the one-line error, that no traceback escapes, that every file present before the run
+has the same bytes afterwards (unless the case writes it) and that no temporary ``.part`` file is left. A
+few cases run as subprocesses: signals and a closed stdout.
+
+A failing case says which kind of failure it is (TRACEBACK, DATALOSS, SILENT, MESSAGE, LEFTOVER), so that a
+run against an older version gives the tally of the issue's closing note.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+import shutil
+import signal
+import stat
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cvstereo.cli import main
+from cvstereo.events import make_events
+from cvstereo.io import read_matches, read_recording, write_matches, write_recording
+from cvstereo.recording import Recording
+
+pytestmark = pytest.mark.timeout(60)
+
+W = 40_000
+DISPARITY = 13
+
+
+# ------------------------------------------------------------------------------------------------ files
+
+def _blobs(seed: int = 0, windows: int = 4) -> Recording:
+    """Textured blobs seen by the right camera 13 px to the left: frame matchers find them; truth 13."""
+    rng = np.random.default_rng(seed)
+    xs, ys, ps, ts = [], [], [], []
+    for k in range(windows):
+        for _ in range(12):
+            yy, xx = np.mgrid[0:4, 0:5]
+            x0, y0 = rng.integers(20, 120), rng.integers(3, 120)
+            n = xx.size * 3
+            xs.append(np.repeat((xx + x0).ravel(), 3))
+            ys.append(np.repeat((yy + y0).ravel(), 3))
+            ps.append(np.full(n, rng.integers(0, 2)))
+            ts.append(rng.integers(k * W, (k + 1) * W, n))
+    x, y, p, t = (np.concatenate(a) for a in (xs, ys, ps, ts))
+    order = np.argsort(t, kind="stable")
+    x, y, p, t = x[order], y[order], p[order], t[order]
+    truth = np.full(t.size, DISPARITY, np.float32)
+    return Recording(make_events(t, x, y, p), make_events(t, x - DISPARITY, y, p), truth, truth.copy())
+
+
+def _with_meta(result, **changes):
+    meta = {**result.meta}
+    for k, v in changes.items():
+        if v is _DROP:
+            meta.pop(k, None)
+        else:
+            meta[k] = v
+    return meta
+
+
+_DROP = object()
+
+
+@pytest.fixture(scope="module")
+def base(tmp_path_factory) -> Path:
+    """Every file the cases read, made once; each case works on its own copy."""
+    from calibration_free import match
+
+    d = tmp_path_factory.mktemp("hostile-base")
+    rec = _blobs()
+    write_recording(d / "rec.npz", rec)
+    write_recording(d / "bare.npz", Recording(rec.left, rec.right))
+    write_recording(d / "l.txt", rec, right=d / "r.txt")
+    write_recording(d / "other.npz", _blobs(seed=1, windows=2))
+    write_recording(d / "rec240.npz", Recording(rec.left, rec.right, rec.left_disparity, rec.right_disparity,
+                                                (240, 180)))
+    result = match(d / "rec.npz", method="frame")
+    assert len(result) > 20
+    result.save(d / "m.npz")
+    write_matches(d / "m_copy.npz", result.matches, {**result.meta, "input": ["m_copy"]})
+    m = result.matches
+    variants = {
+        "m_xout": (_set(m, "x", 0, 200), {}),
+        "m_yout": (_set(m, "y", 3, -1), {}),
+        "m_nan": (_set(m, "disparity", 1, np.nan), {}),
+        "m_inf": (_set(m, "disparity", 2, np.inf), {}),
+        "m_cams5": (m, {"anchor_cameras": [5]}),
+        "m_camsabc": (m, {"anchor_cameras": "abc"}),
+        "m_camsempty": (m, {"anchor_cameras": []}),
+        "m_camsdup": (m, {"anchor_cameras": [0, 0]}),
+        "m_wusabc": (m, {"window_us": "abc"}),
+        "m_anchorfoo": (m, {"anchor": "foo"}),
+        "m_evil": (m, {"method": "frame\x1b[2J\x1b]0;owned\x07"}),
+        "m_far": (_scaled(m, 2.0), {}),
+        "m_baddepth": (m, {"depth": {"a": 0.0, "c": 0.0}}),
+    }
+    for name, (matches, changes) in variants.items():
+        write_matches(d / f"{name}.npz", matches, _with_meta(result, **changes))
+    (d / "evil.txt").write_bytes(b"# fields t x y p\n0 1 2 1\n5 \x1b[31mEVIL\x1b[0m 3 1\n")
+    (d / "cols3.txt").write_text("0 1 2\n1 2 3\n")
+    return d
+
+
+def _set(m: np.ndarray, field: str, i: int, value) -> np.ndarray:
+    out = m.copy()
+    out[field][i] = value
+    return out
+
+
+def _scaled(m: np.ndarray, k: float) -> np.ndarray:
+    out = m.copy()
+    out["disparity"] *= k
+    return out
+
+
+@pytest.fixture
+def work(base, tmp_path, monkeypatch) -> Path:
+    """A copy of the base files plus the hostile ones (links, a folder, FIFOs), as the working folder."""
+    for p in base.iterdir():
+        shutil.copy2(p, tmp_path / p.name)
+    os.symlink("rec.npz", tmp_path / "link.npz")
+    os.link(tmp_path / "rec.npz", tmp_path / "hard.npz")
+    (tmp_path / "target.npz").write_bytes(b"old target")
+    os.symlink("target.npz", tmp_path / "outlink.npz")
+    (tmp_path / "dir").mkdir()
+    (tmp_path / "dir.npz").mkdir()
+    (tmp_path / "sub").mkdir()
+    os.mkfifo(tmp_path / "fifo.npz")
+    os.mkfifo(tmp_path / "fifo.txt")
+    _null_device(tmp_path / "null.dev")
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
+def _null_device(path: Path) -> None:
+    """A character device like /dev/null at ``path``, so that a writer that replaces devices (as root) harms
+    only the test's folder, never the system's /dev/null. Without the right to make one, a symlink to
+    /dev/null: a process that cannot make device nodes cannot replace /dev/null either."""
+    try:
+        os.mknod(path, 0o666 | stat.S_IFCHR, os.makedev(1, 3))
+        with open(path, "wb") as fh:  # a folder mounted nodev refuses to open device nodes
+            fh.write(b"x")
+    except OSError:
+        with contextlib.suppress(FileNotFoundError):
+            path.unlink()
+        if os.geteuid() == 0:
+            pytest.skip("cannot make a device node in the test folder (as root /dev/null itself is not risked)")
+        os.symlink(os.devnull, path)
+
+
+def _snapshot(folder: Path) -> dict[str, str]:
+    """sha256 of every regular file; the kind of everything else (a device, FIFO or symlink replaced by a
+    regular file is a change), the link's target for symlinks. Devices and FIFOs are not opened."""
+    out = {}
+    for p in folder.rglob("*"):
+        st = os.lstat(p)
+        key = str(p.relative_to(folder))
+        if stat.S_ISREG(st.st_mode):
+            out[key] = hashlib.sha256(p.read_bytes()).hexdigest()
+        elif stat.S_ISLNK(st.st_mode):
+            out[key] = "symlink -> " + os.readlink(p)
+        else:
+            out[key] = stat.filemode(st.st_mode)[0] + (f" {os.major(st.st_rdev)},{os.minor(st.st_rdev)}"
+                                                       if stat.S_ISCHR(st.st_mode) else "")
+    return out
+
+
+def _leftovers(folder: Path) -> list[str]:
+    return sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if ".part" in p.name)
+
+
+# ------------------------------------------------------------------------------------------------ cases
+
+@dataclass(frozen=True)
+class Case:
+    argv: tuple[str, ...]
+    code: int
+    err: tuple[str, ...] = ()  # fragments of stderr (code 1: its one line)
+    out: tuple[str, ...] = ()  # fragments of stdout
+    writes: tuple[str, ...] = ()  # files the case may create or change
+    no_out: tuple[str, ...] = ("nan", "NaN")  # never in stdout
+
+
+def _c(cmd: str, code: int, err=(), out=(), writes=(), no_out=("nan", "NaN")) -> Case:
+    def as_tuple(v):
+        return (v,) if isinstance(v, str) else tuple(v)
+
+    return Case(tuple(cmd.split()), code, as_tuple(err), as_tuple(out), as_tuple(writes), as_tuple(no_out))
+
+
+IS_INPUT = "is the input"
+CASES = {
+    # --- outputs over inputs (data loss) -------------------------------------------------------------
+    "match-o-input": _c("match rec.npz -o rec.npz", 1, IS_INPUT),
+    "match-o-symlink-to-input": _c("match rec.npz -o link.npz", 1, (IS_INPUT, "link.npz")),
+    "match-o-hardlink-to-input": _c("match rec.npz -o hard.npz", 1, (IS_INPUT, "hard.npz")),
+    "match-o-dotdot-input": _c("match rec.npz -o sub/../rec.npz", 1, IS_INPUT),
+    "match-o-right-input": _c("match l.txt r.txt -o r.txt", 1, "-o r.txt"),
+    "match-input-via-symlink-o-real": _c("match link.npz -o rec.npz", 1, IS_INPUT),
+    "convert-o-input": _c("convert rec.npz -o rec.npz", 1, IS_INPUT),
+    "convert-o-symlink": _c("convert rec.npz -o link.npz", 1, IS_INPUT),
+    "convert-o-hardlink": _c("convert rec.npz -o hard.npz", 1, IS_INPUT),
+    "convert-pair-swapped": _c("convert l.txt r.txt -o r.txt l.txt", 1, IS_INPUT),
+    "convert-pair-o-left-input": _c("convert l.txt r.txt -o l.txt x.txt", 1, IS_INPUT),
+    "convert-two-outputs-same": _c("convert rec.npz -o o.txt o.txt", 1, "the same file"),
+    "convert-two-outputs-same-via-link": _c("convert rec.npz -o rec.txt ./rec.txt", 1, "the same file"),
+    "plot-o-input": _c("plot events rec.npz -o rec.npz", 1, IS_INPUT),
+    "plot-o-matches": _c("plot disparity-time rec.npz m.npz -o m.npz", 1, IS_INPUT),
+    "plot-o-hardlink": _c("plot events rec.npz -o hard.npz", 1, IS_INPUT),
+    "plot-all-o-file": _c("plot all rec.npz m.npz -o rec.npz", 1, "not a folder"),
+    "video-o-matches": _c("video rec.npz m.npz -o m.npz", 1, IS_INPUT),
+    "depth-fit-o-input": _c("depth-fit m.npz:0.5 m_far.npz:1 -o m.npz", 1, IS_INPUT),
+    "depth-fit-o-symlink": _c("depth-fit rec.npz:0.5 m.npz:1 -o link.npz", 1, IS_INPUT),
+    "demo-o-file": _c("demo -o rec.npz --methods frame", 1, "not a folder"),
+    "bench-o-file": _c("bench -o rec.npz", 1, "not a folder"),
+    # --- where outputs go: devices, FIFOs, symlinks, folders ------------------------------------------
+    "match-o-null-device": _c("match rec.npz -o null.dev", 0, out="matches from"),
+    "convert-o-null-device": _c("convert rec.npz --to npz -o null.dev", 0, out="wrote null.dev"),
+    "convert-aedat-o-null-device": _c("convert rec.npz --to aedat2 -o null.dev", 0, out="wrote null.dev"),
+    "match-o-outlink": _c("match rec.npz -o outlink.npz", 0, out="matches from", writes="target.npz"),
+    "match-o-folder": _c("match rec.npz -o dir", 1, "is a directory"),
+    "match-o-folder-npz": _c("match rec.npz -o dir.npz", 1, "is a directory"),
+    "match-o-missing-folder": _c("match rec.npz -o nofolder/m.npz", 1, "does not exist"),
+    "convert-o-folder": _c("convert rec.npz --to npz -o dir", 1, "is a directory"),
+    "convert-o-missing-folder": _c("convert rec.npz -o nofolder/x.npz", 1, "does not exist"),
+    "match-o-new": _c("match rec.npz -o new.npz", 0, out="matches from", writes="new.npz"),
+    # --- output format follows the name ----------------------------------------------------------------
+    "convert-two-aedat": _c("convert rec.npz -o l.aedat r.aedat", 1, ("edvs-text", "l.aedat")),
+    "convert-txt-and-aedat": _c("convert rec.npz -o a.txt b.aedat", 1, "b.aedat"),
+    "convert-to-npz-into-txt": _c("convert rec.npz --to npz -o x.txt", 1, ("x.txt", "npz")),
+    "convert-to-aedat-into-npz": _c("convert rec.npz --to aedat2 -o x.npz", 1, "x.npz"),
+    "convert-to-merged-into-aedat": _c("convert rec.npz --to edvs-merged -o x.aedat", 1, "x.aedat"),
+    "convert-to-text-into-npz": _c("convert rec.npz --to edvs-text -o a.npz b.npz", 1, "a.npz"),
+    "convert-unknown-suffix": _c("convert rec.npz -o x.bin", 1, "cannot tell the output format"),
+    "convert-to-npz-unknown-suffix": _c("convert rec.npz --to npz -o x.bin", 0, out="wrote x.bin", writes="x.bin"),
+    "convert-pair-ok": _c("convert rec.npz -o a.txt b.txt", 0, out="wrote a.txt and b.txt", writes=("a.txt", "b.txt")),
+    "match-o-txt": _c("match rec.npz -o m.txt", 1, ("m.txt", ".npz")),
+    "match-o-aedat": _c("match rec.npz -o m.aedat", 1, ("m.aedat", ".npz")),
+    # --- inputs that are not regular files --------------------------------------------------------------
+    "info-folder": _c("info dir", 1, ("dir", "is a directory")),
+    "info-folder-npz": _c("info dir.npz", 1, "is a directory"),
+    "info-fifo-npz": _c("info fifo.npz", 1, ("fifo.npz", "not a regular file")),
+    "info-fifo-txt": _c("info fifo.txt", 1, "not a regular file"),
+    "info-dev-zero": _c("info /dev/zero --format npz", 1, "not a regular file"),
+    "info-missing": _c("info missing.npz", 1, ("missing.npz", "no such file")),
+    "match-folder": _c("match dir.npz -o m2.npz", 1, "is a directory"),
+    "match-fifo": _c("match fifo.npz -o m2.npz", 1, "not a regular file"),
+    "match-right-fifo": _c("match l.txt fifo.txt -o m2.npz", 1, ("fifo.txt", "not a regular file")),
+    "convert-fifo": _c("convert fifo.txt -o x.npz", 1, "not a regular file"),
+    "convert-folder": _c("convert dir.npz -o x.txt", 1, "is a directory"),
+    "evaluate-folder-recording": _c("evaluate dir.npz m.npz", 1, "is a directory"),
+    "evaluate-fifo-matches": _c("evaluate rec.npz fifo.npz", 1, "not a regular file"),
+    "plot-folder": _c("plot events dir.npz -o p.png", 1, "is a directory"),
+    "plot-fifo-matches": _c("plot disparity-time rec.npz fifo.npz -o p.png", 1, "not a regular file"),
+    "video-fifo": _c("video fifo.npz -o v.mp4", 1, "not a regular file"),
+    "depth-fit-folder": _c("depth-fit dir.npz:0.5 m.npz:1", 1, "is a directory"),
+    "depth-fit-fifo": _c("depth-fit fifo.npz:0.5 m.npz:1", 1, "not a regular file"),
+    # --- distances ----------------------------------------------------------------------------------------
+    "match-depth-zero": _c("match rec.npz -o m2.npz --depth 0 0", 1, ("--depth", "> 0")),
+    "match-depth-nan-inf": _c("match rec.npz -o m2.npz --depth nan inf", 1, "--depth"),
+    "match-depth-negative": _c("match rec.npz -o m2.npz --depth -5 1", 1, "--depth"),
+    "match-depth-c-inf": _c("match rec.npz -o m2.npz --depth 10 inf", 1, ("--depth", "c (px)")),
+    "match-depth-beyond-range": _c("match rec.npz -o m2.npz --depth 1 -100", 0, out=("distance: median n/a",),
+                                   writes="m2.npz", no_out=("nan", "inf")),
+    "plot-depth-zero": _c("plot disparity-time rec.npz m.npz -o p.png --depth 0 0", 1, "--depth"),
+    "plot-stored-depth-bad": _c("plot disparity-time rec.npz m_baddepth.npz -o p.png", 1, ("m_baddepth.npz",
+                                                                                            "--no-metres")),
+    "video-depth-nan": _c("video rec.npz m.npz -o v.mp4 --depth nan 0", 1, "--depth"),
+    "depth-fit-equal-medians": _c("depth-fit m.npz:0.5 m_copy.npz:1.0", 1, ("every disparity", "m_copy.npz")),
+    "depth-fit-growing": _c("depth-fit m.npz:0.5 m_far.npz:1.0", 1, "grow with distance"),
+    "depth-fit-inf-distance": _c("depth-fit m.npz:0.5 m_far.npz:inf", 1, "finite distance"),
+    "depth-fit-nan-distance": _c("depth-fit m.npz:nan m_far.npz:1", 1, "FILE:DISTANCE"),
+    "depth-fit-zero-distance": _c("depth-fit m.npz:0 m_far.npz:1", 1, "FILE:DISTANCE"),
+    "depth-fit-one-distance": _c("depth-fit m.npz:1 m_far.npz:1", 1, "two or more"),
+    "depth-fit-ok": _c("depth-fit m_far.npz:0.5 m.npz:1.0 -o d.json", 0, out="--depth", writes="d.json"),
+    # --- evaluate: lying matches files ------------------------------------------------------------------
+    "evaluate-x-outside": _c("evaluate rec.npz m_xout.npz", 1, ("m_xout.npz", "outside", "x=200")),
+    "evaluate-y-outside": _c("evaluate rec.npz m_yout.npz", 1, ("m_yout.npz", "outside")),
+    "evaluate-nan-disparity": _c("evaluate rec.npz m_nan.npz", 1, ("m_nan.npz", "NaN")),
+    "evaluate-inf-disparity": _c("evaluate rec.npz m_inf.npz", 1, ("m_inf.npz", "inf")),
+    "evaluate-anchor-cameras-5": _c("evaluate rec.npz m_cams5.npz", 1, ("m_cams5.npz", "anchor_cameras")),
+    "evaluate-anchor-cameras-str": _c("evaluate rec.npz m_camsabc.npz", 1, "anchor_cameras"),
+    "evaluate-anchor-cameras-empty": _c("evaluate rec.npz m_camsempty.npz", 1, "anchor_cameras"),
+    "evaluate-anchor-cameras-dup": _c("evaluate rec.npz m_camsdup.npz", 1, "anchor_cameras"),
+    "evaluate-window-us-str": _c("evaluate rec.npz m_wusabc.npz", 1, ("m_wusabc.npz", "window_us")),
+    "evaluate-anchor-foo": _c("evaluate rec.npz m_anchorfoo.npz", 1, ("m_anchorfoo.npz", "anchor")),
+    "evaluate-other-recording": _c("evaluate other.npz m.npz", 1, ("m.npz", "another recording", "--force",
+                                                                   "rec.npz")),
+    "evaluate-other-sensor": _c("evaluate rec240.npz m.npz", 1, ("240x180", "--force")),
+    "evaluate-other-forced": _c("evaluate other.npz m.npz --force", 0, out="| other |"),
+    "evaluate-ok": _c("evaluate rec.npz m.npz", 0, out="| rec |"),
+    "evaluate-no-truth-text": _c("evaluate bare.npz m.npz", 0, out="no ground truth"),
+    "evaluate-no-truth-json": _c("evaluate bare.npz m.npz --json", 0, out='"mae": null'),
+    "evaluate-recording-as-matches": _c("evaluate rec.npz rec.npz", 1, ("rec.npz", "matches")),
+    "evaluate-matches-as-recording": _c("evaluate m.npz m.npz", 1, "m.npz"),
+    # --- info on what is not a recording ---------------------------------------------------------------
+    "info-matches-file": _c("info m.npz", 0, out=("matches file", "frame", "computed on")),
+    "info-matches-and-recording": _c("info m.npz rec.npz", 0, out=("matches file", "npz, 128x128")),
+    "info-three-columns": _c("info cols3.txt", 1, ("cols3.txt", "3 columns")),
+    # --- terminal escape codes from names and contents -------------------------------------------------
+    "info-escape-in-name": _c("info ev\x1b[31mil.npz", 1, ("\\x1b[31m", "no such file")),
+    "info-escape-in-content": _c("info evil.txt", 1, "evil.txt"),
+    "info-escape-in-meta": _c("info m_evil.npz", 0, out=("\\x1b[2J", "matches file")),
+    "evaluate-escape-in-meta": _c("evaluate rec.npz m_evil.npz", 0, out="\\x1b[2J"),
+    # --- option limits -------------------------------------------------------------------------------
+    "plot-dpi-huge": _c("plot events rec.npz -o p.png --dpi 100000", 1, ("--dpi", "1200")),
+    "plot-dpi-zero": _c("plot events rec.npz -o p.png --dpi 0", 1, "--dpi"),
+    "plot-dpi-nan": _c("plot events rec.npz -o p.png --dpi nan", 1, "--dpi"),
+    "plot-window-nan": _c("plot events rec.npz -o p.png --window-ms nan", 1, "--window-ms"),
+    "plot-window-inf": _c("plot events rec.npz -o p.png --window-ms inf", 1, "--window-ms"),
+    "plot-window-zero": _c("plot events rec.npz -o p.png --window-ms 0", 1, "--window-ms"),
+    "plot-start-nan": _c("plot events rec.npz -o p.png --t-start-ms nan", 1, "--t-start-ms"),
+    "plot-start-negative": _c("plot events rec.npz -o p.png --t-start-ms -5", 1, "--t-start-ms"),
+    "plot-start-huge": _c("plot events rec.npz -o p.png --t-start-ms 1e300", 1, "--t-start-ms"),
+    "plot-map-window-us-str": _c("plot disparity-map rec.npz m_wusabc.npz -o p.png", 1, "m_wusabc.npz"),
+    "plot-error-hist-no-truth": _c("plot error-hist bare.npz m.npz -o p.png", 1, ("bare.npz", "ground truth")),
+    "plot-windows-zero": _c("plot disparity-map rec.npz m.npz -o p.png --windows 0", 1, "--windows"),
+    "plot-windows-huge": _c("plot disparity-map rec.npz m.npz -o p.png --windows 100000", 1, "--windows"),
+    "video-fps-zero": _c("video rec.npz -o v.mp4 --fps 0", 1, "--fps"),
+    "video-fps-nan": _c("video rec.npz -o v.mp4 --fps nan", 1, "--fps"),
+    "video-fps-negative": _c("video rec.npz -o v.mp4 --fps -25", 1, "--fps"),
+    "video-scale-zero": _c("video rec.npz -o v.mp4 --scale 0", 1, "--scale"),
+    "video-scale-huge": _c("video rec.npz -o v.mp4 --scale 100000", 1, ("--scale", "32")),
+    "video-seconds-negative": _c("video rec.npz -o v.mp4 --seconds -1", 1, "--seconds"),
+    "video-seconds-nan": _c("video rec.npz -o v.mp4 --seconds nan", 1, "--seconds"),
+    "video-window-nan": _c("video rec.npz -o v.mp4 --window-ms nan", 1, "--window-ms"),
+    "match-packet-zero": _c("match rec.npz -o m2.npz --packet-us 0", 1, "--packet-us"),
+    "match-packet-negative": _c("match rec.npz -o m2.npz --packet-us -5", 1, "--packet-us"),
+    "match-row-offset-huge": _c("match rec.npz -o m2.npz --row-offset 999999999999", 1, ("--row-offset", "127")),
+    "match-row-offset-sensor": _c("match rec.npz -o m2.npz --row-offset -128", 1, "--row-offset"),
+    "match-time-offset-huge": _c("match rec.npz -o m2.npz --time-offset-us 99999999999999999999", 1,
+                                 "--time-offset-us"),
+    "match-time-offset-negative-huge": _c("match rec.npz -o m2.npz --time-offset-us -99999999999999999999", 1,
+                                          "--time-offset-us"),
+}
+
+
+def _run(argv) -> tuple[int, str]:
+    """main(argv) -> (exit code, "TRACEBACK: ..." when an exception escaped)."""
+    try:
+        return main(list(argv)), ""
+    except SystemExit as exc:
+        return int(exc.code or 0), ""
+    except BaseException as exc:  # the point is to see what escapes
+        return -1, f"TRACEBACK: {type(exc).__name__}: {exc}"
+
+
+@pytest.mark.parametrize("case", list(CASES.values()), ids=list(CASES))
+def test_hostile_command_line(case: Case, work: Path, capsys):
+    before = _snapshot(work)
+    code, escaped = _run(case.argv)
+    out, err = capsys.readouterr()
+    assert not escaped, escaped
+    assert "Traceback" not in err, f"TRACEBACK: {err}"
+    after = _snapshot(work)
+    changed = sorted(k for k, h in before.items() if after.get(k) != h and k not in case.writes)
+    assert not changed, f"DATALOSS: {changed} changed or removed"
+    assert not _leftovers(work), f"LEFTOVER: {_leftovers(work)}"
+    if case.code != 0:
+        assert code != 0, f"SILENT: exit 0, expected {case.code}; stdout {out!r}"
+    assert code == case.code, f"MESSAGE: exit {code}, expected {case.code}: {err}"
+    if code == 1:
+        lines = err.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith(f"cvstereo {case.argv[0]}: error: "), f"MESSAGE: {err!r}"
+    for fragment in case.err:
+        assert fragment in err, f"MESSAGE: {fragment!r} not in {err!r}"
+    for fragment in case.out:
+        assert fragment in out, f"MESSAGE: {fragment!r} not in stdout {out!r}"
+    for word in case.no_out:
+        assert word not in out, f"SILENT: {word!r} printed: {out!r}"
+    assert "\x1b" not in err + out and "\x07" not in err + out, "MESSAGE: raw terminal codes printed"
+
+
+# ------------------------------------------------------------------------------------------------ effects
+
+def test_output_into_a_fifo_is_written_whole_and_the_fifo_stays(work):
+    got = {}
+
+    def reader():
+        with open(work / "fifo.npz", "rb") as fh:
+            got["bytes"] = fh.read()
+
+    t = threading.Thread(target=reader, daemon=True)
+    t.start()
+    assert main(["match", "rec.npz", "-o", "fifo.npz"]) == 0
+    t.join(30)
+    assert stat.S_ISFIFO(os.lstat(work / "fifo.npz").st_mode)
+    (work / "from-fifo.npz").write_bytes(got["bytes"])
+    assert np.array_equal(read_matches(work / "from-fifo.npz").matches, read_matches(work / "m.npz").matches)
+
+
+def test_output_through_a_symlink_replaces_its_target_and_keeps_the_link(work):
+    assert main(["match", "rec.npz", "-o", "outlink.npz"]) == 0
+    assert os.path.islink(work / "outlink.npz") and os.readlink(work / "outlink.npz") == "target.npz"
+    assert np.array_equal(read_matches(work / "target.npz").matches, read_matches(work / "m.npz").matches)
+
+
+def test_replaced_output_keeps_its_permissions(work):
+    out = work / "m2.npz"
+    out.write_bytes(b"old")
+    out.chmod(0o640)
+    assert main(["match", "rec.npz", "-o", str(out)]) == 0
+    assert stat.S_IMODE(out.stat().st_mode) == 0o640 and read_matches(out).matches.size
+
+
+def _dead_pid() -> int:
+    proc = subprocess.Popen([sys.executable, "-c", "pass"])
+    proc.wait()
+    return proc.pid
+
+
+def test_stale_temporaries_of_the_same_output_are_removed(work):
+    dead, alive = _dead_pid(), subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        stale = work / f".m2.npz.pid{dead}-abcd1234.npz.part"
+        live = work / f".m2.npz.pid{alive.pid}-abcd1234.npz.part"
+        other = work / f".other.npz.pid{dead}-abcd1234.npz.part"
+        legacy_old, legacy_new = work / ".m2.npz.k3j4h5g6.npz.part", work / ".m2.npz.z9y8x7w6.npz.part"
+        for p in (stale, live, other, legacy_old, legacy_new):
+            p.write_bytes(b"x" * 100)
+        os.utime(legacy_old, (time.time() - 3600, time.time() - 3600))
+        assert main(["match", "rec.npz", "-o", "m2.npz"]) == 0
+        assert not stale.exists() and not legacy_old.exists()
+        assert live.exists() and other.exists() and legacy_new.exists()  # maybe still being written
+    finally:
+        alive.kill()
+        alive.wait()
+
+
+def test_broken_pipe_in_process_is_quiet(work, monkeypatch, capsys):
+    class Closed:
+        def write(self, text):
+            raise BrokenPipeError(32, "Broken pipe")
+
+        def flush(self):
+            raise BrokenPipeError(32, "Broken pipe")
+
+    monkeypatch.setattr(sys, "stdout", Closed())
+    code = main(["info", "rec.npz", "m.npz"])
+    monkeypatch.undo()
+    assert code == 141 and capsys.readouterr().err == ""
+
+
+# ------------------------------------------------------------------------------------------------ subprocesses
+
+def _env() -> dict:
+    root = str(Path(__file__).resolve().parent.parent)
+    return {**os.environ, "PYTHONPATH": root + os.pathsep + os.environ.get("PYTHONPATH", "")}
+
+
+@pytest.mark.timeout(240)
+def test_info_into_head_exits_quietly(work):
+    # More output than a pipe holds (64 KiB), so that writes fail once the reader has gone.
+    cmd = [sys.executable, "-m", "cvstereo", "info", *["rec.npz", "m.npz"] * 300]
+    with subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=_env()) as proc:
+        first = proc.stdout.readline()
+        proc.stdout.close()  # like `| head -1`
+        err = proc.stderr.read().decode()
+        code = proc.wait(60)
+    assert first.startswith(b"rec.npz")
+    assert err == "" and code in (0, 141)
+
+
+#: Runs the CLI with a writer that writes a little, says WRITING and stalls: a kill lands mid-write.
+_SLOW_WRITER = r"""
+import sys, time
+import numpy as np
+import cv2
+
+def stall():
+    print("WRITING", flush=True)
+    time.sleep(120)
+
+def slow_savez(fh, **arrays):
+    fh.write(b"PK partial")
+    fh.flush()
+    stall()
+
+np.savez_compressed = slow_savez
+Real = cv2.VideoWriter
+
+class SlowVideo:
+    def __init__(self, *args):
+        self.w, self.n = Real(*args), 0
+    def isOpened(self):
+        return self.w.isOpened()
+    def write(self, frame):
+        self.w.write(frame)
+        self.n += 1
+        if self.n == 2:
+            stall()
+    def release(self):
+        self.w.release()
+
+cv2.VideoWriter = SlowVideo
+from cvstereo.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def _start_slow(work: Path, *argv: str) -> subprocess.Popen:
+    proc = subprocess.Popen([sys.executable, "-c", _SLOW_WRITER, *argv], cwd=work, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=_env())
+    line = proc.stdout.readline()  # blocks until the writer stalls (or the process ends)
+    assert line.strip().endswith("WRITING"), (line, proc.stderr.read() if proc.poll() is not None else "")
+    return proc
+
+
+@pytest.mark.timeout(240)  # a fresh interpreter may compile the matcher's kernels first: slow on a busy machine
+@pytest.mark.parametrize("argv", [("convert", "rec.npz", "-o", "out.npz"),
+                                  ("match", "rec.npz", "-o", "out.npz"),
+                                  ("video", "rec.npz", "m.npz", "-o", "out.mp4", "--scale", "1")],
+                         ids=["convert", "match", "video"])
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
+def test_signal_mid_write_leaves_no_temporary(work, argv, sig):
+    before = _snapshot(work)
+    proc = _start_slow(work, *argv)
+    assert _leftovers(work), "the slow writer should have a temporary file open"
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 128 + sig, err
+    assert "Traceback" not in err and f"stopped by {signal.Signals(sig).name}" in err
+    assert not _leftovers(work)
+    assert not (work / argv[argv.index("-o") + 1]).exists()
+    assert _snapshot(work) == before
+
+
+@pytest.mark.timeout(240)
+@pytest.mark.parametrize("argv", [("match", "rec.npz", "-o", "out.npz"),
+                                  ("video", "rec.npz", "-o", "out.mp4", "--scale", "1")], ids=["match", "video"])
+def test_sigkill_mid_write_is_cleaned_up_by_the_next_run(work, argv):
+    proc = _start_slow(work, *argv)
+    assert _leftovers(work)
+    proc.kill()
+    proc.communicate(timeout=60)
+    assert _leftovers(work)  # SIGKILL cannot be caught: the temporary stays ...
+    assert main(list(argv)) == 0
+    assert not _leftovers(work)  # ... until the next write of the same output
+    assert (work / argv[3]).stat().st_size > 0
+
+
+def test_info_summarises_a_matches_file(work, capsys):
+    assert main(["info", "m.npz"]) == 0
+    out = capsys.readouterr().out
+    disparity = read_matches(work / "m.npz").disparity
+    assert f"{disparity.size:,} matches" in out and "method frame" in out
+    assert f"median {np.median(disparity):.2f} px" in out
+    assert f"rec.npz ({read_recording(work / 'rec.npz').left.size * 2:,} events)" in out
+
+
+def test_evaluate_accepts_a_renamed_copy_of_the_recording(work, capsys):
+    # The refusal is about the recording (event count, sensor), not its file name.
+    shutil.copy(work / "rec.npz", work / "renamed.npz")
+    assert main(["evaluate", "renamed.npz", "m.npz", "--json"]) == 0
+    figures = json.loads(capsys.readouterr().out)["figures"]
+    assert figures["matches"] == read_matches(work / "m.npz").matches.size
+
+
+def test_recording_read_back_unchanged_after_refusals(work):
+    original = read_recording(work / "rec.npz")
+    for argv in (["match", "rec.npz", "-o", "link.npz"], ["convert", "rec.npz", "-o", "hard.npz"]):
+        assert main(argv) == 1
+    again = read_recording(work / "rec.npz")
+    assert np.array_equal(original.left, again.left) and np.array_equal(original.right, again.right)
