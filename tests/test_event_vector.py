@@ -10,9 +10,9 @@ from hypothesis import strategies as st
 
 from calibration_free.event_vector import EventVectorMatcher, EventVectorParams
 from calibration_free.reference.event_vector import accumulation_vector, event_vector_reference
-from calibration_free.registry import create_matcher
 from cvstereo.dynamic_frames import DynamicFrameParams, DynamicFrames
 from cvstereo.matches import validate_matches
+from cvstereo.registry import create_matcher
 
 
 @settings(max_examples=10, deadline=None)
