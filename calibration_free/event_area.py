@@ -12,7 +12,7 @@ the search **[choice, as for frame-area]**. Variant ``no-gaussian``: single-pixe
 with the threshold raised to 4.
 
 Both cameras' events are processed in one merged order (by time, left first at equal times), see
-:mod:`calibration_free._event_common`. The reference implementation is
+:mod:`calibration_free.merge_order` and :mod:`calibration_free._event_common`. The reference implementation is
 :func:`calibration_free.reference.event_area.event_area_reference`.
 """
 
@@ -24,6 +24,7 @@ import numpy as np
 from numba import njit
 
 from calibration_free._event_common import MergedEventMatcher
+from calibration_free.merge_order import left_is_next_jit
 from calibration_free.params import EventAreaParams
 from cvstereo.dynamic_frames import advance, splat
 
@@ -43,7 +44,7 @@ def _event_area_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, slo
     ir = 0
     n = 0
     while il < nl or ir < nr:
-        if ir >= nr or (il < nl and tl[il] <= tr[ir]):
+        if left_is_next_jit(il, nl, ir, nr, tl, tr):
             cam, i, t, x, y, p = 0, il, tl[il], xl[il], yl[il], pl[il]
             il += 1
         else:

@@ -13,7 +13,7 @@ the threshold has an empty run of its own: its vector points to the nearest abov
 ``|a1 - a2| + |b1 - b2|``; the least cost below ``max_cost`` wins, ties to the smallest disparity.
 
 Both cameras' events are processed in one merged order (by time, left first at equal times), see
-:mod:`calibration_free._event_common`. The reference implementation is
+:mod:`calibration_free.merge_order` and :mod:`calibration_free._event_common`. The reference implementation is
 :func:`calibration_free.reference.event_vector.event_vector_reference`.
 """
 
@@ -25,6 +25,7 @@ import numpy as np
 from numba import njit
 
 from calibration_free._event_common import MergedEventMatcher
+from calibration_free.merge_order import left_is_next_jit
 from calibration_free.params import EventVectorParams
 from cvstereo.dynamic_frames import advance, splat
 
@@ -48,7 +49,7 @@ def _event_vector_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, s
     ir = 0
     n = 0
     while il < nl or ir < nr:
-        if ir >= nr or (il < nl and tl[il] <= tr[ir]):
+        if left_is_next_jit(il, nl, ir, nr, tl, tr):
             cam, i, t, x, y, p = 0, il, tl[il], xl[il], yl[il], pl[il]
             il += 1
         else:

@@ -7,16 +7,16 @@ the other frame, on the same row and on the geometrically possible side, has the
 differences (ties: the smaller disparity); the winner is written into the whole 5x5 neighbourhood of the
 disparity map, overwriting, so that those pixels are not searched again.
 
-The SAD of every pixel and disparity comes from OpenCV kernels at once (a cost volume from ``cv2.absdiff``
-and an unnormalised ``cv2.boxFilter`` per disparity); only the scan, whose result depends on its order,
-remains a loop, and it visits only the above-threshold pixels.
+The scan is one numba kernel (:func:`scan_sad`) that computes the SAD only for the pixels it actually searches
+(each search fills a whole block of the disparity map, so most above-threshold pixels are never searched).
+Its readable twin, a full cost volume from OpenCV kernels (``cv2.absdiff`` and an unnormalised
+``cv2.boxFilter`` per disparity) and the scan over it, is :mod:`calibration_free.reference.frame_area`.
 """
 
 from __future__ import annotations
 
 from typing import ClassVar
 
-import cv2
 import numba
 import numpy as np
 
@@ -26,95 +26,13 @@ from cvstereo.matches import empty_matches, make_matches
 from cvstereo.windows import FrameMatcher, Window
 
 
-def sad_volume(reference: np.ndarray, other: np.ndarray, *, max_disparity: int, block: int = 5,
-               reference_camera: int = 1) -> np.ndarray:
-    """SAD of the block around every reference pixel against the other frame's block at each disparity.
-
-    The candidate of reference pixel ``(y, x)`` at disparity ``d`` is ``(y, x + d)`` in the other (left) frame
-    when the reference is the right camera, ``(y, x - d)`` in the right frame when it is the left camera; so
-    ``d = x_left - x_right`` either way.
-
-    Parameters
-    ----------
-    reference, other : (height, width) float ndarray
-    max_disparity : int, keyword-only
-    block : int, keyword-only
-        Odd block side.
-    reference_camera : {0, 1}, keyword-only
-
-    Returns
-    -------
-    (max_disparity + 1, height, width) float64 ndarray
-        ``inf`` where either block would leave the sensor.
-
-    Examples
-    --------
-    >>> rng = np.random.default_rng(0)
-    >>> right = rng.normal(size=(12, 20))
-    >>> left = np.roll(right, 3, axis=1)                       # x_left = x_right + 3
-    >>> int(np.argmin(sad_volume(right, left, max_disparity=6)[:, 6, 6]))
-    3
-    """
-    ref = np.asarray(reference, dtype=np.float64)
-    oth = np.asarray(other, dtype=np.float64)
-    h, w = ref.shape
-    r = block // 2
-    vol = np.full((max_disparity + 1, h, w), np.inf)
-    for d in range(min(max_disparity, w - block) + 1):
-        # Crop both frames to the columns where the candidate exists; column c of the crop is reference x
-        # (= c for the right reference, c + d for the left one).
-        a, b = (ref[:, : w - d], oth[:, d:]) if reference_camera == 1 else (ref[:, d:], oth[:, : w - d])
-        sad = cv2.boxFilter(cv2.absdiff(a, b), -1, (block, block), normalize=False,
-                            borderType=cv2.BORDER_CONSTANT)
-        x0 = r if reference_camera == 1 else r + d  # first reference x whose both blocks are inside
-        vol[d, r: h - r, x0: x0 + (w - d - 2 * r)] = sad[r: h - r, r: w - d - r]
-    return vol
-
-
-def scan_disparity_map(reference: np.ndarray, volume: np.ndarray, *, threshold: float,
-                       block: int = 5) -> np.ndarray:
-    """Algorithm 2's scan: row by row, x ascending; search unset pixels above threshold; write the block.
-
-    Parameters
-    ----------
-    reference : (height, width) float ndarray
-        The reference frame (decides which pixels are searched).
-    volume : (D + 1, height, width) float ndarray
-        SAD per disparity (:func:`sad_volume`).
-    threshold : float, keyword-only
-    block : int, keyword-only
-
-    Returns
-    -------
-    (height, width) float32 ndarray
-        Disparity, NaN where none was written (0 is a valid disparity).
-    """
-    h, w = reference.shape
-    r = block // 2
-    disp = np.full((h, w), np.nan, dtype=np.float32)
-    inner = np.zeros((h, w), dtype=bool)
-    inner[r: h - r, r: w - r] = True  # blocks must not leave the sensor
-    ys, xs = np.nonzero((np.abs(reference) >= threshold) & inner)  # row-major: the scan order
-    if ys.size == 0:
-        return disp
-    # argmin returns the first minimum: ties go to the smaller disparity, as a strict < scan does.
-    best = np.argmin(volume[:, ys, xs], axis=0).astype(np.float32)
-    done = np.zeros((h, w), dtype=bool)
-    for y, x, d in zip(ys.tolist(), xs.tolist(), best.tolist(), strict=True):
-        if done[y, x]:
-            continue
-        disp[y - r: y + r + 1, x - r: x + r + 1] = d
-        done[y - r: y + r + 1, x - r: x + r + 1] = True
-    return disp
-
-
 def scan_sad(reference: np.ndarray, other: np.ndarray, *, threshold: float, max_disparity: int, block: int = 5,
              reference_camera: int = 1) -> np.ndarray:
     """Algorithm 2 with the SAD computed only for the pixels the scan actually searches (numba).
 
-    Same result as ``scan_disparity_map(reference, sad_volume(reference, other, ...), ...)``, the readable
-    reference implementation, but much faster: each search fills a whole block of the disparity map, so only a
-    small part of the above-threshold pixels is ever searched, and a full cost volume is mostly wasted.
+    Same result as the reference ``scan_disparity_map(reference, sad_volume(reference, other, ...), ...)``
+    (:mod:`calibration_free.reference.frame_area`), but much faster: each search fills a whole block of the
+    disparity map, so only a small part of the above-threshold pixels is ever searched.
 
     Parameters
     ----------
@@ -196,18 +114,6 @@ class FrameAreaMatcher(FrameMatcher):
         if self.params.gaussian:
             frame = gaussian_filter(frame, sigma=self.params.sigma, kernel_size=self.params.kernel_size)
         return frame
-
-    def disparity_map(self, window: Window) -> tuple[np.ndarray, np.ndarray]:
-        """The window's disparity map and reference frame.
-
-        Returns
-        -------
-        disparity : (height, width) float32 ndarray
-            At the reference camera's pixels; NaN where none was written.
-        reference : (height, width) float32 ndarray
-            The reference camera's (filtered) frame.
-        """
-        return self._disparity_map(*self._counts(window))[:2]
 
     def _counts(self, window: Window) -> tuple[np.ndarray, np.ndarray]:
         """ON/OFF counts of the reference and the other camera."""

@@ -14,13 +14,18 @@ from cvstereo.dynamic_frames import DynamicFrameParams
 from cvstereo.polarity import Polarity, check_polarity
 from cvstereo.windows import WindowFrameParams
 
+#: Comparisons of integer widths against a float fraction (the frame matcher's width rule) tolerate the
+#: rounding of 0.3 * w, so that the rule holds exactly at its edge (|10 - 7| <= 0.3 * 10 must pass although
+#: 0.3 * 10 may round below 3).
+WIDTH_EPS = 1e-9
+
 
 @dataclass(frozen=True, kw_only=True)
 class FrameClusterParams(WindowFrameParams):
     """Parameters of the frame-based cluster matcher (thesis defaults; algorithms.md section 1).
 
     The window and Gaussian fields (window_us, gaussian, sigma, kernel_size) are those of
-    :class:`~cvstereo.frames.WindowFrameParams`.
+    :class:`~cvstereo.windows.WindowFrameParams`.
 
     Attributes
     ----------
@@ -62,7 +67,7 @@ class FrameAreaParams(WindowFrameParams):
     """Parameters of the frame-area SAD matcher (thesis defaults; algorithms.md section 3).
 
     The window and Gaussian fields (window_us, gaussian, sigma, kernel_size) are those of
-    :class:`~cvstereo.frames.WindowFrameParams`.
+    :class:`~cvstereo.windows.WindowFrameParams`.
 
     Attributes
     ----------

@@ -42,7 +42,7 @@ class _OpenCVParams(WindowFrameParams):
     """Parameters common to both baselines (see the module docstring for the image mapping).
 
     The window and Gaussian fields (window_us, gaussian, sigma, kernel_size) are those of
-    :class:`~cvstereo.frames.WindowFrameParams`.
+    :class:`~cvstereo.windows.WindowFrameParams`.
 
     Attributes
     ----------

@@ -8,13 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from calibration_free import match
-from calibration_free.frame_area import (
-    FrameAreaMatcher,
-    FrameAreaParams,
-    sad_volume,
-    scan_disparity_map,
-    scan_sad,
-)
+from calibration_free.frame_area import FrameAreaMatcher, FrameAreaParams, scan_sad
+from calibration_free.reference.frame_area import sad_volume, scan_disparity_map
 from cvstereo.events import make_events
 from cvstereo.recording import Recording
 

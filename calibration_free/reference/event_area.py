@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from calibration_free.merge_order import merged_events
 from calibration_free.params import EventAreaParams
-from calibration_free.reference import merged_events
 from calibration_free.reference.dynamic_frames import DynamicFrames
 from cvstereo.events import DEFAULT_RESOLUTION
 from cvstereo.matches import empty_matches, make_matches
