@@ -6,7 +6,7 @@ differences with the patches along the same row of the other camera's frame (as 
 time), over disparities 0 .. ``max_disparity`` on the geometrically possible side: an event of the right
 camera searches towards larger x in the left frame, an event of the left camera towards smaller x. The least
 SAD wins (strict ``<``, scanning disparities upwards: ties go to the smaller disparity); a SAD must be below
-``max_sad`` (Algorithm 3's initial minimum, 1000) to count. Patches that would leave the sensor are not used:
+``max_cost`` (Algorithm 3's initial minimum, 1000) to count. Patches that would leave the sensor are not used:
 events within ``block // 2`` of the border are not matched, and candidates whose patch leaves the sensor end
 the search **[choice, as for frame-area]**. Variant ``no-gaussian``: single-pixel frame updates (eq. 4.1)
 with the threshold raised to 4.
@@ -114,5 +114,5 @@ class EventAreaMatcher(MergedEventMatcher):
         prm, bank = self.params, self._bank
         return int(_event_area_kernel(*columns, bank.stored, bank.scale, bank.clock, bank.slot_of_p, bank.kernel,
                                       *bank.decay_args, float(prm.threshold), prm.block // 2,
-                                      int(prm.max_disparity), float(prm.max_sad), out_cam, out_index,
+                                      int(prm.max_disparity), float(prm.max_cost), out_cam, out_index,
                                       out_disparity))

@@ -146,4 +146,4 @@ class EventVectorMatcher(MergedEventMatcher):
         return int(_event_vector_kernel(*columns, bank.stored, bank.scale, bank.clock, bank.slot_of_p, bank.kernel,
                                         *bank.decay_args, float(prm.threshold),
                                         bool(prm.require_candidate_threshold), int(prm.max_disparity),
-                                        int(prm.max_cost), out_cam, out_index, out_disparity))
+                                        float(prm.max_cost), out_cam, out_index, out_disparity))

@@ -112,7 +112,7 @@ class FrameAreaMatcher(FrameMatcher):
     def _frame(self, counts: np.ndarray) -> np.ndarray:
         (_, frame), = polarity_frames(counts, polarity="shared")
         if self.params.gaussian:
-            frame = gaussian_filter(frame, sigma=self.params.sigma, kernel_size=self.params.kernel_size)
+            frame = gaussian_filter(frame, sigma=self.params.kernel_sigma, kernel_size=self.params.kernel_size)
         return frame
 
     def _counts(self, window: Window) -> tuple[np.ndarray, np.ndarray]:
@@ -122,17 +122,17 @@ class FrameAreaMatcher(FrameMatcher):
         return polarity_counts(ref_ev, resolution=self.resolution), polarity_counts(oth_ev, resolution=self.resolution)
 
     def _disparity_map(self, ref_counts: np.ndarray, oth_counts: np.ndarray):
-        p = self.params
+        prm = self.params
         ref, oth = self._frame(ref_counts), self._frame(oth_counts)
-        disp = scan_sad(ref, oth, threshold=p.threshold, max_disparity=p.max_disparity, block=p.block,
-                        reference_camera=p.reference_camera)
+        disp = scan_sad(ref, oth, threshold=prm.threshold, max_disparity=prm.max_disparity, block=prm.block,
+                        reference_camera=prm.reference_camera)
         return disp, ref
 
     def match_window(self, window: Window) -> np.ndarray:
-        p = self.params
-        if not (window.right if p.reference_camera == 1 else window.left).size:
+        prm = self.params
+        if not (window.right if prm.reference_camera == 1 else window.left).size:
             return empty_matches()  # no reference events: nothing above threshold, no pixel to report at
         ref_counts, oth_counts = self._counts(window)
         disp, ref = self._disparity_map(ref_counts, oth_counts)
         y, x = np.nonzero(event_mask(ref_counts) & ~np.isnan(disp))
-        return make_matches(window.t_end, x, y, (ref[y, x] > 0).astype(np.int8), p.reference_camera, disp[y, x])
+        return make_matches(window.t_end, x, y, (ref[y, x] > 0).astype(np.int8), prm.reference_camera, disp[y, x])

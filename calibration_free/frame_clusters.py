@@ -59,22 +59,22 @@ class FrameClusterMatcher(FrameMatcher):
         return (self.params.anchor_camera,)
 
     def match_window(self, window: Window) -> np.ndarray:
-        p = self.params
+        prm = self.params
         if not (window.left.size and window.right.size):
             return empty_matches()  # a frame without events has no clusters, so no row can match
         height = self.resolution[1]
         # All frames of the window (cameras x frames) go through the filter as one stacked image, with zero rows
         # between them: the same as filtering each on its own with a zero border (as the reference does).
-        gap = p.kernel_size // 2 if p.gaussian else 0
-        stack, seen = stacked_frames((window.left, window.right), polarity=p.polarity, resolution=self.resolution,
-                                     gap=gap, seen_camera=p.anchor_camera)
+        gap = prm.kernel_size // 2 if prm.gaussian else 0
+        stack, seen = stacked_frames((window.left, window.right), polarity=prm.polarity, resolution=self.resolution,
+                                     gap=gap, seen_camera=prm.anchor_camera)
         n_frames = seen.shape[0] // height  # 2 for separate ON/OFF, else 1
-        if p.gaussian:
-            stack = gaussian_filter(stack, sigma=p.sigma, kernel_size=p.kernel_size)
+        if prm.gaussian:
+            stack = gaussian_filter(stack, sigma=prm.kernel_sigma, kernel_size=prm.kernel_size)
         x, y, sign, disparity = _match_stacked_rows(
-            stack, seen, n_frames, height, height + gap, np.float32(p.threshold), float(p.width_tolerance),
-            float(p.max_disparity), int(p.anchor_camera))
-        matches = make_matches(window.t_end, x, y, (sign > 0).view(np.int8), p.anchor_camera, disparity)
+            stack, seen, n_frames, height, height + gap, np.float32(prm.threshold), float(prm.width_tolerance),
+            float(prm.max_disparity), int(prm.anchor_camera))
+        matches = make_matches(window.t_end, x, y, (sign > 0).view(np.int8), prm.anchor_camera, disparity)
         # One frame: the kernel already emits (y, x) order. Two (separate ON/OFF): a pixel may be in both.
         return matches if n_frames == 1 else _pixel_order(matches)
 

@@ -8,7 +8,7 @@ the other. Variants (ON/OFF handling, Gaussian or not) are values of their field
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import ClassVar, Literal
 
 from cvstereo.dynamic_frames import DynamicFrameParams
 from cvstereo.polarity import Polarity, check_polarity
@@ -24,7 +24,7 @@ WIDTH_EPS = 1e-9
 class FrameClusterParams(WindowFrameParams):
     """Parameters of the frame-based cluster matcher (thesis defaults; algorithms.md section 1).
 
-    The window and Gaussian fields (window_us, gaussian, sigma, kernel_size) are those of
+    The window and Gaussian fields (window_us, gaussian, kernel_sigma, kernel_size) are those of
     :class:`~cvstereo.windows.WindowFrameParams`.
 
     Attributes
@@ -38,7 +38,7 @@ class FrameClusterParams(WindowFrameParams):
     max_disparity : int
         Pairs with disparity outside ``[0, max_disparity]`` are dropped, px.
     anchor_camera : {0, 1}
-        The camera whose cluster pixels carry the results (0 = left, 1 = right).
+        Where the matches are reported (:mod:`cvstereo.params`): its cluster pixels; default 0 (left).
     """
 
     polarity: Polarity = "shared"
@@ -66,7 +66,7 @@ class FrameClusterParams(WindowFrameParams):
 class FrameAreaParams(WindowFrameParams):
     """Parameters of the frame-area SAD matcher (thesis defaults; algorithms.md section 3).
 
-    The window and Gaussian fields (window_us, gaussian, sigma, kernel_size) are those of
+    The window and Gaussian fields (window_us, gaussian, kernel_sigma, kernel_size) are those of
     :class:`~cvstereo.windows.WindowFrameParams`.
 
     Attributes
@@ -78,7 +78,7 @@ class FrameAreaParams(WindowFrameParams):
     max_disparity : int
         Largest disparity searched, px (the search also stops where the block would leave the sensor).
     reference_camera : {0, 1}
-        The scanned camera, whose pixels carry the results (1 = right, the thesis' eDVS1; 0 = left).
+        The camera scanned (:mod:`cvstereo.params`), pixel by pixel; default 1 (right, the thesis' eDVS1).
     """
 
     threshold: float = 2.0
@@ -117,7 +117,7 @@ class EventTimeParams(DynamicFrameParams):
     row_tolerance : int
         Maximum ``|y2 - y|`` (corresponding events may lie one row apart).
     reference_camera : {0, 1}
-        The camera whose events are matched (0 left, 1 right = the thesis' eDVS1).
+        The camera scanned (:mod:`cvstereo.params`), event by event; default 1 (right, the thesis' eDVS1).
     restrict_side : bool
         Keep only candidates on the geometrically possible side.
     max_disparity : int
@@ -153,14 +153,16 @@ class EventAreaParams(DynamicFrameParams):
         Odd side of the compared patches (thesis: 5).
     max_disparity : int
         Largest disparity searched.
-    max_sad : float
-        A match needs a SAD below this (Algorithm 3's initial minimum).
+    max_cost : float
+        A match needs a SAD below this (Algorithm 3's initial minimum; old name: ``max_sad``).
     """
+
+    aliases: ClassVar[dict] = {"max_sad": "max_cost"}
 
     threshold: float = 1.2
     block: int = 5
     max_disparity: int = 64
-    max_sad: float = 1000.0
+    max_cost: float = 1000.0
 
     def __post_init__(self):
         super().__post_init__()
@@ -183,14 +185,14 @@ class EventVectorParams(DynamicFrameParams):
         Candidates must pass the threshold with the sign of D at the event; False: every x2 (Algorithm 4).
     max_disparity : int
         Largest disparity searched.
-    max_cost : int
+    max_cost : float
         A match needs a cost below this (Algorithm 4's initial minimum).
     """
 
     threshold: float = 0.8
     require_candidate_threshold: bool = True
     max_disparity: int = 64
-    max_cost: int = 1000
+    max_cost: float = 1000.0
 
     def __post_init__(self):
         super().__post_init__()

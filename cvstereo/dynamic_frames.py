@@ -41,6 +41,8 @@ import numpy as np
 from numba import njit
 
 from cvstereo.events import DEFAULT_RESOLUTION
+from cvstereo.frames import check_filter_params
+from cvstereo.params import AliasedParams
 from cvstereo.polarity import Polarity, check_polarity, slot_of_p
 
 #: Renormalise the stored frames when the lazy decay factor falls below this (0.99^22900, about 5.7 s).
@@ -50,7 +52,7 @@ RENORM = 1e-100
 FORGET_TICKS = 1_000_000
 
 @dataclass(frozen=True, kw_only=True)
-class DynamicFrameParams:
+class DynamicFrameParams(metaclass=AliasedParams):
     """Parameters of the dynamic frames, shared by the parameter classes of all event matchers.
 
     Attributes
@@ -81,10 +83,7 @@ class DynamicFrameParams:
 
     def __post_init__(self):
         check_polarity(self.polarity, type(self).__name__)
-        if self.kernel_size < 1 or self.kernel_size % 2 == 0:
-            raise ValueError(f"kernel_size must be odd and positive, got {self.kernel_size}.")
-        if not self.kernel_sigma > 0:
-            raise ValueError(f"kernel_sigma must be positive, got {self.kernel_sigma}.")
+        check_filter_params(self.kernel_sigma, self.kernel_size, type(self).__name__)
         if not 0 < self.decay <= 1:
             raise ValueError(f"decay must lie in (0, 1], got {self.decay}.")
         if self.decay_period_us <= 0:

@@ -225,9 +225,10 @@ def gaussian_filter(frame: np.ndarray, *, sigma: float = 1.0, kernel_size: int =
                             sigmaY=sigma, borderType=cv2.BORDER_CONSTANT)
 
 
-def check_filter_params(sigma: float, kernel_size: int, where: str) -> None:
-    """Raise ValueError unless ``kernel_size`` is a positive odd int and ``sigma`` positive."""
+def check_filter_params(kernel_sigma: float, kernel_size: int, where: str) -> None:
+    """Raise ValueError unless ``kernel_size`` is a positive odd int and ``kernel_sigma`` positive."""
     if kernel_size < 1 or kernel_size % 2 == 0:
-        raise ValueError(f"{where}: kernel_size must be a positive odd number (e.g. 5), got {kernel_size}.")
-    if not sigma > 0:
-        raise ValueError(f"{where}: sigma must be > 0 (the thesis uses 1.0), got {sigma}.")
+        raise ValueError(f"{where}: kernel_size must be a positive odd number (the thesis uses 5 for frames, 3 for "
+                         f"dynamic frames), got {kernel_size}.")
+    if not kernel_sigma > 0:
+        raise ValueError(f"{where}: kernel_sigma must be > 0 (the thesis uses 1.0), got {kernel_sigma}.")

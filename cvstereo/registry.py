@@ -22,6 +22,7 @@ from collections.abc import Iterator, Mapping
 
 from cvstereo.errors import NoMatchersError
 from cvstereo.matcher import StreamMatcher
+from cvstereo.params import aliases_of, canonical_params
 
 #: The entry-point group that lists the matchers: name (formats.md) -> "module:Class".
 ENTRY_POINT_GROUP = "cvstereo.matchers"
@@ -104,7 +105,7 @@ def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 
 def parse_param_strings(params_cls: type, items: list[str]) -> dict:
     """Turn ``["key=value", ...]`` into typed overrides for the dataclass ``params_cls``.
 
-    Old names of renamed fields (``params_cls.aliases``) are accepted and come back under the new name.
+    Old names of renamed fields (:mod:`cvstereo.params`) are accepted and come back under the new name.
 
     Raises
     ------
@@ -112,7 +113,7 @@ def parse_param_strings(params_cls: type, items: list[str]) -> dict:
         Malformed item, unknown name (the allowed ones are listed) or a value of the wrong type.
     """
     fields = {f.name: f for f in dataclasses.fields(params_cls)}
-    aliases = getattr(params_cls, "aliases", {})
+    aliases = aliases_of(params_cls)
     hints = typing.get_type_hints(params_cls)
     out = {}
     for item in items:
@@ -120,11 +121,22 @@ def parse_param_strings(params_cls: type, items: list[str]) -> dict:
         key = key.strip()
         if not sep:
             raise ValueError(f"--param '{item}' is not key=value.")
-        key = aliases.get(key, key)
-        if key not in fields:
+        field = aliases[key].name if key in aliases else key
+        if field not in fields:
             raise ValueError(f"unknown parameter '{key}'; allowed: {', '.join(sorted(fields))}.")
-        out[key] = _parse_value(key, text.strip(), hints[key])
-    return out
+        out[key] = _parse_value(key, text.strip(), hints[field])
+    return canonical_params(params_cls, out)
+
+
+def params_from_meta(meta: dict):
+    """The parameter object a matches file's meta describes (``method`` and ``params``; old names accepted).
+
+    Examples
+    --------
+    >>> params_from_meta({"method": "event-area", "params": {"max_sad": 500.0}}).max_cost
+    500.0
+    """
+    return matcher_class(meta["method"]).Params(**meta["params"])
 
 
 def _parse_value(key: str, text: str, hint):

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import abc
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import ClassVar, NamedTuple
 
 import numpy as np
 
@@ -22,6 +22,7 @@ from cvstereo.events import DEFAULT_RESOLUTION, distinct_sorted, empty_events
 from cvstereo.frames import check_filter_params
 from cvstereo.matcher import StreamMatcher
 from cvstereo.matches import concat_matches, empty_matches
+from cvstereo.params import AliasedParams
 
 
 def check_window_us(window_us: int, where: str) -> None:
@@ -32,7 +33,7 @@ def check_window_us(window_us: int, where: str) -> None:
 
 
 @dataclass(frozen=True, kw_only=True)
-class WindowFrameParams:
+class WindowFrameParams(metaclass=AliasedParams):
     """Parameters every frame matcher shares: the window on the absolute clock and the thesis' Gaussian.
 
     Matchers' parameter classes extend it with their own fields.
@@ -43,21 +44,23 @@ class WindowFrameParams:
         Window length, us; windows ``[k*W, (k+1)*W)`` on the absolute clock.
     gaussian : bool
         Filter the frames with the Gaussian (eq. 3.6).
-    sigma : float
-        Standard deviation of the Gaussian, px.
+    kernel_sigma : float
+        Standard deviation of the Gaussian, px (old name: ``sigma``).
     kernel_size : int
         Odd side of the Gaussian kernel.
     """
 
+    aliases: ClassVar[dict] = {"sigma": "kernel_sigma"}
+
     window_us: int = 40_000
     gaussian: bool = True
-    sigma: float = 1.0
+    kernel_sigma: float = 1.0
     kernel_size: int = 5
 
     def __post_init__(self):
         where = type(self).__name__
         check_window_us(self.window_us, where)
-        check_filter_params(self.sigma, self.kernel_size, where)
+        check_filter_params(self.kernel_sigma, self.kernel_size, where)
 
 
 class Window(NamedTuple):

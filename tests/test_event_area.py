@@ -45,7 +45,8 @@ def test_events_near_the_border_are_not_matched_and_ties_go_to_the_smaller_dispa
     right = make_events(np.r_[t, 100], [50] * 11, [30] * 11, [1] * 11)
     matches = _run(right[:0], right)
     assert matches.size > 0 and np.all(matches["disparity"] == 0)
-    # ... unless max_sad is below that SAD.
+    # ... unless max_cost is below that SAD (also under its old name max_sad).
+    assert _run(right[:0], right, max_cost=1.0).size == 0
     assert _run(right[:0], right, max_sad=1.0).size == 0
 
 

@@ -115,7 +115,7 @@ def test_gaussian_is_the_thesis_kernel_with_zero_border():
 
 
 @pytest.mark.parametrize(("kernel_size", "sigma"), [(4, 1.0), (0, 1.0), (5, 0.0)])
-def test_bad_filter_or_window_parameters(kernel_size, sigma):
+def test_bad_filter_or_window_parameters(kernel_size, sigma):  # sigma: the old name of kernel_sigma
     from calibration_free.frame_clusters import FrameClusterParams
 
     with pytest.raises(ValueError, match="FrameClusterParams"):

@@ -41,7 +41,7 @@ def event_area_reference(left: np.ndarray, right: np.ndarray, params: EventAreaP
         other.advance(t)
         # Matching happens before the event updates its own frame.
         if abs(own.value(slot, x, y)) >= prm.threshold and half <= x < width - half and half <= y < height - half:
-            minimum = prm.max_sad
+            minimum = prm.max_cost
             disparity = None
             for d in range(prm.max_disparity + 1):
                 x2 = x + d if cam == 1 else x - d  # right camera: towards larger x; left: smaller

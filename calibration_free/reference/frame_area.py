@@ -121,7 +121,7 @@ def frame_area_reference(left: np.ndarray, right: np.ndarray, params: FrameAreaP
         ref_ev, oth_ev = (ev_r, ev_l) if prm.reference_camera == 1 else (ev_l, ev_r)
         ref, oth = (signed_frame(ev, resolution=resolution) for ev in (ref_ev, oth_ev))
         if prm.gaussian:
-            ref, oth = (gaussian_filter(f, sigma=prm.sigma, kernel_size=prm.kernel_size) for f in (ref, oth))
+            ref, oth = (gaussian_filter(f, sigma=prm.kernel_sigma, kernel_size=prm.kernel_size) for f in (ref, oth))
         volume = sad_volume(ref, oth, max_disparity=prm.max_disparity, block=prm.block,
                             reference_camera=prm.reference_camera)
         disp = scan_disparity_map(ref, volume, threshold=prm.threshold, block=prm.block)

@@ -178,7 +178,7 @@ def frame_clusters_reference(left: np.ndarray, right: np.ndarray, params: FrameC
         for signs in frame_signs(prm.polarity):
             fl, fr = (signed_frame(ev, resolution=resolution, signs=signs) for ev in (ev_l, ev_r))
             if prm.gaussian:
-                fl, fr = (gaussian_filter(f, sigma=prm.sigma, kernel_size=prm.kernel_size) for f in (fl, fr))
+                fl, fr = (gaussian_filter(f, sigma=prm.kernel_sigma, kernel_size=prm.kernel_size) for f in (fl, fr))
             pairs = match_frame_pair(fl, fr, threshold=prm.threshold, width_tolerance=prm.width_tolerance,
                                      max_disparity=prm.max_disparity, anchor_camera=prm.anchor_camera)
             # Pixels with events of this frame's polarities (ON and OFF events at one pixel may cancel).
