@@ -29,8 +29,8 @@ from cvstereo.events import DEFAULT_RESOLUTION
 from cvstereo.polarity import OFF, ON, Polarity, frame_signs, slot_of_p
 
 
-def _shape(resolution: tuple[int, int]) -> tuple[int, int]:
-    """(height, width) of a frame for a sensor of (width, height)."""
+def frame_shape(resolution: tuple[int, int]) -> tuple[int, int]:
+    """(height, width) of a frame for a sensor of (width, height): the array shape of every frame."""
     return int(resolution[1]), int(resolution[0])
 
 
@@ -48,7 +48,7 @@ def polarity_counts(events: np.ndarray, *, resolution: tuple[int, int] = DEFAULT
     (2, height, width) int64 ndarray
         Indexed by ``p``: ``[OFF]`` = ``[0]`` OFF counts, ``[ON]`` = ``[1]`` ON counts.
     """
-    h, w = _shape(resolution)
+    h, w = frame_shape(resolution)
     # One bincount over (polarity plane, y, x) is the vectorised scatter-add (faster than np.add.at).
     idx = events["p"].astype(np.intp) * (h * w) + events["y"].astype(np.intp) * w + events["x"]
     return np.bincount(idx, minlength=2 * h * w).reshape(2, h, w)
@@ -150,7 +150,7 @@ def stacked_frames(cameras: Sequence[np.ndarray], *, polarity: Polarity = "share
     >>> stack.tolist(), seen.tolist()
     ([[-1.0, 0.0], [0.0, 0.0], [0.0, 2.0], [0.0, 0.0]], [[True, False], [False, True]])
     """
-    h, w = _shape(resolution)
+    h, w = frame_shape(resolution)
     n_frames, channel_of = slot_of_p(polarity)
     stack = np.zeros((len(cameras) * n_frames * (h + gap), w), dtype=np.float32)
     seen = np.zeros((n_frames * h, w), dtype=np.bool_)

@@ -12,10 +12,14 @@ the rules: lazy decay with one scale factor, renormalisation, forgetting after a
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
+from calibration_free.merge_order import merged_events
 from cvstereo.dynamic_frames import FORGET_TICKS, RENORM, DynamicFrameParams, update_kernel
 from cvstereo.events import DEFAULT_RESOLUTION
+from cvstereo.matches import empty_matches, make_matches
 from cvstereo.polarity import ON, slot_of_p
 
 
@@ -74,18 +78,13 @@ class DynamicFrames:
 
     def add(self, slot: int, x: int, y: int, sign: float) -> None:
         """Add ``sign * kernel`` centred on (x, y) to frame ``slot``, clipped at the border."""
-        k = self.kernel.shape[0]
-        r = k // 2
+        r = self.kernel.shape[0] // 2
         _, height, width = self.stored.shape
-        for j in range(k):
-            yy = y + j - r
-            if yy < 0 or yy >= height:
-                continue
-            for i in range(k):
-                xx = x + i - r
-                if xx < 0 or xx >= width:
-                    continue
-                self.stored[slot, yy, xx] += sign * self.kernel[j, i] / self.scale
+        # The kernel's window on the sensor, and the part of the kernel that falls inside it.
+        y0, y1, x0, x1 = max(y - r, 0), min(y + r + 1, height), max(x - r, 0), min(x + r + 1, width)
+        weights = self.kernel[y0 - (y - r): y1 - (y - r), x0 - (x - r): x1 - (x - r)]
+        # sign * w / scale per pixel, then added: the operations of the numba splat, in its order.
+        self.stored[slot, y0:y1, x0:x1] += sign * weights / self.scale
         self.touched = True
 
     def value(self, slot: int, x: int, y: int) -> float:
@@ -121,3 +120,36 @@ class DynamicFrames:
     def values(self) -> np.ndarray:
         """The current frame values, ``(n_frames, H, W)`` float64."""
         return self.stored * self.scale
+
+
+#: ``match_event(own, other, slot, cam, x, y) -> disparity or None``: one event's search, on its own camera's
+#: frames and the other camera's, as they stand at its time before it updates its own.
+EventSearch = Callable[["DynamicFrames", "DynamicFrames", int, int, int, int], "int | None"]
+
+
+def match_merged(left: np.ndarray, right: np.ndarray, params: DynamicFrameParams, match_event: EventSearch, *,
+                 resolution: tuple[int, int] = DEFAULT_RESOLUTION) -> np.ndarray:
+    """Both cameras' events one at a time in the merged order, each searched, then added to its own frame.
+
+    The frame of each camera is decayed to the event's time first; events of a dropped polarity are skipped.
+
+    Returns
+    -------
+    (M,) ndarray of MATCH_DTYPE
+        One row per event ``match_event`` found a disparity for, in processing order (time-ordered).
+    """
+    frames = [DynamicFrames(params.frame_params(), resolution=resolution) for _ in range(2)]
+    rows = []
+    for cam, _, e in merged_events(left, right):
+        t, x, y, p = int(e["t"]), int(e["x"]), int(e["y"]), int(e["p"])
+        own, other = frames[cam], frames[1 - cam]
+        slot = own.slot(p)
+        if slot < 0:
+            continue
+        own.advance(t)
+        other.advance(t)
+        disparity = match_event(own, other, slot, cam, x, y)
+        if disparity is not None:
+            rows.append((t, x, y, p, cam, float(disparity)))
+        own.add(slot, x, y, 1.0 if p else -1.0)
+    return make_matches(*zip(*rows, strict=True)) if rows else empty_matches()
