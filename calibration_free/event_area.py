@@ -80,11 +80,15 @@ def _event_area_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, slo
 
 
 class EventAreaMatcher(MergedEventMatcher):
-    """Event-area matcher (thesis Algorithm 3), fast path, both cameras; streaming, ``feed`` / ``flush``.
+    """Event-area matcher (thesis Algorithm 3): the SAD of dynamic-frame patches, for each event of either camera.
+
+    Streaming (``feed`` / ``flush``); its reference is
+    :func:`calibration_free.reference.event_area.event_area_reference`.
 
     Parameters
     ----------
     params : EventAreaParams, optional
+        Default: the thesis' (variant ``gaussian``).
     resolution : (width, height), keyword-only
     """
 

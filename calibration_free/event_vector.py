@@ -114,18 +114,23 @@ def _event_vector_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, s
 
 
 class EventVectorMatcher(MergedEventMatcher):
-    """Event-vector matcher (thesis Algorithm 4), fast path, both cameras; streaming, ``feed`` / ``flush``.
+    """Event-vector matcher (thesis Algorithm 4): each event's distances to the neighbouring accumulations of its
+    row, compared with those of candidate pixels in the other camera's row.
+
+    Streaming (``feed`` / ``flush``), for events of either camera; its reference is
+    :func:`calibration_free.reference.event_vector.event_vector_reference`.
 
     Parameters
     ----------
     params : EventVectorParams, optional
+        Default: the thesis' (its only variant).
     resolution : (width, height), keyword-only
     """
 
+    method = "event-vector"
+    anchor = "event"
     Params = EventVectorParams
     variants: ClassVar[dict[str, dict]] = {"default": {}}
-    anchor = "event"
-    method = "event-vector"
 
     def _run_kernel(self, columns, out_cam, out_index, out_disparity) -> int:
         prm, bank = self.params, self._bank
