@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _event_scenes import feed_slices
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -243,15 +244,7 @@ def test_result_does_not_depend_on_the_packets(seed, cuts, variant):
     left = np.concatenate([p[0] for p in parts])
     right = np.concatenate([p[1] for p in parts])
     whole = run_all(FrameClusterMatcher.from_variant(variant), left, right)
-    m = FrameClusterMatcher.from_variant(variant)
-    out, start = [], 0
-    for stop in sorted(cuts):
-        out.append(m.feed(left[(left["t"] >= start) & (left["t"] < stop)],
-                          right[(right["t"] >= start) & (right["t"] < stop)], until=stop))
-        start = stop
-    out.append(m.feed(left[left["t"] >= start], right[right["t"] >= start]))
-    out.append(m.flush())
-    np.testing.assert_array_equal(np.concatenate(out), whole)
+    np.testing.assert_array_equal(feed_slices(FrameClusterMatcher.from_variant(variant), left, right, cuts), whole)
 
 
 def test_match_runs_the_stream(rng):

@@ -42,7 +42,7 @@ def event_frame_rgb(events: np.ndarray, *, resolution: tuple[int, int]) -> np.nd
     Parameters
     ----------
     events : (N,) ndarray of EVENT_DTYPE
-        The events of one camera in one window.
+        One camera's events in the time span shown.
     resolution : (width, height), keyword-only
 
     Returns
