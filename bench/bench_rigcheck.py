@@ -166,9 +166,9 @@ def main() -> None:
 
 def accuracy(speed_lines: list[str], speed_rows: list[dict]) -> None:
     """The --auto table on Fan_disp8.dat; writes both tables."""
-    from calibration_free.registry import available_methods
-    from calibration_free.run import match
     from cvstereo.io import read_recording
+    from cvstereo.pipeline import match
+    from cvstereo.registry import available_methods
     from cvstereo.rigcheck import check_rig
 
     methods = [m for m in METHODS if m in available_methods()]

@@ -1,8 +1,8 @@
 """What the event matchers share: the streaming of both cameras in one merged order through their frames.
 
 Event-area and event-vector compare an event's own dynamic frame with the other camera's frame as it stands
-at the event's time, so both cameras' events must be processed in one global order. That order is: by time,
-and at equal times the left camera's events first, each camera's events in their array order **[choice]**.
+at the event's time, so both cameras' events must be processed in one global order
+(:mod:`calibration_free.merge_order`: by time, and at equal times the left camera's events first).
 Events at the current watermark are held back until the next packet (or flush), because the other camera
 may still deliver events with the same timestamp that come first in that order; this makes the result
 independent of how the stream was cut into packets.

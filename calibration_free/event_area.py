@@ -6,61 +6,32 @@ differences with the patches along the same row of the other camera's frame (as 
 time), over disparities 0 .. ``max_disparity`` on the geometrically possible side: an event of the right
 camera searches towards larger x in the left frame, an event of the left camera towards smaller x. The least
 SAD wins (strict ``<``, scanning disparities upwards: ties go to the smaller disparity); a SAD must be below
-``max_sad`` (Algorithm 3's initial minimum, 1000) to count. Patches that would leave the sensor are not used:
+``max_cost`` (Algorithm 3's initial minimum, 1000) to count. Patches that would leave the sensor are not used:
 events within ``block // 2`` of the border are not matched, and candidates whose patch leaves the sensor end
 the search **[choice, as for frame-area]**. Variant ``no-gaussian``: single-pixel frame updates (eq. 4.1)
 with the threshold raised to 4.
 
 Both cameras' events are processed in one merged order (by time, left first at equal times), see
-:mod:`calibration_free._event_common`. The reference implementation is
+:mod:`calibration_free.merge_order` and :mod:`calibration_free._event_common`. The reference implementation is
 :func:`calibration_free.reference.event_area.event_area_reference`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 from numba import njit
 
 from calibration_free._event_common import MergedEventMatcher
-from cvstereo.dynamic_frames import DynamicFrameParams, advance, splat
-
-
-@dataclass(frozen=True, kw_only=True)
-class EventAreaParams(DynamicFrameParams):
-    """Parameters of the event-area matcher (thesis defaults), besides those of the dynamic frames.
-
-    Attributes
-    ----------
-    threshold : float
-        Minimum ``|D|`` at the event's pixel (1.2; 4 for single-pixel updates).
-    block : int
-        Odd side of the compared patches (thesis: 5).
-    max_disparity : int
-        Largest disparity searched.
-    max_sad : float
-        A match needs a SAD below this (Algorithm 3's initial minimum).
-    """
-
-    threshold: float = 1.2
-    block: int = 5
-    max_disparity: int = 64
-    max_sad: float = 1000.0
-
-    def __post_init__(self):
-        super().__post_init__()
-        if self.block < 1 or self.block % 2 == 0:
-            raise ValueError(f"block must be odd and positive, got {self.block}.")
-        for name in ("threshold", "max_disparity"):
-            if getattr(self, name) < 0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}.")
+from calibration_free.merge_order import left_is_next_jit
+from calibration_free.params import EventAreaParams
+from cvstereo.dynamic_frames import advance, splat
 
 
 @njit(cache=True)
 def _event_area_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, slot_of_p, kernel, decay, period,
-                       threshold, half, max_d, max_sad, out_cam, out_index, out_disparity):
+                       threshold, half, max_d, max_cost, out_cam, out_index, out_disparity):
     """Process both cameras' events in merged order; one output row per matched event; returns the count."""
     height = stored.shape[2]
     width = stored.shape[3]
@@ -73,7 +44,7 @@ def _event_area_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, slo
     ir = 0
     n = 0
     while il < nl or ir < nr:
-        if ir >= nr or (il < nl and tl[il] <= tr[ir]):
+        if left_is_next_jit(il, nl, ir, nr, tl, tr):
             cam, i, t, x, y, p = 0, il, tl[il], xl[il], yl[il], pl[il]
             il += 1
         else:
@@ -97,7 +68,7 @@ def _event_area_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, slo
                     band[jj, xx] = stored[other, slot, y - half + jj, xx] * c2
             step = 1 if cam == 1 else -1  # right-camera events look towards larger x, left towards smaller
             best = -1
-            best_sad = max_sad
+            best_sad = max_cost
             for d in range(max_d + 1):
                 x2 = x + step * d
                 if x2 - half < 0 or x2 + half >= width:
@@ -123,11 +94,15 @@ def _event_area_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, slo
 
 
 class EventAreaMatcher(MergedEventMatcher):
-    """Event-area matcher (thesis Algorithm 3), fast path, both cameras; streaming, ``feed`` / ``flush``.
+    """Event-area matcher (thesis Algorithm 3): the SAD of dynamic-frame patches, for each event of either camera.
+
+    Streaming (``feed`` / ``flush``); its reference is
+    :func:`calibration_free.reference.event_area.event_area_reference`.
 
     Parameters
     ----------
     params : EventAreaParams, optional
+        Default: the thesis' (variant ``gaussian``).
     resolution : (width, height), keyword-only
     """
 
@@ -143,5 +118,5 @@ class EventAreaMatcher(MergedEventMatcher):
         prm, bank = self.params, self._bank
         return int(_event_area_kernel(*columns, bank.stored, bank.scale, bank.clock, bank.slot_of_p, bank.kernel,
                                       *bank.decay_args, float(prm.threshold), prm.block // 2,
-                                      int(prm.max_disparity), float(prm.max_sad), out_cam, out_index,
+                                      int(prm.max_disparity), float(prm.max_cost), out_cam, out_index,
                                       out_disparity))

@@ -13,48 +13,21 @@ the threshold has an empty run of its own: its vector points to the nearest abov
 ``|a1 - a2| + |b1 - b2|``; the least cost below ``max_cost`` wins, ties to the smallest disparity.
 
 Both cameras' events are processed in one merged order (by time, left first at equal times), see
-:mod:`calibration_free._event_common`. The reference implementation is
+:mod:`calibration_free.merge_order` and :mod:`calibration_free._event_common`. The reference implementation is
 :func:`calibration_free.reference.event_vector.event_vector_reference`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 from numba import njit
 
 from calibration_free._event_common import MergedEventMatcher
-from cvstereo.dynamic_frames import DynamicFrameParams, advance, splat
-
-
-@dataclass(frozen=True, kw_only=True)
-class EventVectorParams(DynamicFrameParams):
-    """Parameters of the event-vector matcher (thesis defaults), besides those of the dynamic frames.
-
-    Attributes
-    ----------
-    threshold : float
-        Minimum ``|D|`` at the event's pixel, and what makes a pixel part of an accumulation.
-    require_candidate_threshold : bool
-        Candidates must pass the threshold with the sign of D at the event; False: every x2 (Algorithm 4).
-    max_disparity : int
-        Largest disparity searched.
-    max_cost : int
-        A match needs a cost below this (Algorithm 4's initial minimum).
-    """
-
-    threshold: float = 0.8
-    require_candidate_threshold: bool = True
-    max_disparity: int = 64
-    max_cost: int = 1000
-
-    def __post_init__(self):
-        super().__post_init__()
-        for name in ("threshold", "max_disparity"):
-            if getattr(self, name) < 0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}.")
+from calibration_free.merge_order import left_is_next_jit
+from calibration_free.params import EventVectorParams
+from cvstereo.dynamic_frames import advance, splat
 
 
 @njit(cache=True, inline="always")
@@ -76,7 +49,7 @@ def _event_vector_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, s
     ir = 0
     n = 0
     while il < nl or ir < nr:
-        if ir >= nr or (il < nl and tl[il] <= tr[ir]):
+        if left_is_next_jit(il, nl, ir, nr, tl, tr):
             cam, i, t, x, y, p = 0, il, tl[il], xl[il], yl[il], pl[il]
             il += 1
         else:
@@ -155,22 +128,27 @@ def _event_vector_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, s
 
 
 class EventVectorMatcher(MergedEventMatcher):
-    """Event-vector matcher (thesis Algorithm 4), fast path, both cameras; streaming, ``feed`` / ``flush``.
+    """Event-vector matcher (thesis Algorithm 4): each event's distances to the neighbouring accumulations of its
+    row, compared with those of candidate pixels in the other camera's row.
+
+    Streaming (``feed`` / ``flush``), for events of either camera; its reference is
+    :func:`calibration_free.reference.event_vector.event_vector_reference`.
 
     Parameters
     ----------
     params : EventVectorParams, optional
+        Default: the thesis' (its only variant).
     resolution : (width, height), keyword-only
     """
 
+    method = "event-vector"
+    anchor = "event"
     Params = EventVectorParams
     variants: ClassVar[dict[str, dict]] = {"default": {}}
-    anchor = "event"
-    method = "event-vector"
 
     def _run_kernel(self, columns, out_cam, out_index, out_disparity) -> int:
         prm, bank = self.params, self._bank
         return int(_event_vector_kernel(*columns, bank.stored, bank.scale, bank.clock, bank.slot_of_p, bank.kernel,
                                         *bank.decay_args, float(prm.threshold),
                                         bool(prm.require_candidate_threshold), int(prm.max_disparity),
-                                        int(prm.max_cost), out_cam, out_index, out_disparity))
+                                        float(prm.max_cost), out_cam, out_index, out_disparity))

@@ -7,161 +7,32 @@ the other frame, on the same row and on the geometrically possible side, has the
 differences (ties: the smaller disparity); the winner is written into the whole 5x5 neighbourhood of the
 disparity map, overwriting, so that those pixels are not searched again.
 
-The SAD of every pixel and disparity comes from OpenCV kernels at once (a cost volume from ``cv2.absdiff``
-and an unnormalised ``cv2.boxFilter`` per disparity); only the scan, whose result depends on its order,
-remains a loop, and it visits only the above-threshold pixels.
+The scan is one numba kernel (:func:`scan_sad`) that computes the SAD only for the pixels it actually searches
+(each search fills a whole block of the disparity map, so most above-threshold pixels are never searched).
+Its readable twin, a full cost volume from OpenCV kernels (``cv2.absdiff`` and an unnormalised
+``cv2.boxFilter`` per disparity) and the scan over it, is :mod:`calibration_free.reference.frame_area`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import ClassVar, Literal
+from typing import ClassVar
 
-import cv2
 import numba
 import numpy as np
 
-from cvstereo.frames import (
-    FrameMatcher,
-    Window,
-    WindowFrameParams,
-    event_mask,
-    gaussian_filter,
-    polarity_counts,
-    polarity_frames,
-)
+from calibration_free.params import FrameAreaParams
+from cvstereo.frames import event_mask, gaussian_filter, polarity_counts, polarity_frames
 from cvstereo.matches import empty_matches, make_matches
-
-
-@dataclass(frozen=True, kw_only=True)
-class FrameAreaParams(WindowFrameParams):
-    """Parameters of the frame-area SAD matcher (thesis defaults; algorithms.md section 3).
-
-    The window and Gaussian fields (window_us, gaussian, sigma, kernel_size) are those of
-    :class:`~cvstereo.frames.WindowFrameParams`.
-
-    Attributes
-    ----------
-    threshold : float
-        Reference pixels with ``|value| >= threshold`` are searched (2, or 4 without the Gaussian).
-    block : int
-        Odd side of the SAD block, and of the neighbourhood the winner is written into.
-    max_disparity : int
-        Largest disparity searched, px (the search also stops where the block would leave the sensor).
-    reference_camera : {0, 1}
-        The scanned camera, whose pixels carry the results (1 = right, the thesis' eDVS1; 0 = left).
-    """
-
-    threshold: float = 2.0
-    block: int = 5
-    max_disparity: int = 64
-    reference_camera: Literal[0, 1] = 1
-
-    def __post_init__(self):
-        super().__post_init__()
-        where = type(self).__name__
-        if not self.threshold > 0:
-            raise ValueError(f"{where}: threshold must be > 0 (the thesis uses 2, or 4 without the Gaussian), "
-                             f"got {self.threshold}.")
-        if self.block < 1 or self.block % 2 == 0:
-            raise ValueError(f"{where}: block must be a positive odd number (the thesis uses 5), got {self.block}.")
-        if int(self.max_disparity) != self.max_disparity or self.max_disparity < 0:
-            raise ValueError(f"{where}: max_disparity must be a whole number >= 0 (e.g. 64), "
-                             f"got {self.max_disparity}.")
-        if self.reference_camera not in (0, 1):
-            raise ValueError(f"{where}: reference_camera must be 0 (left) or 1 (right), "
-                             f"got {self.reference_camera}.")
-
-
-def sad_volume(reference: np.ndarray, other: np.ndarray, *, max_disparity: int, block: int = 5,
-               reference_camera: int = 1) -> np.ndarray:
-    """SAD of the block around every reference pixel against the other frame's block at each disparity.
-
-    The candidate of reference pixel ``(y, x)`` at disparity ``d`` is ``(y, x + d)`` in the other (left) frame
-    when the reference is the right camera, ``(y, x - d)`` in the right frame when it is the left camera; so
-    ``d = x_left - x_right`` either way.
-
-    Parameters
-    ----------
-    reference, other : (height, width) float ndarray
-    max_disparity : int, keyword-only
-    block : int, keyword-only
-        Odd block side.
-    reference_camera : {0, 1}, keyword-only
-
-    Returns
-    -------
-    (max_disparity + 1, height, width) float64 ndarray
-        ``inf`` where either block would leave the sensor.
-
-    Examples
-    --------
-    >>> rng = np.random.default_rng(0)
-    >>> right = rng.normal(size=(12, 20))
-    >>> left = np.roll(right, 3, axis=1)                       # x_left = x_right + 3
-    >>> int(np.argmin(sad_volume(right, left, max_disparity=6)[:, 6, 6]))
-    3
-    """
-    ref = np.asarray(reference, dtype=np.float64)
-    oth = np.asarray(other, dtype=np.float64)
-    h, w = ref.shape
-    r = block // 2
-    vol = np.full((max_disparity + 1, h, w), np.inf)
-    for d in range(min(max_disparity, w - block) + 1):
-        # Crop both frames to the columns where the candidate exists; column c of the crop is reference x
-        # (= c for the right reference, c + d for the left one).
-        a, b = (ref[:, : w - d], oth[:, d:]) if reference_camera == 1 else (ref[:, d:], oth[:, : w - d])
-        sad = cv2.boxFilter(cv2.absdiff(a, b), -1, (block, block), normalize=False,
-                            borderType=cv2.BORDER_CONSTANT)
-        x0 = r if reference_camera == 1 else r + d  # first reference x whose both blocks are inside
-        vol[d, r: h - r, x0: x0 + (w - d - 2 * r)] = sad[r: h - r, r: w - d - r]
-    return vol
-
-
-def scan_disparity_map(reference: np.ndarray, volume: np.ndarray, *, threshold: float,
-                       block: int = 5) -> np.ndarray:
-    """Algorithm 2's scan: row by row, x ascending; search unset pixels above threshold; write the block.
-
-    Parameters
-    ----------
-    reference : (height, width) float ndarray
-        The reference frame (decides which pixels are searched).
-    volume : (D + 1, height, width) float ndarray
-        SAD per disparity (:func:`sad_volume`).
-    threshold : float, keyword-only
-    block : int, keyword-only
-
-    Returns
-    -------
-    (height, width) float32 ndarray
-        Disparity, NaN where none was written (0 is a valid disparity).
-    """
-    h, w = reference.shape
-    r = block // 2
-    disp = np.full((h, w), np.nan, dtype=np.float32)
-    inner = np.zeros((h, w), dtype=bool)
-    inner[r: h - r, r: w - r] = True  # blocks must not leave the sensor
-    ys, xs = np.nonzero((np.abs(reference) >= threshold) & inner)  # row-major: the scan order
-    if ys.size == 0:
-        return disp
-    # argmin returns the first minimum: ties go to the smaller disparity, as a strict < scan does.
-    best = np.argmin(volume[:, ys, xs], axis=0).astype(np.float32)
-    done = np.zeros((h, w), dtype=bool)
-    for y, x, d in zip(ys.tolist(), xs.tolist(), best.tolist(), strict=True):
-        if done[y, x]:
-            continue
-        disp[y - r: y + r + 1, x - r: x + r + 1] = d
-        done[y - r: y + r + 1, x - r: x + r + 1] = True
-    return disp
+from cvstereo.windows import FrameMatcher, Window
 
 
 def scan_sad(reference: np.ndarray, other: np.ndarray, *, threshold: float, max_disparity: int, block: int = 5,
              reference_camera: int = 1) -> np.ndarray:
     """Algorithm 2 with the SAD computed only for the pixels the scan actually searches (numba).
 
-    Same result as ``scan_disparity_map(reference, sad_volume(reference, other, ...), ...)``, the readable
-    reference implementation, but much faster: each search fills a whole block of the disparity map, so only a
-    small part of the above-threshold pixels is ever searched, and a full cost volume is mostly wasted.
+    Same result as the reference ``scan_disparity_map(reference, sad_volume(reference, other, ...), ...)``
+    (:mod:`calibration_free.reference.frame_area`), but much faster: each search fills a whole block of the
+    disparity map, so only a small part of the above-threshold pixels is ever searched.
 
     Parameters
     ----------
@@ -241,20 +112,8 @@ class FrameAreaMatcher(FrameMatcher):
     def _frame(self, counts: np.ndarray) -> np.ndarray:
         (_, frame), = polarity_frames(counts, polarity="shared")
         if self.params.gaussian:
-            frame = gaussian_filter(frame, sigma=self.params.sigma, kernel_size=self.params.kernel_size)
+            frame = gaussian_filter(frame, sigma=self.params.kernel_sigma, kernel_size=self.params.kernel_size)
         return frame
-
-    def disparity_map(self, window: Window) -> tuple[np.ndarray, np.ndarray]:
-        """The window's disparity map and reference frame.
-
-        Returns
-        -------
-        disparity : (height, width) float32 ndarray
-            At the reference camera's pixels; NaN where none was written.
-        reference : (height, width) float32 ndarray
-            The reference camera's (filtered) frame.
-        """
-        return self._disparity_map(*self._counts(window))[:2]
 
     def _counts(self, window: Window) -> tuple[np.ndarray, np.ndarray]:
         """ON/OFF counts of the reference and the other camera."""
@@ -263,17 +122,17 @@ class FrameAreaMatcher(FrameMatcher):
         return polarity_counts(ref_ev, resolution=self.resolution), polarity_counts(oth_ev, resolution=self.resolution)
 
     def _disparity_map(self, ref_counts: np.ndarray, oth_counts: np.ndarray):
-        p = self.params
+        prm = self.params
         ref, oth = self._frame(ref_counts), self._frame(oth_counts)
-        disp = scan_sad(ref, oth, threshold=p.threshold, max_disparity=p.max_disparity, block=p.block,
-                        reference_camera=p.reference_camera)
+        disp = scan_sad(ref, oth, threshold=prm.threshold, max_disparity=prm.max_disparity, block=prm.block,
+                        reference_camera=prm.reference_camera)
         return disp, ref
 
     def match_window(self, window: Window) -> np.ndarray:
-        p = self.params
-        if not (window.right if p.reference_camera == 1 else window.left).size:
+        prm = self.params
+        if not (window.right if prm.reference_camera == 1 else window.left).size:
             return empty_matches()  # no reference events: nothing above threshold, no pixel to report at
         ref_counts, oth_counts = self._counts(window)
         disp, ref = self._disparity_map(ref_counts, oth_counts)
         y, x = np.nonzero(event_mask(ref_counts) & ~np.isnan(disp))
-        return make_matches(window.t_end, x, y, (ref[y, x] > 0).astype(np.int8), p.reference_camera, disp[y, x])
+        return make_matches(window.t_end, x, y, (ref[y, x] > 0).astype(np.int8), prm.reference_camera, disp[y, x])

@@ -11,10 +11,11 @@ ON activity, darker for OFF activity (gain 32: a filtered value of +-4, about 8 
 saturates). With ``image="count"`` it is ``clip(gain * (ON + OFF count), 0, 255)`` instead, blind to polarity.
 
 OpenCV computes disparities on the left image (its convention: ``x_right = x_left - d``), which is also ours
-(``d = x_left - x_right``). Its left strip of ``num_disparities`` columns has no result, because the search would
-leave the right image; with ``pad=True`` (default) both images get that many mid-grey columns on the left, so the
-whole sensor gets results. OpenCV returns fixed-point disparities (``int16``, 4 fractional bits); the ``/16``
-is applied here and nowhere else.
+(``d = x_left - x_right``). It searches ``min_disparity .. max_disparity`` (OpenCV's numDisparities is the count
+of them, a multiple of 16: the default 0 .. 63 is 64). Its left strip of that many columns has no result, because
+the search would leave the right image; with ``pad=True`` (default) both images get that many mid-grey columns on
+the left, so the whole sensor gets results. OpenCV returns fixed-point disparities (``int16``, 4 fractional bits);
+the ``/16`` is applied here and nowhere else.
 """
 
 from __future__ import annotations
@@ -26,16 +27,11 @@ from typing import ClassVar, Literal
 import cv2
 import numpy as np
 
-from cvstereo.frames import (
-    FrameMatcher,
-    Window,
-    WindowFrameParams,
-    event_mask,
-    gaussian_filter,
-    polarity_counts,
-    polarity_frames,
-)
+from cvstereo.frames import event_mask, gaussian_filter, polarity_counts, polarity_frames
 from cvstereo.matches import empty_matches, make_matches
+from cvstereo.params import Alias
+from cvstereo.polarity import OFF, ON
+from cvstereo.windows import FrameMatcher, Window, WindowFrameParams
 
 #: OpenCV's fixed-point disparity scale (4 fractional bits).
 DISP_SCALE = 16
@@ -47,8 +43,8 @@ MID_GREY = 128
 class _OpenCVParams(WindowFrameParams):
     """Parameters common to both baselines (see the module docstring for the image mapping).
 
-    The window and Gaussian fields (window_us, gaussian, sigma, kernel_size) are those of
-    :class:`~cvstereo.frames.WindowFrameParams`.
+    The window and Gaussian fields (window_us, gaussian, kernel_sigma, kernel_size) are those of
+    :class:`~cvstereo.windows.WindowFrameParams`.
 
     Attributes
     ----------
@@ -58,8 +54,9 @@ class _OpenCVParams(WindowFrameParams):
         Grey levels per unit of frame value.
     min_disparity : int
         Smallest disparity searched, px.
-    num_disparities : int
-        Number of disparities searched (a positive multiple of 16, OpenCV's rule).
+    max_disparity : int
+        Largest disparity searched, px; ``max_disparity - min_disparity + 1`` must be a positive multiple of 16
+        (OpenCV's rule). Old name: ``num_disparities``, the count (``max_disparity = min_disparity + count - 1``).
     block_size : int
         Odd matching block side, px.
     uniqueness_ratio : int
@@ -67,13 +64,17 @@ class _OpenCVParams(WindowFrameParams):
     speckle_window_size, speckle_range : int
         OpenCV's speckle filter (0: off).
     pad : bool
-        Pad both images on the left with ``num_disparities`` mid-grey columns, so that the left strip gets results.
+        Pad both images on the left with :attr:`num_disparities` mid-grey columns, so that the left strip gets
+        results.
     """
+
+    aliases: ClassVar[dict] = {"num_disparities": Alias("max_disparity",
+                                                        lambda n, given: given.get("min_disparity", 0) + int(n) - 1)}
 
     image: Literal["filtered", "count"] = "filtered"
     gain: float = 32.0
     min_disparity: int = 0
-    num_disparities: int = 64
+    max_disparity: int = 63
     block_size: int = 9
     uniqueness_ratio: int = 10
     speckle_window_size: int = 0
@@ -88,12 +89,19 @@ class _OpenCVParams(WindowFrameParams):
         if not self.gain > 0:
             raise ValueError(f"{where}: gain must be > 0 (e.g. 32), got {self.gain}.")
         if self.num_disparities <= 0 or self.num_disparities % 16:
-            raise ValueError(f"{where}: num_disparities must be a positive multiple of 16 (OpenCV's rule), "
-                             f"e.g. 48 or 64; got {self.num_disparities}.")
+            raise ValueError(f"{where}: max_disparity - min_disparity + 1 (the number of disparities OpenCV searches) "
+                             f"must be a positive multiple of 16 (OpenCV's rule), e.g. max_disparity 47 or 63; got "
+                             f"{self.num_disparities} (max_disparity {self.max_disparity}, min_disparity "
+                             f"{self.min_disparity}).")
         if self.block_size < 1 or self.block_size % 2 == 0:
             raise ValueError(f"{where}: block_size must be a positive odd number (e.g. 9), got {self.block_size}.")
         if self.uniqueness_ratio < 0:
             raise ValueError(f"{where}: uniqueness_ratio must be >= 0, got {self.uniqueness_ratio}.")
+
+    @property
+    def num_disparities(self) -> int:
+        """OpenCV's numDisparities: how many disparities are searched."""
+        return self.max_disparity - self.min_disparity + 1
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -170,21 +178,21 @@ class _OpenCVMatcher(FrameMatcher):
         Parameters
         ----------
         counts : (2, height, width) int ndarray
-            ON and OFF counts (:func:`cvstereo.frames.polarity_counts`).
+            OFF and ON counts (:func:`cvstereo.frames.polarity_counts`).
 
         Returns
         -------
         (height, width) uint8 ndarray
         """
-        p = self.params
-        if p.image == "count":
-            frame, offset = (counts[0] + counts[1]).astype(np.float32), 0.0
+        prm = self.params
+        if prm.image == "count":
+            frame, offset = (counts[ON] + counts[OFF]).astype(np.float32), 0.0
         else:
             ((_, frame),) = polarity_frames(counts, polarity="shared")
             offset = MID_GREY
-        if p.gaussian:
-            frame = gaussian_filter(frame, sigma=p.sigma, kernel_size=p.kernel_size)
-        return np.clip(np.rint(offset + p.gain * frame), 0, 255).astype(np.uint8)
+        if prm.gaussian:
+            frame = gaussian_filter(frame, sigma=prm.kernel_sigma, kernel_size=prm.kernel_size)
+        return np.clip(np.rint(offset + prm.gain * frame), 0, 255).astype(np.uint8)
 
     def disparity_map(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:
         """Run OpenCV on a pair of 8-bit images.
@@ -198,15 +206,15 @@ class _OpenCVMatcher(FrameMatcher):
         (height, width) float32 ndarray
             Disparity ``x_left - x_right`` at the left image's pixels, px; NaN where OpenCV found none.
         """
-        p = self.params
-        pad = p.num_disparities if p.pad else 0
-        fill = MID_GREY if p.image == "filtered" else 0
+        prm = self.params
+        pad = prm.num_disparities if prm.pad else 0
+        fill = MID_GREY if prm.image == "filtered" else 0
         if pad:
             left, right = (cv2.copyMakeBorder(im, 0, 0, pad, 0, cv2.BORDER_CONSTANT, value=fill)
                            for im in (left, right))
         raw = self._stereo.compute(left, right)[:, pad:]
         # OpenCV marks "no disparity" with (min_disparity - 1) * 16; everything at or above min_disparity is valid.
-        valid = raw >= p.min_disparity * DISP_SCALE
+        valid = raw >= prm.min_disparity * DISP_SCALE
         return np.where(valid, raw.astype(np.float32) / DISP_SCALE, np.float32(np.nan))
 
     def match_window(self, window: Window) -> np.ndarray:
@@ -225,7 +233,7 @@ def matches_at_left_events(t_end: int, left_counts: np.ndarray, disparity: np.nd
     t_end : int
         The window's end time, us: the stamp of every match.
     left_counts : (2, height, width) int ndarray
-        ON and OFF counts of the left camera in the window.
+        OFF and ON counts of the left camera in the window (:func:`cvstereo.frames.polarity_counts`).
     disparity : (height, width) float ndarray
         Disparity at the left image's pixels; NaN where there is none.
 
@@ -235,7 +243,7 @@ def matches_at_left_events(t_end: int, left_counts: np.ndarray, disparity: np.nd
     """
     y, x = np.nonzero(event_mask(left_counts) & ~np.isnan(disparity))
     # Polarity of a pixel: the sign of its sum of event signs (ties count as ON).
-    pol = (left_counts[0, y, x] >= left_counts[1, y, x]).astype(np.int8)
+    pol = (left_counts[ON, y, x] >= left_counts[OFF, y, x]).astype(np.int8)
     return make_matches(t_end, x, y, pol, 0, disparity[y, x])
 
 
@@ -252,14 +260,14 @@ class StereoBMMatcher(_OpenCVMatcher):
     method = "stereobm"
 
     def _create(self):
-        p = self.params
-        bm = cv2.StereoBM_create(numDisparities=p.num_disparities, blockSize=p.block_size)
-        bm.setMinDisparity(p.min_disparity)
-        bm.setUniquenessRatio(p.uniqueness_ratio)
-        bm.setTextureThreshold(p.texture_threshold)
-        bm.setPreFilterCap(p.prefilter_cap)
-        bm.setSpeckleWindowSize(p.speckle_window_size)
-        bm.setSpeckleRange(p.speckle_range)
+        prm = self.params
+        bm = cv2.StereoBM_create(numDisparities=prm.num_disparities, blockSize=prm.block_size)
+        bm.setMinDisparity(prm.min_disparity)
+        bm.setUniquenessRatio(prm.uniqueness_ratio)
+        bm.setTextureThreshold(prm.texture_threshold)
+        bm.setPreFilterCap(prm.prefilter_cap)
+        bm.setSpeckleWindowSize(prm.speckle_window_size)
+        bm.setSpeckleRange(prm.speckle_range)
         return bm
 
 
@@ -280,11 +288,11 @@ class StereoSGBMMatcher(_OpenCVMatcher):
     method = "sgbm"
 
     def _create(self):
-        p = self.params
-        area = p.block_size * p.block_size
+        prm = self.params
+        area = prm.block_size * prm.block_size
         return cv2.StereoSGBM_create(
-            minDisparity=p.min_disparity, numDisparities=p.num_disparities, blockSize=p.block_size,
-            P1=p.p1 or 8 * area, P2=p.p2 or 32 * area, disp12MaxDiff=p.disp12_max_diff,
-            uniquenessRatio=p.uniqueness_ratio, speckleWindowSize=p.speckle_window_size,
-            speckleRange=p.speckle_range, mode=_SGBM_MODES[p.mode],
+            minDisparity=prm.min_disparity, numDisparities=prm.num_disparities, blockSize=prm.block_size,
+            P1=prm.p1 or 8 * area, P2=prm.p2 or 32 * area, disp12MaxDiff=prm.disp12_max_diff,
+            uniquenessRatio=prm.uniqueness_ratio, speckleWindowSize=prm.speckle_window_size,
+            speckleRange=prm.speckle_range, mode=_SGBM_MODES[prm.mode],
         )

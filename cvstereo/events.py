@@ -217,11 +217,6 @@ def distinct_sorted(values: np.ndarray) -> np.ndarray:
     return values[np.concatenate([[True], values[1:] != values[:-1]])]
 
 
-def window_indices(events: np.ndarray, window_us: int) -> np.ndarray:
-    """Index ``k`` of the absolute window ``[k*W, (k+1)*W)`` that holds each event."""
-    return events["t"] // int(window_us)
-
-
 class StereoPacket(NamedTuple):
     """A time slice of both cameras.
 

@@ -18,6 +18,7 @@ import numpy as np
 from cvstereo.errors import EventFormatError
 from cvstereo.events import DEFAULT_RESOLUTION, EVENT_DTYPE
 from cvstereo.matches import empty_matches
+from cvstereo.params import canonical_params
 
 
 class StreamMatcher(abc.ABC):
@@ -69,6 +70,7 @@ class StreamMatcher(abc.ABC):
             variant = names[0]
         if variant not in cls.variants:
             raise ValueError(f"unknown variant '{variant}'; choose one of: {', '.join(names)}.")
+        overrides = canonical_params(cls.Params, overrides)  # old parameter names (cvstereo.params)
         fields = {f.name for f in dataclasses.fields(cls.Params)}
         unknown = sorted(set(overrides) - fields)
         if unknown:

@@ -19,9 +19,6 @@ EVENT_COUNTS: dict[str, dict[str, tuple[int, int]]] = {
     "2arms-150cm": {"right": (77733, 64721), "left": (72342, 56745)},
 }
 
-#: The disparity the thesis measured by hand (cord and overlay) at each distance, px: (low, high).
-NOMINAL_DISPARITY = {"50cm": (28.0, 30.0), "100cm": (13.0, 14.0), "150cm": (7.0, 8.0)}
-
 _TABLES = {
     ("frame", "shared"): "28.22/4.86 13.27/1.92 7.14/1.57 26.60/5.66 13.07/4.32 9.19/3.05",
     ("frame", "separate"): "30.08/2.24 13.62/0.93 7.56/0.81 27.61/4.12 13.14/3.28 9.20/2.97",

@@ -42,6 +42,19 @@ def feed_cut(matcher, left: np.ndarray, right: np.ndarray, cut_times) -> np.ndar
     return concat_matches(parts)
 
 
+def feed_slices(matcher, left: np.ndarray, right: np.ndarray, cut_times) -> np.ndarray:
+    """Stream a pair through ``matcher`` in time slices ``[start, stop)`` between the cut times, each fed with
+    ``until=stop`` (so that a matcher may close windows while a camera is silent), then flush; all matches."""
+    out, start = [], 0
+    for stop in sorted(cut_times):
+        out.append(matcher.feed(left[(left["t"] >= start) & (left["t"] < stop)],
+                                right[(right["t"] >= start) & (right["t"] < stop)], until=stop))
+        start = stop
+    out.append(matcher.feed(left[left["t"] >= start], right[right["t"] >= start]))
+    out.append(matcher.flush())
+    return concat_matches(out)
+
+
 #: (start column, polarity) of the edges: three bars, 2, 3 and 4 px wide (ON leading edge, OFF trailing edge),
 #: at irregular spacing; edges of one polarity lie at least 20 px apart.
 EDGES = ((10, 1), (12, 0), (30, 1), (33, 0), (51, 1), (55, 0))

@@ -75,7 +75,7 @@ def test_list_methods(capsys):
     for name in METHODS:
         assert f"{name}:" in text
     for expected in ("shared (default), separate, on, off", "gaussian (default), no-gaussian",
-                     "width_tolerance = 0.3", "threshold = 1.2", "reference_camera = 1", "num_disparities = 64",
+                     "width_tolerance = 0.3", "threshold = 1.2", "reference_camera = 1", "max_disparity = 63",
                      "no-gaussian: gaussian=false, threshold=4.0"):
         assert expected in text
 

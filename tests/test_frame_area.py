@@ -4,17 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _event_scenes import feed_slices
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from calibration_free import match
-from calibration_free.frame_area import (
-    FrameAreaMatcher,
-    FrameAreaParams,
-    sad_volume,
-    scan_disparity_map,
-    scan_sad,
-)
+from calibration_free.frame_area import FrameAreaMatcher, FrameAreaParams, scan_sad
+from calibration_free.reference.frame_area import sad_volume, scan_disparity_map
 from cvstereo.events import make_events
 from cvstereo.recording import Recording
 
@@ -160,15 +156,7 @@ def test_result_does_not_depend_on_the_packets(seed, cuts):
     left = np.concatenate([p[0] for p in parts])
     right = np.concatenate([p[1] for p in parts])
     whole = match(Recording(left, right), method="frame-area").matches
-    m = FrameAreaMatcher()
-    out, start = [], 0
-    for stop in sorted(cuts):
-        out.append(m.feed(left[(left["t"] >= start) & (left["t"] < stop)],
-                          right[(right["t"] >= start) & (right["t"] < stop)], until=stop))
-        start = stop
-    out.append(m.feed(left[left["t"] >= start], right[right["t"] >= start]))
-    out.append(m.flush())
-    np.testing.assert_array_equal(np.concatenate(out), whole)
+    np.testing.assert_array_equal(feed_slices(FrameAreaMatcher(), left, right, cuts), whole)
 
 
 def test_invalid_parameters_say_what_to_do():

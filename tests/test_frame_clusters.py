@@ -4,18 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _event_scenes import feed_slices
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from calibration_free import match
-from calibration_free.frame_clusters import (
-    FrameClusterMatcher,
-    FrameClusterParams,
-    match_frame_pair,
-    row_runs,
-)
+from calibration_free.frame_clusters import FrameClusterMatcher, FrameClusterParams
+from calibration_free.reference.frame_clusters import match_frame_pair, row_runs
 from cvstereo.events import make_events
-from cvstereo.frames import gaussian_filter, signed_frame
+from cvstereo.frames import gaussian_filter
 from cvstereo.matches import MATCH_DTYPE
 from cvstereo.recording import Recording
 
@@ -238,44 +235,6 @@ def test_separate_matches_polarities_on_their_own():
     np.testing.assert_array_equal(out["disparity"], 6)
 
 
-def reference_window_matches(left, right, params):
-    """One window, frame by frame through the readable numpy path (match_frame_pair), in (y, x, p) order."""
-    frame_signs = {"shared": [(1, -1)], "separate": [(1,), (-1,)], "on": [(1,)], "off": [(-1,)]}[params.polarity]
-    anchor = (left, right)[params.anchor_camera]
-    rows = []
-    for s in frame_signs:
-        fl, fr = (signed_frame(e, signs=s) for e in (left, right))
-        if params.gaussian:
-            fl, fr = gaussian_filter(fl), gaussian_filter(fr)
-        pairs = match_frame_pair(fl, fr, threshold=params.threshold, anchor_camera=params.anchor_camera)
-        seen = np.zeros((128, 128), bool)  # pixels with events of this frame's polarities (ON + OFF may cancel)
-        ev = anchor[np.isin(anchor["p"] * 2 - 1, s)]
-        seen[ev["y"], ev["x"]] = True
-        for y, a, b, sign, d in zip(*pairs, strict=True):
-            rows += [(y, x, int(sign > 0), d) for x in range(a, b + 1) if seen[y, x]]
-    return sorted(rows)
-
-
-@pytest.mark.parametrize("polarity", ["shared", "separate", "on", "off"])
-@pytest.mark.parametrize("anchor_camera", [0, 1])
-@pytest.mark.parametrize("gaussian", [True, False])
-def test_matcher_kernel_equals_frame_by_frame_reference(rng, polarity, anchor_camera, gaussian):
-    # Blobs (rows that match) plus dense noise (rows with many clusters, broken counts and sign orders).
-    left, right = blob_events(rng, 40, shift=4, reps=3)
-    right = right[rng.random(right.size) < 0.9]
-    noise = [make_events(np.sort(rng.integers(0, W, 600)), rng.integers(0, 128, 600), rng.integers(0, 128, 600),
-                         rng.integers(0, 2, 600)) for _ in range(2)]
-    left, right = (np.sort(np.concatenate([e, n]), order="t") for e, n in ((left, noise[0]), (right, noise[1])))
-    params = FrameClusterParams(polarity=polarity, anchor_camera=anchor_camera, gaussian=gaussian,
-                                threshold=1.2 if gaussian else 2.0)
-    out = run_all(FrameClusterMatcher(params), left, right)
-    expected = reference_window_matches(left, right, params)
-    assert len(expected) > 100
-    got = list(zip(out["y"].tolist(), out["x"].tolist(), out["p"].tolist(), out["disparity"].tolist(), strict=True))
-    assert got == expected  # same pixels, polarities, disparities, and the same (y, x, p) order
-    assert set(out["camera"].tolist()) == {anchor_camera} and set(out["t"].tolist()) == {W}
-
-
 @settings(deadline=None, max_examples=25)
 @given(seed=st.integers(0, 2**32 - 1), cuts=st.lists(st.integers(1, 160_000), max_size=8, unique=True),
        variant=st.sampled_from(["shared", "separate"]))
@@ -285,15 +244,7 @@ def test_result_does_not_depend_on_the_packets(seed, cuts, variant):
     left = np.concatenate([p[0] for p in parts])
     right = np.concatenate([p[1] for p in parts])
     whole = run_all(FrameClusterMatcher.from_variant(variant), left, right)
-    m = FrameClusterMatcher.from_variant(variant)
-    out, start = [], 0
-    for stop in sorted(cuts):
-        out.append(m.feed(left[(left["t"] >= start) & (left["t"] < stop)],
-                          right[(right["t"] >= start) & (right["t"] < stop)], until=stop))
-        start = stop
-    out.append(m.feed(left[left["t"] >= start], right[right["t"] >= start]))
-    out.append(m.flush())
-    np.testing.assert_array_equal(np.concatenate(out), whole)
+    np.testing.assert_array_equal(feed_slices(FrameClusterMatcher.from_variant(variant), left, right, cuts), whole)
 
 
 def test_match_runs_the_stream(rng):

@@ -1,32 +1,15 @@
-"""Reference implementations of the event matchers: plain Python that follows ``algorithms.md`` line by line.
+"""Reference implementations of every matcher: readable code that follows ``algorithms.md`` step by step.
 
-They are slow (use them on short inputs) and exist so that tests can check the fast numba matchers against
-them: same anchors, same disparities, bit for bit. Each takes the whole stream at once and returns a
-time-ordered matches array.
+One module per matcher (:mod:`.frame_clusters`, :mod:`.frame_area`, :mod:`.event_time`, :mod:`.event_area`,
+:mod:`.event_vector`), and the reference dynamic frames (:mod:`.dynamic_frames`). Each matcher's function
+``<name>_reference(left, right, params, *, resolution)`` takes the whole stream at once and returns a
+time-ordered matches array. They are slow (use them on short inputs) and exist so that tests can hold the fast
+matchers to them: same anchors, same disparities, bit for bit. They share the parameter classes
+(:mod:`calibration_free.params`) and the merge order of the two cameras (:mod:`calibration_free.merge_order`)
+with the fast matchers, and import none of their kernels.
 """
 
 from __future__ import annotations
-
-from collections.abc import Iterator
-
-import numpy as np
-
-
-def merged_events(left: np.ndarray, right: np.ndarray) -> Iterator[tuple[int, int, np.void]]:
-    """Both cameras' events in the one order the event matchers use: by time, left first at equal times.
-
-    Yields
-    ------
-    (camera, index, event)
-    """
-    i = j = 0
-    while i < left.size or j < right.size:
-        if j >= right.size or (i < left.size and left["t"][i] <= right["t"][j]):
-            yield 0, i, left[i]
-            i += 1
-        else:
-            yield 1, j, right[j]
-            j += 1
 
 
 def sign(value: float) -> int:

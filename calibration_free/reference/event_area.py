@@ -4,11 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from calibration_free.event_area import EventAreaParams
-from calibration_free.reference import merged_events
-from cvstereo.dynamic_frames import DynamicFrames
+from calibration_free.params import EventAreaParams
+from calibration_free.reference.dynamic_frames import DynamicFrames, match_merged
 from cvstereo.events import DEFAULT_RESOLUTION
-from cvstereo.matches import empty_matches, make_matches
 
 
 def event_area_reference(left: np.ndarray, right: np.ndarray, params: EventAreaParams | None = None, *,
@@ -24,39 +22,30 @@ def event_area_reference(left: np.ndarray, right: np.ndarray, params: EventAreaP
     Returns
     -------
     (M,) ndarray of MATCH_DTYPE
-        One row per matched event of either camera, in processing order (time-ordered).
+        One row per matched event of either camera, in processing order (time-ordered). Each event is
+        matched before it updates its own frame.
     """
     prm = params if params is not None else EventAreaParams()
     width, height = resolution
-    frames = [DynamicFrames(prm.frame_params(), resolution=resolution) for _ in range(2)]
     half = prm.block // 2
-    rows = []
-    for cam, _, e in merged_events(left, right):
-        t, x, y, p = int(e["t"]), int(e["x"]), int(e["y"]), int(e["p"])
-        own, other = frames[cam], frames[1 - cam]
-        slot = own.slot(p)
-        if slot < 0:
-            continue
-        own.advance(t)
-        other.advance(t)
-        # Matching happens before the event updates its own frame.
-        if abs(own.value(slot, x, y)) >= prm.threshold and half <= x < width - half and half <= y < height - half:
-            minimum = prm.max_sad
-            disparity = None
-            for d in range(prm.max_disparity + 1):
-                x2 = x + d if cam == 1 else x - d  # right camera: towards larger x; left: smaller
-                if x2 - half < 0 or x2 + half >= width:
-                    break
-                sad = 0.0
-                for j in range(-half, half + 1):
-                    for i in range(-half, half + 1):
-                        sad += abs(own.value(slot, x + i, y + j) - other.value(slot, x2 + i, y + j))
-                if sad < minimum:  # strict: ties keep the smaller disparity
-                    minimum = sad
-                    disparity = d
-            if disparity is not None:
-                rows.append((t, x, y, p, cam, float(disparity)))
-        own.add(slot, x, y, 1.0 if p else -1.0)
-    if not rows:
-        return empty_matches()
-    return make_matches(*zip(*rows, strict=True))
+
+    def search(own: DynamicFrames, other: DynamicFrames, slot: int, cam: int, x: int, y: int) -> int | None:
+        if not (abs(own.value(slot, x, y)) >= prm.threshold and half <= x < width - half and
+                half <= y < height - half):
+            return None
+        minimum = prm.max_cost
+        disparity = None
+        for d in range(prm.max_disparity + 1):
+            x2 = x + d if cam == 1 else x - d  # right camera: towards larger x; left: smaller
+            if x2 - half < 0 or x2 + half >= width:
+                break
+            sad = 0.0
+            for j in range(-half, half + 1):
+                for i in range(-half, half + 1):
+                    sad += abs(own.value(slot, x + i, y + j) - other.value(slot, x2 + i, y + j))
+            if sad < minimum:  # strict: ties keep the smaller disparity
+                minimum = sad
+                disparity = d
+        return disparity
+
+    return match_merged(left, right, prm, search, resolution=resolution)

@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from calibration_free.event_vector import EventVectorParams
-from calibration_free.reference import merged_events, sign
-from cvstereo.dynamic_frames import DynamicFrames
+from calibration_free.params import EventVectorParams
+from calibration_free.reference import sign
+from calibration_free.reference.dynamic_frames import DynamicFrames, match_merged
 from cvstereo.events import DEFAULT_RESOLUTION
-from cvstereo.matches import empty_matches, make_matches
 
 
 def accumulation_vector(frames: DynamicFrames, slot: int, x: int, y: int, threshold: float) -> tuple[int, int]:
@@ -50,41 +49,31 @@ def event_vector_reference(left: np.ndarray, right: np.ndarray, params: EventVec
     Returns
     -------
     (M,) ndarray of MATCH_DTYPE
-        One row per matched event of either camera, in processing order (time-ordered).
+        One row per matched event of either camera, in processing order (time-ordered). Everything is
+        computed before the event updates its own frame.
     """
     prm = params if params is not None else EventVectorParams()
     width = resolution[0]
-    frames = [DynamicFrames(prm.frame_params(), resolution=resolution) for _ in range(2)]
-    rows = []
-    for cam, _, e in merged_events(left, right):
-        t, x, y, p = int(e["t"]), int(e["x"]), int(e["y"]), int(e["p"])
-        own, other = frames[cam], frames[1 - cam]
-        slot = own.slot(p)
-        if slot < 0:
-            continue
-        own.advance(t)
-        other.advance(t)
-        # Everything is computed before the event updates its own frame.
+
+    def search(own: DynamicFrames, other: DynamicFrames, slot: int, cam: int, x: int, y: int) -> int | None:
         value = own.value(slot, x, y)
-        if abs(value) >= prm.threshold:
-            a1, b1 = accumulation_vector(own, slot, x, y, prm.threshold)
-            minimum = prm.max_cost
-            disparity = None
-            for d in range(prm.max_disparity + 1):
-                x2 = x + d if cam == 1 else x - d  # right camera: towards larger x; left: smaller
-                if x2 < 0 or x2 >= width:
-                    break
-                v2 = other.value(slot, x2, y)
-                if prm.require_candidate_threshold and not (abs(v2) >= prm.threshold and sign(v2) == sign(value)):
-                    continue
-                a2, b2 = accumulation_vector(other, slot, x2, y, prm.threshold)
-                cost = abs(a1 - a2) + abs(b1 - b2)
-                if cost < minimum:  # strict: ties keep the smaller disparity
-                    minimum = cost
-                    disparity = d
-            if disparity is not None:
-                rows.append((t, x, y, p, cam, float(disparity)))
-        own.add(slot, x, y, 1.0 if p else -1.0)
-    if not rows:
-        return empty_matches()
-    return make_matches(*zip(*rows, strict=True))
+        if not abs(value) >= prm.threshold:
+            return None
+        a1, b1 = accumulation_vector(own, slot, x, y, prm.threshold)
+        minimum = prm.max_cost
+        disparity = None
+        for d in range(prm.max_disparity + 1):
+            x2 = x + d if cam == 1 else x - d  # right camera: towards larger x; left: smaller
+            if x2 < 0 or x2 >= width:
+                break
+            v2 = other.value(slot, x2, y)
+            if prm.require_candidate_threshold and not (abs(v2) >= prm.threshold and sign(v2) == sign(value)):
+                continue
+            a2, b2 = accumulation_vector(other, slot, x2, y, prm.threshold)
+            cost = abs(a1 - a2) + abs(b1 - b2)
+            if cost < minimum:  # strict: ties keep the smaller disparity
+                minimum = cost
+                disparity = d
+        return disparity
+
+    return match_merged(left, right, prm, search, resolution=resolution)

@@ -20,8 +20,6 @@ from cvstereo.io._atomic import atomic_path
 from cvstereo.matches import REQUIRED_META, MatchResult, validate_matches
 from cvstereo.recording import Recording
 
-RECORDING_KEYS = ("left", "right", "left_disparity", "right_disparity", "resolution", "meta")
-
 
 def _meta_array(meta: dict) -> np.ndarray:
     return np.array(json.dumps(meta, sort_keys=True, default=_json_default))

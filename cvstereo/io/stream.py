@@ -1,8 +1,8 @@
 """Recordings opened for streaming: metadata at once, events chunk by chunk with bounded memory.
 
 Every format module returns a :class:`RecordingStream` from its ``open_*`` function; the format-agnostic
-entry point is :func:`cvstereo.io.open_recording`. The ``.npz`` opener lives here because
-:mod:`cvstereo.io.npz` predates streaming and only supplies the raw chunk reader.
+entry point is :func:`cvstereo.io.open_recording`. The ``.npz`` opener lives here, built on the archive
+readers of :mod:`cvstereo.io.npz` (header and raw chunks).
 """
 
 from __future__ import annotations

@@ -14,6 +14,7 @@ import numpy as np
 
 from cvstereo.depth import DepthModel
 from cvstereo.events import time_slice
+from cvstereo.frames import frame_shape
 from cvstereo.matches import MatchResult
 from cvstereo.recording import Recording
 
@@ -35,17 +36,13 @@ CONTEXT_RGB = (70, 70, 70)
 CAMERA_NAMES = ("left", "right")
 
 
-def _shape(resolution: tuple[int, int]) -> tuple[int, int]:
-    return int(resolution[1]), int(resolution[0])
-
-
 def event_frame_rgb(events: np.ndarray, *, resolution: tuple[int, int]) -> np.ndarray:
     """Pixels that saw ON events green, OFF events red, both yellow, none black (thesis fig. 3.2).
 
     Parameters
     ----------
     events : (N,) ndarray of EVENT_DTYPE
-        The events of one camera in one window.
+        One camera's events in the time span shown.
     resolution : (width, height), keyword-only
 
     Returns
@@ -60,7 +57,7 @@ def event_frame_rgb(events: np.ndarray, *, resolution: tuple[int, int]) -> np.nd
     >>> img[0].tolist()
     [[0, 255, 0], [255, 0, 0]]
     """
-    h, w = _shape(resolution)
+    h, w = frame_shape(resolution)
     idx = events["y"].astype(np.intp) * w + events["x"].astype(np.intp)
     img = np.zeros((h * w, 3), dtype=np.uint8)
     for polarity, rgb in ((1, ON_RGB), (0, OFF_RGB)):
@@ -71,7 +68,7 @@ def event_frame_rgb(events: np.ndarray, *, resolution: tuple[int, int]) -> np.nd
 
 def context_rgb(events: np.ndarray, *, resolution: tuple[int, int]) -> np.ndarray:
     """Pixels that saw any event in :data:`CONTEXT_RGB`, the others in :data:`NO_DATA_RGB`; (H, W, 3) uint8."""
-    h, w = _shape(resolution)
+    h, w = frame_shape(resolution)
     img = np.full((h * w, 3), NO_DATA_RGB, dtype=np.uint8)
     img[events["y"].astype(np.intp) * w + events["x"].astype(np.intp)] = CONTEXT_RGB
     return img.reshape(h, w, 3)
@@ -96,7 +93,7 @@ def pixel_mean(x: np.ndarray, y: np.ndarray, values: np.ndarray, *, resolution: 
     >>> pixel_mean(np.array([0, 0, 1]), np.array([0, 0, 0]), np.array([2.0, 4.0, np.nan]), resolution=(2, 1))
     array([[ 3., nan]])
     """
-    h, w = _shape(resolution)
+    h, w = frame_shape(resolution)
     values = np.asarray(values, dtype=np.float64)
     finite = np.isfinite(values)
     idx = np.asarray(y, np.intp)[finite] * w + np.asarray(x, np.intp)[finite]

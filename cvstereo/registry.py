@@ -1,0 +1,162 @@
+"""Matchers by name, found through the entry-point group ``cvstereo.matchers``.
+
+Every distribution can register matchers in its ``pyproject.toml``::
+
+    [project.entry-points."cvstereo.matchers"]
+    frame = "calibration_free.frame_clusters:FrameClusterMatcher"
+
+cvstereo registers the thesis' five (in :mod:`calibration_free`) and its own OpenCV and dv-processing
+baselines this way, so the CLI, :func:`cvstereo.pipeline.match` and the benchmark find every matcher
+without importing :mod:`calibration_free` by name. A matcher's module is imported only when it is used.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import importlib
+import importlib.metadata
+import importlib.util
+import typing
+from collections.abc import Iterator, Mapping
+
+from cvstereo.errors import NoMatchersError
+from cvstereo.matcher import StreamMatcher
+from cvstereo.params import aliases_of, canonical_params
+
+#: The entry-point group that lists the matchers: name (formats.md) -> "module:Class".
+ENTRY_POINT_GROUP = "cvstereo.matchers"
+
+#: The order in which tables and listings show the methods (the installed metadata sorts entry points by
+#: name); methods not named here follow in name order.
+LISTING_ORDER = ("frame", "frame-area", "event-time", "event-area", "event-vector", "stereobm", "sgbm",
+                 "dv-semidense")
+
+
+@functools.cache
+def _entry_points() -> dict[str, importlib.metadata.EntryPoint]:
+    found = {ep.name: ep for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)}
+    if not found:
+        raise NoMatchersError(f"no matcher is registered in the entry-point group '{ENTRY_POINT_GROUP}': cvstereo "
+                              "is not installed. Install it (from the repository: pip install -e .).")
+    rank = {name: i for i, name in enumerate(LISTING_ORDER)}
+    return {name: found[name] for name in sorted(found, key=lambda n: (rank.get(n, len(rank)), n))}
+
+
+class _Methods(Mapping):
+    """The registered methods, read from the entry points on first use: name -> "module:Class"."""
+
+    def __getitem__(self, name: str) -> str:
+        return _entry_points()[name].value
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(_entry_points())
+
+    def __len__(self) -> int:
+        return len(_entry_points())
+
+    def __repr__(self) -> str:
+        return f"METHODS({dict(self)!r})"
+
+
+#: method name (formats.md) -> "module:Class" of its StreamMatcher, in registration order.
+METHODS: Mapping[str, str] = _Methods()
+
+
+def available_methods() -> list[str]:
+    """Names of the methods whose module, and the optional extras it needs, can be imported here."""
+    out = []
+    for name in METHODS:
+        try:
+            cls = matcher_class(name)
+        except ImportError:
+            continue
+        # Optional extras (e.g. dv-processing for the comparison) are only imported when a matcher is built.
+        if all(importlib.util.find_spec(mod) is not None for mod in getattr(cls, "requires", ())):
+            out.append(name)
+    return out
+
+
+def matcher_class(method: str) -> type[StreamMatcher]:
+    """The StreamMatcher class registered under ``method``.
+
+    Raises
+    ------
+    ValueError
+        Unknown method; the message lists the known ones.
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown method '{method}'; choose one of: {', '.join(METHODS)}.")
+    return _entry_points()[method].load()
+
+
+def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 128), **params) -> StreamMatcher:
+    """Build a matcher by name, variant and parameter overrides.
+
+    Examples
+    --------
+    >>> m = create_matcher("frame", "separate", width_tolerance=0.25)
+    >>> m.params.polarity, m.params.width_tolerance
+    ('separate', 0.25)
+    """
+    return matcher_class(method).from_variant(variant, resolution=resolution, **params)
+
+
+def parse_param_strings(params_cls: type, items: list[str]) -> dict:
+    """Turn ``["key=value", ...]`` into typed overrides for the dataclass ``params_cls``.
+
+    Old names of renamed fields (:mod:`cvstereo.params`) are accepted and come back under the new name.
+
+    Raises
+    ------
+    ValueError
+        Malformed item, unknown name (the allowed ones are listed) or a value of the wrong type.
+    """
+    fields = {f.name: f for f in dataclasses.fields(params_cls)}
+    aliases = aliases_of(params_cls)
+    hints = typing.get_type_hints(params_cls)
+    out = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        key = key.strip()
+        if not sep:
+            raise ValueError(f"--param '{item}' is not key=value.")
+        field = aliases[key].name if key in aliases else key
+        if field not in fields:
+            raise ValueError(f"unknown parameter '{key}'; allowed: {', '.join(sorted(fields))}.")
+        out[key] = _parse_value(key, text.strip(), hints[field])
+    return canonical_params(params_cls, out)
+
+
+def params_from_meta(meta: dict):
+    """The parameter object a matches file's meta describes (``method`` and ``params``; old names accepted).
+
+    Examples
+    --------
+    >>> params_from_meta({"method": "event-area", "params": {"max_sad": 500.0}}).max_cost
+    500.0
+    """
+    return matcher_class(meta["method"]).Params(**meta["params"])
+
+
+def _parse_value(key: str, text: str, hint):
+    origin = typing.get_origin(hint)
+    choices = typing.get_args(hint) if origin is typing.Literal else None
+    base = type(choices[0]) if choices else hint
+    try:
+        if base is bool:
+            low = text.lower()
+            if low not in ("true", "false", "1", "0", "yes", "no"):
+                raise ValueError
+            value = low in ("true", "1", "yes")
+        elif base is int:
+            value = int(text)
+        elif base is float:
+            value = float(text)
+        else:
+            value = text
+    except ValueError:
+        raise ValueError(f"parameter '{key}' needs a {getattr(base, '__name__', base)}, got '{text}'.") from None
+    if choices and value not in choices:
+        raise ValueError(f"parameter '{key}' must be one of {', '.join(map(str, choices))}, got '{text}'.")
+    return value
