@@ -96,3 +96,21 @@ def test_not_aedat4(tmp_path):
         open_aedat4(bad)
     with pytest.raises(FileNotFoundError, match="no such file"):
         open_aedat4(tmp_path / "missing.aedat4")
+
+
+def test_read_recording_detects_aedat4(tmp_path, streams):
+    from cvstereo.io import detect_format, read_recording
+
+    path = tmp_path / "stereo.aedat4"
+    cfg = [dv.io.MonoCameraWriter.EventOnlyConfig(name, RES) for name in ("a", "b")]
+    writer = dv.io.StereoCameraWriter(str(path), *cfg)
+    _write(writer.left, streams[0], batches=1)
+    _write(writer.right, streams[1], batches=1)
+    del writer
+    assert detect_format(path) == "aedat4"
+    path = path.rename(tmp_path / "stereo.aedat")  # the content decides, not only the extension
+    assert detect_format(path) == "aedat4"
+    with pytest.raises(ValueError, match=r"must end in '\.aedat4'"):
+        read_recording(path)
+    rec = read_recording(path.rename(tmp_path / "again.aedat4"))
+    assert_same_events(rec.right, streams[1])

@@ -130,10 +130,17 @@ def open_aedat4(path: str | os.PathLike, right: str | os.PathLike | None = None,
     ImportError
         dv-processing is not installed.
     CorruptFileError, ValueError
-        Not AEDAT4, more than two cameras, an unknown ``left_camera``, cameras of different resolutions.
+        Not AEDAT4, not named ``*.aedat4``, more than two cameras, an unknown ``left_camera``, cameras of
+        different resolutions.
     """
     _dv()
     path = os.fspath(path)
+    for file in (path,) + (() if right is None else (os.fspath(right),)):
+        aedat4_cameras(file)  # not AEDAT4, or missing: say so before dv-processing does
+        if not file.lower().endswith(".aedat4"):
+            # dv-processing refuses other extensions with an opaque error.
+            raise ValueError(f"{file}: an AEDAT4 file must end in '.aedat4' to be read (dv-processing requires "
+                             "it); rename or link it.")
     if right is not None:
         if left_camera is not None:
             raise ValueError(f"{path}: left_camera applies to a stereo file, not to two files (left, right).")
