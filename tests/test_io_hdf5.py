@@ -88,3 +88,19 @@ def test_bad_files_name_what_is_wrong(tmp_path):
     (tmp_path / "junk.h5").write_bytes(b"not hdf5")
     with pytest.raises(CorruptFileError, match="not a readable HDF5 file"):
         hdf5_layout(tmp_path / "junk.h5")
+
+
+def test_read_recording_detects_both_layouts(dsec_pair, tmp_path, rng):
+    from cvstereo.io import detect_format, read_recording
+
+    (lpath, rpath), left, right = dsec_pair
+    assert detect_format(lpath) == "dsec"
+    rec = read_recording(lpath, rpath)
+    assert_same_events(rec.left, left) and rec.resolution == (640, 480)
+    path = tmp_path / "m.hdf5"
+    small = [ev[(ev["x"] < 346) & (ev["y"] < 260)][:10] for ev in (left, right)]
+    write_mvsec_events(path, *small)
+    assert detect_format(path) == "mvsec"
+    assert read_recording(path).resolution == (346, 260)
+    with pytest.raises(ValueError, match="a second file do"):
+        read_recording(path, rpath)

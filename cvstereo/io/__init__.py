@@ -2,7 +2,8 @@
 
 :func:`read_recording`, :func:`open_recording` (streaming) and :func:`write_recording` choose the format
 from ``format=`` or from the file (content, then extension; :func:`detect_format`). Per-format modules:
-:mod:`~cvstereo.io.npz`, :mod:`~cvstereo.io.edvs_text`, :mod:`~cvstereo.io.aedat2`; the streaming object
+:mod:`~cvstereo.io.npz`, :mod:`~cvstereo.io.edvs_text`, :mod:`~cvstereo.io.aedat2`, and with the extras
+:mod:`~cvstereo.io.aedat4` (``aedat4``) and :mod:`~cvstereo.io.hdf5` (``hdf5``: DSEC, MVSEC); the streaming object
 is :class:`~cvstereo.io.stream.RecordingStream`.
 """
 
@@ -18,11 +19,13 @@ from cvstereo.io.stream import RecordingStream, open_npz
 from cvstereo.recording import Recording
 
 #: Format names accepted by ``format=`` and the CLI's ``--format``.
-FORMATS = ("npz", "edvs-text", "edvs-merged", "aedat2")
+FORMATS = ("npz", "edvs-text", "edvs-merged", "aedat2", "aedat4", "dsec", "mvsec")
 
 #: File extensions of the text formats (which of the two is told by the column count).
 TEXT_SUFFIXES = (".txt", ".dat", ".csv")
 AEDAT_SUFFIXES = (".aedat", ".aedat2")
+AEDAT4_SUFFIXES = (".aedat4",)
+HDF5_SUFFIXES = (".h5", ".hdf5")
 
 # Which reader options apply to which format; anything else given is a mistake worth reporting.
 _OPTIONS = {
@@ -30,15 +33,19 @@ _OPTIONS = {
     "edvs-text": ("right", "one_based", "resolution"),
     "edvs-merged": ("left_retina", "one_based", "resolution"),
     "aedat2": ("right", "resolution"),
+    "aedat4": ("right", "resolution"),
+    "dsec": ("right", "resolution"),
+    "mvsec": ("resolution",),
 }
 
 
 def detect_format(path: str | os.PathLike) -> str:
     """Tell a file's format from its content and extension.
 
-    ``#!AER-DAT`` at the start means AEDAT (jAER also used ``.dat`` for it); ``.npz`` is a recording
-    archive; ``.txt`` / ``.dat`` / ``.csv`` are eDVS text, ``edvs-text`` when the first event line has 4
-    columns and ``edvs-merged`` when it has 5.
+    ``#!AER-DAT4.0`` at the start (or ``.aedat4``) means AEDAT4, other ``#!AER-DAT`` AEDAT 2.0 (jAER also
+    used ``.dat`` for it); ``.npz`` is a recording archive; ``.h5`` / ``.hdf5`` are DSEC or MVSEC (told by the
+    layout, :func:`cvstereo.io.hdf5.hdf5_layout`); ``.txt`` / ``.dat`` / ``.csv`` are eDVS text, ``edvs-text``
+    when the first event line has 4 columns and ``edvs-merged`` when it has 5.
 
     Raises
     ------
@@ -51,13 +58,20 @@ def detect_format(path: str | os.PathLike) -> str:
     suffix = path.suffix.lower()
     if suffix == ".npz":
         return "npz"
-    if suffix not in TEXT_SUFFIXES + AEDAT_SUFFIXES:
+    if suffix in HDF5_SUFFIXES:
+        from cvstereo.io.hdf5 import hdf5_layout
+
+        return hdf5_layout(path)
+    if suffix not in TEXT_SUFFIXES + AEDAT_SUFFIXES + AEDAT4_SUFFIXES:
         raise ValueError(f"{path}: cannot tell the format from '{suffix}'; give --format ({', '.join(FORMATS)}).")
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such file.")
     with open(path, "rb") as fh:
-        if fh.read(9) == b"#!AER-DAT" or suffix in AEDAT_SUFFIXES:
-            return "aedat2"
+        magic = fh.read(12)
+    if magic == b"#!AER-DAT4.0" or suffix in AEDAT4_SUFFIXES:
+        return "aedat4"
+    if magic[:9] == b"#!AER-DAT" or suffix in AEDAT_SUFFIXES:
+        return "aedat2"
     columns = read_text_header(path).columns
     if columns in (4, 5):
         return "edvs-text" if columns == 4 else "edvs-merged"
@@ -104,6 +118,18 @@ def open_recording(path: str | os.PathLike, right: str | os.PathLike | None = No
         return open_edvs_text(path, right, one_based=one_based, resolution=resolution)
     if fmt == "edvs-merged":
         return open_edvs_merged(path, left_retina=left_retina, one_based=one_based, resolution=resolution)
+    if fmt == "aedat4":
+        from cvstereo.io.aedat4 import open_aedat4
+
+        return open_aedat4(path, right, resolution=resolution)
+    if fmt == "dsec":
+        from cvstereo.io.hdf5 import open_dsec
+
+        return open_dsec(path, right, resolution=resolution)
+    if fmt == "mvsec":
+        from cvstereo.io.hdf5 import open_mvsec
+
+        return open_mvsec(path, resolution=resolution)
     return open_aedat2(path, right)
 
 
