@@ -146,7 +146,7 @@ class StereoCalibration:
 
 
 def _matrix(value, shape: tuple[int, ...], name: str) -> np.ndarray:
-    arr = np.asarray(value, np.float64)
+    arr = np.array(value, np.float64)  # a contiguous copy: OpenCV refuses strided views
     if arr.size != int(np.prod(shape)) or not np.isfinite(arr).all():
         raise ValueError(f"calibration: {name} must be {' x '.join(map(str, shape))} finite numbers, got "
                          f"shape {arr.shape}.")
