@@ -9,7 +9,7 @@ the PLY header says it.
 
 >>> from cvstereo.matches import make_matches
 >>> m = make_matches([0, 5], [70, 60], [64, 60], 1, [0, 1], [10.0, 10.0])
->>> depth_per_match(m, DepthModel(a=16.5)).round(3).tolist()
+>>> [round(float(z), 3) for z in depth_per_match(m, DepthModel(a=16.5))]
 [1.65, 1.65]
 >>> pts = point_cloud(m, DepthModel(a=16.5), Intrinsics(165.0, 63.5, 63.5, "test"))
 >>> [round(float(v), 3) for v in pts[1][["x", "y", "z"]]]   # right-anchored: x_left = 60 + 10
