@@ -100,3 +100,20 @@ def test_window_disparity_images_for_window_anchors():
     np.testing.assert_array_equal(got[0][1], [[np.nan, 3.0], [np.nan, np.nan]])
     np.testing.assert_array_equal(got[1][1], [[np.nan, np.nan], [7.0, np.nan]])
     assert list(window_disparity_images(m, 1, resolution=(2, 2))) == []
+
+
+def test_matches_file_carries_depth_m_beside_the_unchanged_matches(tmp_path):
+    from cvstereo.io import read_matches
+    from cvstereo.matches import MATCH_DTYPE, MatchResult
+
+    m = _matches()
+    meta = {"method": "x", "variant": "y", "params": {}, "anchor": "event", "window_us": 0}
+    MatchResult(m, meta, {"depth_m": depth_per_match(m, MODEL)}).save(tmp_path / "m.npz")
+    back = read_matches(tmp_path / "m.npz")
+    assert back.matches.dtype == MATCH_DTYPE
+    np.testing.assert_array_equal(back.matches, m)
+    np.testing.assert_array_equal(back.arrays["depth_m"], depth_per_match(m, MODEL))
+    with np.load(tmp_path / "m.npz") as raw:  # plain numpy sees the documented keys
+        assert sorted(raw.files) == ["depth_m", "matches", "meta"] and raw["depth_m"].dtype == np.float32
+    with pytest.raises(ValueError, match="one value per match"):
+        MatchResult(m, meta, {"depth_m": np.zeros(2)}).save(tmp_path / "bad.npz")
