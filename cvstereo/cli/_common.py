@@ -57,20 +57,34 @@ def load_recording(args: argparse.Namespace, path_attr: str = "recording"):
 def add_depth_options(p: argparse.ArgumentParser) -> None:
     """``--depth A C`` and ``--metres/--no-metres``: a distance axis from d = A/Z - C."""
     g = p.add_argument_group("distance in metres (d = A/Z - C)")
-    g.add_argument("--depth", type=float, nargs=2, default=None, metavar=("A", "C"),
-                   help="A = focal length (px) x baseline (m) and C (px), e.g. from `cvstereo depth-fit` "
-                   "(default: from the recording's rig, where it has one)")
+    g.add_argument("--depth", nargs="+", default=None, metavar="A C | MODEL.json",
+                   help="A = focal length (px) x baseline (m) and C (px), or the file `cvstereo depth-fit -o` "
+                   "wrote (default: from the recording's rig, where it has one)")
     g.add_argument("--metres", action=argparse.BooleanOptionalAction, default=True,
                    help="show distances where a depth model is known (default: yes)")
 
 
 def depth_model(args: argparse.Namespace, recording):
     """The DepthModel the options ask for, or None."""
-    from cvstereo.depth import DepthModel
     from cvstereo.viz import depth_from_meta
 
     if not args.metres:
         return None
     if args.depth is not None:
-        return DepthModel(a=args.depth[0], c=args.depth[1])
+        return parse_depth_option(args.depth)
     return depth_from_meta(recording.meta)
+
+
+def parse_depth_option(values: list[str]):
+    """``--depth A C`` (two numbers) or ``--depth MODEL.json`` (a depth-model file) as a DepthModel."""
+    from cvstereo.depth import DepthModel
+
+    if len(values) == 1:
+        from cvstereo.depth_file import load_depth_model
+
+        return load_depth_model(values[0])
+    try:
+        a, c = (float(v) for v in values)
+    except ValueError:
+        raise ValueError(f"--depth takes two numbers A C or one depth-model file, got {' '.join(values)!r}.") from None
+    return DepthModel(a=a, c=c)
