@@ -104,3 +104,13 @@ def test_read_recording_detects_both_layouts(dsec_pair, tmp_path, rng):
     assert read_recording(path).resolution == (346, 260)
     with pytest.raises(ValueError, match="a second file do"):
         read_recording(path, rpath)
+
+
+def test_dsec_time_range(dsec_pair, tmp_path):
+    from cvstereo.events import empty_events
+    from cvstereo.io.hdf5 import dsec_time_range
+
+    (lpath, _), left, _ = dsec_pair
+    assert dsec_time_range(lpath) == (int(left["t"][0]), int(left["t"][-1]))
+    write_dsec_events(tmp_path / "empty.h5", empty_events(), t_offset=5)
+    assert dsec_time_range(tmp_path / "empty.h5") is None

@@ -203,6 +203,16 @@ def open_mvsec(path: str | os.PathLike, *, resolution: tuple[int, int] | None = 
                            lambda camera: _mvsec_chunks(path, by_camera[camera], res))
 
 
+def dsec_time_range(path: str | os.PathLike) -> tuple[int, int] | None:
+    """Absolute time of the first and the last event of a DSEC ``events.h5`` (us), or None when it has none."""
+    n, t_offset, _ = _dsec_header(path)
+    if n == 0:
+        return None
+    with _open(path) as f:
+        t = f["events"]["t"]
+        return int(t[0]) + t_offset, int(t[n - 1]) + t_offset
+
+
 def read_time_slice(path: str | os.PathLike, t_start: int, t_stop: int, *, camera: str = "left") -> np.ndarray:
     """The events with ``t_start <= t < t_stop`` (absolute us) of one camera, reading only that window.
 
