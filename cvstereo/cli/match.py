@@ -48,6 +48,14 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
                    help="add ROWS to the right camera's y before matching (overrides --auto's estimate)")
     g.add_argument("--time-offset-us", type=int, default=None, metavar="US",
                    help="the right camera stamps US later: subtract it from its t (overrides --auto's estimate)")
+    g = p.add_argument_group("calibrated rigs and 3D output (cvstereo needs no calibration; use one if you have it)")
+    g.add_argument("--calibration", metavar="FILE", default=None,
+                   help="rectify the events with this calibration before matching: DSEC cam_to_cam.yaml, Kalibr/MVSEC "
+                   "camchain .yaml, or .json/.npz with K1 D1 K2 D2 R T resolution; also gives the depth model")
+    g.add_argument("--point-cloud", metavar="FILE.ply", default=None,
+                   help="also write the matches with a distance as a PLY point cloud (needs a depth model)")
+    g.add_argument("--focal-px", type=float, default=None, metavar="F",
+                   help="point cloud without a calibration: focal length in px (default: the thesis rig's 165)")
     add_format_options(p)
     p.set_defaults(_parser=p)
     return p
@@ -68,20 +76,39 @@ def run(args: argparse.Namespace) -> int:
     from calibration_free.run import DEFAULT_PACKET_US, match
     from cvstereo.cli._common import load_recording
 
+    calibration = None
+    if args.calibration is not None:
+        if args.auto or args.row_offset is not None or args.time_offset_us is not None:
+            args._parser.error("--calibration rectifies the rows itself: leave out --auto, --row-offset, "
+                               "--time-offset-us")
+        from cvstereo.calibration import load_calibration
+        from cvstereo.rectify import Rectification
+
+        calibration = load_calibration(args.calibration)
+        overrides_rect = {"rectification": Rectification(calibration)}
+    else:
+        overrides_rect = {}
     recording = load_recording(args)
     recording, rig, offsets = _rig_correction(args, recording)
     progress = sys.stderr.isatty() if args.progress is None else args.progress
     result = match(recording, method=args.method, variant=args.variant, progress=progress,
-                   packet_us=args.packet_us or DEFAULT_PACKET_US, **offsets, **overrides)
+                   packet_us=args.packet_us or DEFAULT_PACKET_US, **offsets, **overrides_rect, **overrides)
     if rig is not None:
         result.meta["rigcheck"] = rig
     result.meta["input"] = [args.recording] + ([args.right] if args.right else [])
     result.meta["format_options"] = {k: list(v) if isinstance(v, tuple) else v
                                      for k, v in format_options(args).items()}
     depth = depth_model(args, recording)
+    if depth is None and calibration is not None and args.metres and args.depth is None:
+        depth = calibration.depth_model()
     if depth is not None:
-        # The matches format is a contract: distances are not a column; the model that gives them is in meta.
+        from cvstereo.pointcloud import depth_per_match
+
+        # The match dtype is a contract: distances go beside it (formats.md), with the model in meta.
         result.meta["depth"] = depth.to_dict()
+        result.arrays["depth_m"] = depth_per_match(result.matches, depth)
+    if args.point_cloud is not None:
+        _write_point_cloud(args, result, depth, calibration, recording.resolution)
     result.save(args.output)
     m = result.meta
     print(f"{len(result)} matches from {m['input_events']} events ({args.method}, {m['variant']}) in "
@@ -95,6 +122,18 @@ def run(args: argparse.Namespace) -> int:
                      f"(d = {depth.a:.2f}/Z - {depth.c:.2f})")
         print(line)
     return 0
+
+
+def _write_point_cloud(args: argparse.Namespace, result, depth, calibration, resolution) -> None:
+    from cvstereo.pointcloud import Intrinsics, point_cloud, write_ply
+
+    if depth is None:
+        raise ValueError("--point-cloud needs a depth model: give --depth A C (or MODEL.json) or --calibration.")
+    intrinsics = Intrinsics.from_options(resolution, focal_px=args.focal_px, calibration=calibration)
+    points = point_cloud(result.matches, depth, intrinsics)
+    write_ply(args.point_cloud, points, model=depth, intrinsics=intrinsics,
+              comments=(f"input {' '.join(result.meta['input'])}", f"method {args.method} ({result.meta['variant']})"))
+    print(f"{points.size} points -> {args.point_cloud} (intrinsics from {intrinsics.source})")
 
 
 def _rig_correction(args: argparse.Namespace, recording):
