@@ -19,6 +19,7 @@ the PLY header says it.
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -110,6 +111,38 @@ def point_cloud(matches: np.ndarray, model: DepthModel, intrinsics: Intrinsics) 
     out["z"] = z
     out["disparity"], out["t"], out["camera"] = m["disparity"], m["t"], m["camera"]
     return out
+
+
+def window_point_clouds(matches: np.ndarray, model: DepthModel, intrinsics: Intrinsics, *, window_us: int = 40_000,
+                        anchor: str = "event") -> Iterator[tuple[int, np.ndarray]]:
+    """One point cloud per absolute window ``[k*W, (k+1)*W)`` that holds matches.
+
+    Parameters
+    ----------
+    matches : (N,) ndarray of MATCH_DTYPE
+        Time-ordered.
+    model, intrinsics
+        As for :func:`point_cloud`.
+    window_us : int, keyword-only
+    anchor : {"event", "window"}, keyword-only
+        The matches file's ``meta["anchor"]`` (window anchors carry their window's end).
+
+    Yields
+    ------
+    t_start : int
+        The window's start, us.
+    points : (M,) ndarray of POINT_DTYPE
+    """
+    from cvstereo.disparity_maps import match_window_slice
+
+    if window_us <= 0:
+        raise ValueError(f"window_us must be positive, got {window_us}.")
+    if not matches.size:
+        return
+    t = matches["t"] - (1 if anchor == "window" else 0)
+    for k in np.unique(t // window_us).tolist():
+        sl = match_window_slice(matches, k * window_us, (k + 1) * window_us, anchor=anchor)
+        yield k * window_us, point_cloud(matches[sl], model, intrinsics)
 
 
 def write_ply(path: str | os.PathLike, points: np.ndarray, *, model: DepthModel, intrinsics: Intrinsics,

@@ -117,3 +117,13 @@ def test_matches_file_carries_depth_m_beside_the_unchanged_matches(tmp_path):
         assert sorted(raw.files) == ["depth_m", "matches", "meta"] and raw["depth_m"].dtype == np.float32
     with pytest.raises(ValueError, match="one value per match"):
         MatchResult(m, meta, {"depth_m": np.zeros(2)}).save(tmp_path / "bad.npz")
+
+
+def test_window_point_clouds_split_the_recording_cloud():
+    from cvstereo.pointcloud import window_point_clouds
+
+    m = make_matches([10, 39_999, 40_000, 95_000], [80, 50, 60, 70], [70, 30, 64, 64], 1, 0, [14.5, 3.5, 14.5, 3.5])
+    intr = Intrinsics(100.0, 60.0, 50.0, "test")
+    parts = list(window_point_clouds(m, MODEL, intr, window_us=40_000))
+    assert [t for t, _ in parts] == [0, 40_000, 80_000] and [p.size for _, p in parts] == [2, 1, 1]
+    np.testing.assert_array_equal(np.concatenate([p for _, p in parts]), point_cloud(m, MODEL, intr))
