@@ -9,6 +9,7 @@ Run:
     python samples/dsec_point_cloud.py zurich_city_04_a -o cloud.ply              # first second, sgbm
     python samples/dsec_point_cloud.py SEQ --start-s 10 --seconds 0.5 --method stereobm
     python samples/dsec_point_cloud.py --left l.h5 --right r.h5 --calibration cam_to_cam.yaml
+    python samples/dsec_point_cloud.py SEQ --window-ms 50 -o cloud.ply   # cloud_<t_us>.ply per 50 ms window
 """
 
 import argparse
@@ -19,7 +20,7 @@ import numpy as np
 from calibration_free import match
 from cvstereo.calibration import load_calibration
 from cvstereo.io.hdf5 import dsec_time_range, read_time_slice
-from cvstereo.pointcloud import Intrinsics, point_cloud, write_ply
+from cvstereo.pointcloud import Intrinsics, point_cloud, window_point_clouds, write_ply
 from cvstereo.recording import Recording
 from cvstereo.rectify import Rectification
 
@@ -33,6 +34,8 @@ def main(argv=None):
     parser.add_argument("--method", default="sgbm", help="matcher (default: sgbm)")
     parser.add_argument("--start-s", type=float, default=0.0, help="start, seconds after the first event")
     parser.add_argument("--seconds", type=float, default=1.0, help="length of the slice read (default 1 s)")
+    parser.add_argument("--window-ms", type=float, default=None,
+                        help="one cloud per window of this length (NAME_<start us>.ply) instead of one for the slice")
     parser.add_argument("-o", "--output", default="cloud.ply", help="PLY file to write")
     args = parser.parse_args(argv)
     if args.sequence:
@@ -57,8 +60,17 @@ def main(argv=None):
     result = match(recording, method=args.method, rectification=Rectification(cal))
     model, intrinsics = cal.depth_model(), Intrinsics.from_options(cal.resolution, calibration=cal)
     points = point_cloud(result.matches, model, intrinsics)
-    write_ply(args.output, points, model=model, intrinsics=intrinsics,
-              comments=(f"input {left} {right}", f"slice {t0}..{t1} us", f"method {args.method}"))
+    comments = (f"input {left} {right}", f"method {args.method}")
+    if args.window_ms:
+        window_us = round(args.window_ms * 1000)
+        stem = args.output.removesuffix(".ply")
+        anchor = result.meta["anchor"]
+        for start, part in window_point_clouds(result.matches, model, intrinsics, window_us=window_us, anchor=anchor):
+            write_ply(f"{stem}_{start}.ply", part, model=model, intrinsics=intrinsics,
+                      comments=(*comments, f"window {start}..{start + window_us} us"))
+    else:
+        write_ply(args.output, points, model=model, intrinsics=intrinsics,
+                  comments=(*comments, f"slice {t0}..{t1} us"))
     dropped = result.meta["rectification"]["dropped_events"]
     median = f"{float(np.median(points['z'])):.2f} m" if points.size else "-"
     print(f"{recording.left.size + recording.right.size} events ({dropped} off the rectified sensor), "

@@ -57,3 +57,15 @@ def test_match_cli_with_calibration_and_point_cloud(tmp_path):
     assert (_relative_error_to_nearest_plane(depth[np.isfinite(depth)].astype(float)) < 0.1).mean() > 0.9
     z = np.asarray(plyfile.PlyData.read(str(tmp_path / "c.ply"))["vertex"]["z"])
     assert z.size == np.isfinite(depth).sum()
+
+
+def test_dsec_point_cloud_sample_per_window(tmp_path):
+    seq = write_dsec_sequence(tmp_path / "seq", seconds=0.1, seed=2)
+    proc = subprocess.run([sys.executable, str(SAMPLE), str(seq), "--window-ms", "40", "-o", "w.ply"],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    files = sorted(tmp_path.glob("w_*.ply"))
+    starts = [int(f.stem.split("_")[1]) for f in files]
+    assert len(files) >= 2 and all(s % 40_000 == 0 for s in starts)
+    total = sum(plyfile.PlyData.read(str(f))["vertex"].count for f in files)
+    assert f"{total} points" in proc.stdout
