@@ -145,3 +145,21 @@ def test_rotated_rig_rectified_gives_the_aligned_disparities(aligned, method):
     common = sorted(set(reference) & set(raw))
     off = np.array([raw[k] - reference[k] for k in common])
     assert len(common) < 0.5 * len(reference) or np.median(np.abs(off)) > 1.0
+
+
+def test_truth_follows_the_kept_events_and_resolution_must_match(rng):
+    K_right, R, T = _rotated_rig(4.0, 5.0)
+    rect = Rectification(StereoCalibration.from_opencv(K, None, K_right, None, R, T, RES))
+    left, right = random_events(rng, 500, RES), random_events(rng, 500, RES)
+    lt, rt = rng.uniform(0, 30, 500).astype(np.float32), rng.uniform(0, 30, 500).astype(np.float32)
+    (packet,) = list(rect.stream([StereoPacket(left, right, 10**9, lt, rt)]))
+    for raw, truth, cam, got, got_truth in ((left, lt, 0, packet.left, packet.left_disparity),
+                                            (right, rt, 1, packet.right, packet.right_disparity)):
+        kept = rect.rectify(raw, cam)[1]
+        np.testing.assert_array_equal(got_truth, truth[kept])
+        np.testing.assert_array_equal(got["t"], raw["t"][kept])
+    rec = Recording(left[left["x"] < 64], right[right["x"] < 64], resolution=(64, 128))
+    with pytest.raises(ValueError, match="calibration is for 128x128, the recording is 64x128"):
+        match(rec, method="sgbm", rectification=rect)
+    with pytest.raises(ValueError, match="not both"):
+        match(Recording(left, right), method="sgbm", rectification=rect, row_offset=2)
