@@ -32,8 +32,8 @@ from pathlib import Path
 import numpy as np
 
 from calibration_free import match
-from calibration_free.registry import METHODS, available_methods
 from cvstereo.evaluate import evaluate, format_figure, to_json
+from cvstereo.registry import METHODS, available_methods
 from cvstereo.simulate import EDVS1_RIGHT, EDVS2_LEFT, ArmsScene, Rig, simulate
 
 RESULTS = Path(__file__).resolve().parent / "results"

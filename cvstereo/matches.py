@@ -87,10 +87,13 @@ class MatchResult:
     matches : (N,) ndarray of MATCH_DTYPE
     meta : dict
         method, variant, params, anchor, window_us, elapsed_s, input_events, ... (formats.md).
+    arrays : dict of str to (N,) float32 ndarray
+        Optional per-match arrays, one value per match in the same order (formats.md: e.g. ``depth_m``).
     """
 
     matches: np.ndarray
     meta: dict = field(default_factory=dict)
+    arrays: dict = field(default_factory=dict)
 
     @property
     def disparity(self) -> np.ndarray:

@@ -44,7 +44,7 @@ class _Counted(Iterator[StereoPacket]):
 
 def match(recording, right=None, *, method: str = "frame", variant: str | None = None,
           packet_us: int = DEFAULT_PACKET_US, progress: bool = False, row_offset: float = 0,
-          time_offset_us: int = 0, **params) -> MatchResult:
+          time_offset_us: int = 0, rectification=None, **params) -> MatchResult:
     """Run one matcher over a recording, streaming it packet by packet.
 
     Parameters
@@ -67,6 +67,10 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         The rig's offsets (:mod:`cvstereo.rigcorrect`): the right camera's rows are shifted by ``row_offset``
         and its times by ``-time_offset_us`` before matching, and right-anchored matches are mapped back;
         recorded in meta under ``rig_correction``. :func:`cvstereo.rigcheck.check_rig` estimates both.
+    rectification : cvstereo.rectify.Rectification, optional, keyword-only
+        Rectify the events with a calibration before matching (:mod:`cvstereo.rectify`); matches are mapped
+        back to the recording's pixels, disparities are the rectified pair's; recorded in meta under
+        ``rectification``. Not together with ``row_offset`` / ``time_offset_us``.
     **params
         Parameter overrides (field names of the method's parameter dataclass, or their old names).
 
@@ -102,11 +106,23 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         correction = RigCorrection(row_offset, int(time_offset_us), stream.resolution)
         packets = correction.stream(packets)
     parts = []
+    rectified = None
+    if rectification is not None:
+        if correction is not None:
+            raise ValueError("give a calibration or row/time offsets, not both: rectification already aligns the rows.")
+        if tuple(rectification.resolution) != tuple(stream.resolution):
+            raise ValueError(f"the calibration is for {rectification.resolution[0]}x{rectification.resolution[1]}, "
+                             f"the recording is {stream.resolution[0]}x{stream.resolution[1]}.")
+        packets = rectified = rectification.stream(packets)
+
+    def restored(found):
+        return found if rectified is None else rectified.restore(found, anchor=matcher.anchor)
+
     for packet in packets:
-        parts.append(matcher.feed(packet.left, packet.right, until=packet.until))
+        parts.append(restored(matcher.feed(packet.left, packet.right, until=packet.until)))
         if bar is not None:
             bar.update(packet.left.size + packet.right.size)
-    parts.append(matcher.flush())
+    parts.append(restored(matcher.flush()))
     elapsed = time.perf_counter() - start
     if bar is not None:
         bar.close()
@@ -124,6 +140,8 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         matches = correction.restore(matches)
         meta["rig_correction"] = {**correction.describe(), "dropped_events": packets.dropped_rows +
                                   packets.dropped_times}
+    if rectified is not None:
+        meta["rectification"] = {**rectification.describe(), "dropped_events": sum(rectified.dropped)}
     return MatchResult(sort_matches(matches), meta)
 
 

@@ -59,3 +59,25 @@ def test_match_prints_distance_and_stores_the_model(tmp_path):
     assert meta["depth"] == {"a": 16.0, "c": 2.5}
     # Median disparity 10 px -> Z = 16 / (10 + 2.5) = 1.28 m.
     assert "median 10.00 px" in proc.stdout and "distance: median 1.28 m" in proc.stdout
+
+
+def test_depth_fit_file_is_read_by_depth_option(tmp_path):
+    for z in (0.5, 1.5):
+        d = np.full(11, 16.0 / z - 2.5, np.float32)
+        write_matches(tmp_path / f"m{z}.npz", make_matches(np.arange(11) * 40_000 + 40_000, 5, 5, 1, 0, d), META)
+    assert _cli("depth-fit", "m0.5.npz:0.5", "m1.5.npz:1.5", "-o", "model.json", cwd=tmp_path).returncode == 0
+    rng = np.random.default_rng(0)
+    n = 4000
+    x, y, p = rng.integers(20, 100, n), rng.integers(0, 128, n), (rng.integers(0, 128, n) % 2)
+    x = x - x % 4
+    t = np.sort(rng.integers(0, 80_000, n))
+    write_recording_npz(tmp_path / "rec.npz", Recording(make_events(t, x, y, p), make_events(t, x - 10, y, p)))
+    proc = _cli("match", "rec.npz", "--method", "stereobm", "--depth", "model.json", "-o", "m.npz", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    meta = read_matches(tmp_path / "m.npz").meta
+    assert meta["depth"]["a"] == pytest.approx(16.0, abs=1e-4) and meta["depth"]["c"] == pytest.approx(2.5, abs=1e-4)
+    assert "distance: median 1.28 m" in proc.stdout
+    bad = _cli("match", "rec.npz", "--method", "stereobm", "--depth", "nope.json", "-o", "m.npz", cwd=tmp_path)
+    assert bad.returncode == 1 and "no such depth-model file" in bad.stderr and "Traceback" not in bad.stderr
+    bad = _cli("match", "rec.npz", "--method", "stereobm", "--depth", "1", "x", "-o", "m.npz", cwd=tmp_path)
+    assert bad.returncode == 1 and "two numbers A C or one depth-model file" in bad.stderr

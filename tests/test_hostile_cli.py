@@ -90,7 +90,7 @@ def base(tmp_path_factory) -> Path:
                                                 (240, 180)))
     result = match(d / "rec.npz", method="frame")
     assert len(result) > 20
-    result.save(d / "m.npz")
+    write_matches(d / "m.npz", result.matches, result.meta)
     write_matches(d / "m_copy.npz", result.matches, {**result.meta, "input": ["m_copy"]})
     m = result.matches
     variants = {

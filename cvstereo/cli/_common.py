@@ -86,7 +86,8 @@ def check_files(inputs: Iterable, outputs: Iterable = (), *, option: str = "-o")
     for path in inputs:
         require_input_file(path)
     for out in outputs:
-        refuse_output_over_input(out, inputs, option=option)
+        if out is not None:
+            refuse_output_over_input(out, inputs, option=option)
 
 
 @contextlib.contextmanager
@@ -123,24 +124,20 @@ def require_range(value, option: str, *, gt: float | None = None, ge: float | No
 def add_depth_options(p: argparse.ArgumentParser) -> None:
     """``--depth A C`` and ``--metres/--no-metres``: a distance axis from d = A/Z - C."""
     g = p.add_argument_group("distance in metres (d = A/Z - C)")
-    g.add_argument("--depth", type=float, nargs=2, default=None, metavar=("A", "C"),
-                   help="A = focal length (px) x baseline (m) and C (px), e.g. from `cvstereo depth-fit` "
-                   "(default: from the recording's rig, where it has one)")
+    g.add_argument("--depth", nargs="+", default=None, metavar="A C | MODEL.json",
+                   help="A = focal length (px) x baseline (m) and C (px), or the file `cvstereo depth-fit -o` "
+                   "wrote (default: from the recording's rig, where it has one)")
     g.add_argument("--metres", action=argparse.BooleanOptionalAction, default=True,
                    help="show distances where a depth model is known (default: yes)")
 
 
 def depth_model(args: argparse.Namespace, recording):
     """The DepthModel the options ask for, or None."""
-    from cvstereo.depth import DepthModel
 
     if not args.metres:
         return None
     if args.depth is not None:
-        try:
-            return DepthModel(a=args.depth[0], c=args.depth[1])
-        except ValueError as exc:
-            raise ValueError(f"--depth A C: {exc}") from None
+        return parse_depth_option(args.depth)
     return meta_depth(recording.meta, getattr(args, "recording", None) or "the recording")
 
 
@@ -153,3 +150,21 @@ def meta_depth(meta, source):
     except (ValueError, TypeError) as exc:
         raise ValueError(f"{source}: its meta holds no valid depth model ({exc}); give --depth A C or "
                          "--no-metres.") from None
+
+
+def parse_depth_option(values: list[str]):
+    """``--depth A C`` (two numbers) or ``--depth MODEL.json`` (a depth-model file) as a DepthModel."""
+    from cvstereo.depth import DepthModel
+
+    if len(values) == 1:
+        from cvstereo.depth_file import load_depth_model
+
+        return load_depth_model(values[0])
+    try:
+        a, c = (float(v) for v in values)
+    except ValueError:
+        raise ValueError(f"--depth takes two numbers A C or one depth-model file, got {' '.join(values)!r}.") from None
+    try:
+        return DepthModel(a=a, c=c)
+    except ValueError as exc:
+        raise ValueError(f"--depth A C: {exc}") from None

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import math
 
 from cvstereo.cli._common import check_files, naming
@@ -16,7 +15,8 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
         description="Fit the disparity-to-distance model d = a/Z - c (a = focal length x baseline, c from axes "
         "that are not exactly parallel) by least squares, from two or more recordings (or matches files) "
         "made at distances you measured (the thesis used a cord). Each file's median disparity is one point. "
-        "Prints a and c and the option `--depth A C` that `match`, `plot` and `video` take.")
+        "Prints a and c and the option `--depth A C` that `match`, `plot` and `video` take; -o writes the model "
+        "file that `--depth DEPTH.json` reads.")
     p.add_argument("points", nargs="+", metavar="FILE:DISTANCE",
                    help="a recording or a matches .npz, and its distance in metres, e.g. arm50.npz:0.5")
     p.add_argument("--method", default="frame", help="matcher for recordings (default: frame)")
@@ -41,7 +41,6 @@ def run(args: argparse.Namespace) -> int:
 
     from cvstereo.depth import fit_depth_model
     from cvstereo.io import read_matches, read_recording
-    from cvstereo.io._atomic import write_text_atomic
     from cvstereo.io.npz import npz_keys
 
     points = [_point(p) for p in args.points]
@@ -70,7 +69,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"{path:40s} {z:10.3f} {d:11.2f} {n:8d} {number(model.distance(d), '.3f'):>9s}")
     print(f"a = {model.a:.4f} px m, c = {model.c:.4f} px   (use: --depth {model.a:.4f} {model.c:.4f})")
     if args.output:
-        data = {**model.to_dict(), "points": [{"file": p, "distance_m": z, "median_disparity_px": d, "matches": n}
-                                              for p, z, d, n in rows]}
-        write_text_atomic(args.output, json.dumps(data, indent=2) + "\n")
+        from cvstereo.depth_file import save_depth_model
+
+        save_depth_model(args.output, model, points=[{"file": p, "distance_m": z, "median_disparity_px": d,
+                                                      "matches": n} for p, z, d, n in rows])
+        print(f"model: {args.output} (use: --depth {args.output})")
     return 0

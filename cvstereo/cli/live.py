@@ -24,12 +24,14 @@ def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
     p.add_argument("--focal-px", type=float, default=160.0, help="focal length in px (default 160)")
     p.add_argument("--baseline-m", type=float, default=0.10, help="baseline in m (default 0.10)")
     p.add_argument("--offset-px", type=float, default=2.5, help="axis offset c in px (default 2.5)")
-    p.add_argument("--depth", type=float, nargs=2, default=None, metavar=("A", "C"),
-                   help="d = A/Z - C fitted by `cvstereo depth-fit` (overrides the three rig options above)")
+    p.add_argument("--depth", nargs="+", default=None, metavar="A C | MODEL.json",
+                   help="d = A/Z - C fitted by `cvstereo depth-fit`, as two numbers or its -o file (overrides the "
+                   "three rig options above)")
     return p
 
 
 def run(args: argparse.Namespace) -> int:
+    from cvstereo.cli._common import parse_depth_option
     from cvstereo.depth import DepthModel
     from cvstereo.registry import available_methods, create_matcher, matcher_class, parse_param_strings
     from cvstereo.sensors.live import run_live
@@ -41,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
                          f"{', '.join(available_methods()) or 'none'}.") from None
     params = parse_param_strings(cls.Params, args.param)
     matcher = create_matcher(args.method, args.variant, **params)
-    depth = (DepthModel(a=args.depth[0], c=args.depth[1]) if args.depth is not None else
+    depth = (parse_depth_option(args.depth) if args.depth is not None else
              DepthModel.from_rig(focal_px=args.focal_px, baseline_m=args.baseline_m, offset_px=args.offset_px))
     with stop_on_signals() as stop, open_rig(args) as (rig, devices):
         rig.start()

@@ -60,6 +60,14 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
                    help="add ROWS to the right camera's y before matching (overrides --auto's estimate)")
     g.add_argument("--time-offset-us", type=int, default=None, metavar="US",
                    help="the right camera stamps US later: subtract it from its t (overrides --auto's estimate)")
+    g = p.add_argument_group("calibrated rigs and 3D output (cvstereo needs no calibration; use one if you have it)")
+    g.add_argument("--calibration", metavar="FILE", default=None,
+                   help="rectify the events with this calibration before matching: DSEC cam_to_cam.yaml, Kalibr/MVSEC "
+                   "camchain .yaml, or .json/.npz with K1 D1 K2 D2 R T resolution; also gives the depth model")
+    g.add_argument("--point-cloud", metavar="FILE.ply", default=None,
+                   help="also write the matches with a distance as a PLY point cloud (needs a depth model)")
+    g.add_argument("--focal-px", type=float, default=None, metavar="F",
+                   help="point cloud without a calibration: focal length in px (default: the thesis rig's 165)")
     add_format_options(p)
     p.set_defaults(_parser=p)
     return p
@@ -82,13 +90,25 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--time-offset-us must be within +-{MAX_TIME_OFFSET_US:,} us (a day), got "
                          f"{args.time_offset_us:,}.")
     refuse_other_format(args.output, "a matches file (.npz)", ".npz")
-    check_files([args.recording, args.right], [args.output])
+    check_files([args.recording, args.right, args.calibration], [args.output, args.point_cloud])
     if args.depth is not None:
         depth_model(args, None)  # a bad --depth is said before the matching, not after
     from cvstereo.cli._common import load_recording
     from cvstereo.io import write_matches
     from cvstereo.pipeline import DEFAULT_PACKET_US, match
 
+    calibration = None
+    if args.calibration is not None:
+        if args.auto or args.row_offset is not None or args.time_offset_us is not None:
+            args._parser.error("--calibration rectifies the rows itself: leave out --auto, --row-offset, "
+                               "--time-offset-us")
+        from cvstereo.calibration import load_calibration
+        from cvstereo.rectify import Rectification
+
+        calibration = load_calibration(args.calibration)
+        overrides_rect = {"rectification": Rectification(calibration)}
+    else:
+        overrides_rect = {}
     recording = load_recording(args)
     height = recording.resolution[1]
     if args.row_offset is not None and abs(args.row_offset) >= height:
@@ -98,16 +118,23 @@ def run(args: argparse.Namespace) -> int:
     recording, rig, offsets = _rig_correction(args, recording)
     progress = sys.stderr.isatty() if args.progress is None else args.progress
     result = match(recording, method=args.method, variant=args.variant, progress=progress,
-                   packet_us=args.packet_us or DEFAULT_PACKET_US, **offsets, **overrides)
+                   packet_us=args.packet_us or DEFAULT_PACKET_US, **offsets, **overrides_rect, **overrides)
     if rig is not None:
         result.meta["rigcheck"] = rig
     result.meta["input"] = [args.recording] + ([args.right] if args.right else [])
     result.meta["format_options"] = {k: list(v) if isinstance(v, tuple) else v
                                      for k, v in format_options(args).items()}
+    if depth is None and calibration is not None and args.metres and args.depth is None:
+        depth = calibration.depth_model()
     if depth is not None:
-        # The matches format is a contract: distances are not a column; the model that gives them is in meta.
+        from cvstereo.pointcloud import depth_per_match
+
+        # The match dtype is a contract: distances go beside it (formats.md), with the model in meta.
         result.meta["depth"] = depth.to_dict()
-    write_matches(args.output, result.matches, result.meta)
+        result.arrays["depth_m"] = depth_per_match(result.matches, depth)
+    if args.point_cloud is not None:
+        _write_point_cloud(args, result, depth, calibration, recording.resolution)
+    write_matches(args.output, result.matches, result.meta, arrays=result.arrays)
     m = result.meta
     print(f"{len(result)} matches from {m['input_events']} events ({args.method}, {m['variant']}) in "
           f"{m['elapsed_s']:.2f} s -> {args.output}")
@@ -131,6 +158,18 @@ def refuse_other_format(path, what: str, *suffixes: str) -> None:
     if suffix in (".npz", *TEXT_SUFFIXES, *AEDAT_SUFFIXES) and suffix not in suffixes:
         raise ValueError(f"-o {path}: '{suffix}' names another format; this writes {what}: name it "
                          f"{' or '.join(suffixes)}.")
+
+
+def _write_point_cloud(args: argparse.Namespace, result, depth, calibration, resolution) -> None:
+    from cvstereo.pointcloud import Intrinsics, point_cloud, write_ply
+
+    if depth is None:
+        raise ValueError("--point-cloud needs a depth model: give --depth A C (or MODEL.json) or --calibration.")
+    intrinsics = Intrinsics.from_options(resolution, focal_px=args.focal_px, calibration=calibration)
+    points = point_cloud(result.matches, depth, intrinsics)
+    write_ply(args.point_cloud, points, model=depth, intrinsics=intrinsics,
+              comments=(f"input {' '.join(result.meta['input'])}", f"method {args.method} ({result.meta['variant']})"))
+    print(f"{points.size} points -> {args.point_cloud} (intrinsics from {intrinsics.source})")
 
 
 def _rig_correction(args: argparse.Namespace, recording):

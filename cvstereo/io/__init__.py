@@ -2,7 +2,8 @@
 
 :func:`read_recording`, :func:`open_recording` (streaming) and :func:`write_recording` choose the format
 from ``format=`` or from the file (content, then extension; :func:`detect_format`). Per-format modules:
-:mod:`~cvstereo.io.npz`, :mod:`~cvstereo.io.edvs_text`, :mod:`~cvstereo.io.aedat2`; the streaming object
+:mod:`~cvstereo.io.npz`, :mod:`~cvstereo.io.edvs_text`, :mod:`~cvstereo.io.aedat2`, and with the extras
+:mod:`~cvstereo.io.aedat4` (``aedat4``) and :mod:`~cvstereo.io.hdf5` (``hdf5``: DSEC, MVSEC); the streaming object
 is :class:`~cvstereo.io.stream.RecordingStream`.
 """
 
@@ -22,6 +23,8 @@ from cvstereo.recording import Recording
 #: File extensions of the text formats (which of the two is told by the column count).
 TEXT_SUFFIXES = (".txt", ".dat", ".csv")
 AEDAT_SUFFIXES = (".aedat", ".aedat2")
+AEDAT4_SUFFIXES = (".aedat4",)
+HDF5_SUFFIXES = (".h5", ".hdf5")
 
 
 @dataclass(frozen=True)
@@ -63,6 +66,26 @@ def _write_edvs_pair(path, recording: Recording, *, right) -> None:
     write_edvs_pair(path, right, recording)
 
 
+# The readers of the optional extras are imported when a file of theirs is opened, so that the core imports
+# without h5py or dv-processing.
+def _open_aedat4(path, right=None, *, resolution=None) -> RecordingStream:
+    from cvstereo.io.aedat4 import open_aedat4
+
+    return open_aedat4(path, right, resolution=resolution)
+
+
+def _open_dsec(path, right=None, *, resolution=None) -> RecordingStream:
+    from cvstereo.io.hdf5 import open_dsec
+
+    return open_dsec(path, right, resolution=resolution)
+
+
+def _open_mvsec(path, *, resolution=None) -> RecordingStream:
+    from cvstereo.io.hdf5 import open_mvsec
+
+    return open_mvsec(path, resolution=resolution)
+
+
 #: Every recording format by its name (``format=``, the CLI's ``--format``). Adding a format is one entry.
 FORMAT_TABLE: dict[str, Format] = {
     "npz": Format(open_npz, write_recording_npz, (), (".npz",), read=read_recording_npz),
@@ -71,6 +94,10 @@ FORMAT_TABLE: dict[str, Format] = {
     "edvs-merged": Format(open_edvs_merged, write_edvs_merged, ("left_retina", "one_based", "resolution"),
                           TEXT_SUFFIXES, ("left_retina",)),
     "aedat2": Format(_open_aedat2, write_aedat2, ("right", "resolution"), AEDAT_SUFFIXES),
+    "aedat4": Format(_open_aedat4, None, ("right", "resolution"), AEDAT4_SUFFIXES),
+    # DSEC and MVSEC share .h5/.hdf5: detect_format tells them apart by the layout inside.
+    "dsec": Format(_open_dsec, None, ("right", "resolution")),
+    "mvsec": Format(_open_mvsec, None, ("resolution",)),
 }
 
 #: Format names accepted by ``format=`` and the CLI's ``--format``.
@@ -80,9 +107,10 @@ FORMATS = tuple(FORMAT_TABLE)
 def detect_format(path: str | os.PathLike) -> str:
     """Tell a file's format from its content and extension.
 
-    ``#!AER-DAT`` at the start means AEDAT (jAER also used ``.dat`` for it); ``.txt`` / ``.dat`` / ``.csv``
-    are eDVS text, ``edvs-text`` when the first event line has 4 columns and ``edvs-merged`` when it has 5;
-    any other extension names the format whose ``suffixes`` hold it (``.npz``: a recording archive).
+    ``#!AER-DAT4.0`` at the start (or ``.aedat4``) means AEDAT4, other ``#!AER-DAT`` AEDAT 2.0 (jAER also
+    used ``.dat`` for it); ``.npz`` is a recording archive; ``.h5`` / ``.hdf5`` are DSEC or MVSEC (told by the
+    layout, :func:`cvstereo.io.hdf5.hdf5_layout`); ``.txt`` / ``.dat`` / ``.csv`` are eDVS text, ``edvs-text``
+    when the first event line has 4 columns and ``edvs-merged`` when it has 5.
 
     Raises
     ------
@@ -93,7 +121,11 @@ def detect_format(path: str | os.PathLike) -> str:
     """
     path = Path(path)
     suffix = path.suffix.lower()
-    if suffix not in TEXT_SUFFIXES + AEDAT_SUFFIXES:
+    if suffix in HDF5_SUFFIXES:
+        from cvstereo.io.hdf5 import hdf5_layout
+
+        return hdf5_layout(path)
+    if suffix not in TEXT_SUFFIXES + AEDAT_SUFFIXES + AEDAT4_SUFFIXES:
         for name, fmt in FORMAT_TABLE.items():
             if suffix in fmt.suffixes:
                 return name
@@ -101,8 +133,11 @@ def detect_format(path: str | os.PathLike) -> str:
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such file.")
     with open(path, "rb") as fh:
-        if fh.read(9) == b"#!AER-DAT" or suffix in AEDAT_SUFFIXES:
-            return "aedat2"
+        magic = fh.read(12)
+    if magic == b"#!AER-DAT4.0" or suffix in AEDAT4_SUFFIXES:
+        return "aedat4"
+    if magic[:9] == b"#!AER-DAT" or suffix in AEDAT_SUFFIXES:
+        return "aedat2"
     columns = read_text_header(path).columns
     if columns in (4, 5):
         return "edvs-text" if columns == 4 else "edvs-merged"

@@ -193,7 +193,7 @@ def read_npz_header(path: str | os.PathLike) -> tuple[tuple[int, int], dict, boo
         return _read_resolution(npz, path), _read_meta(npz, path), has_truth
 
 
-def write_matches(path: str | os.PathLike, matches: np.ndarray, meta: dict) -> None:
+def write_matches(path: str | os.PathLike, matches: np.ndarray, meta: dict, *, arrays: dict | None = None) -> None:
     """Write a matches ``.npz`` (formats.md), atomically.
 
     Parameters
@@ -203,13 +203,24 @@ def write_matches(path: str | os.PathLike, matches: np.ndarray, meta: dict) -> N
         Time-ordered.
     meta : dict
         Must hold at least method, variant, params, anchor, window_us.
+    arrays : dict of str to array_like, optional, keyword-only
+        Optional per-match arrays (e.g. ``depth_m``), one value per match; stored as float32 under their name.
     """
     validate_matches(matches, source=str(path))
     missing = [k for k in REQUIRED_META if k not in meta]
     if missing:
         raise ValueError(f"matches meta lacks {', '.join(missing)} (formats.md lists the required keys).")
+    extra = {}
+    for name, values in (arrays or {}).items():
+        values = np.asarray(values, np.float32)
+        if name in ("matches", "meta") or not name.isidentifier():
+            raise ValueError(f"per-match array name {name!r} is reserved or not an identifier; use e.g. 'depth_m'.")
+        if values.shape != matches.shape:
+            raise ValueError(f"per-match array '{name}' has shape {values.shape}; it needs one value per match "
+                             f"({matches.size}).")
+        extra[name] = values
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        np.savez_compressed(fh, matches=matches, meta=_meta_array(meta))
+        np.savez_compressed(fh, matches=matches, meta=_meta_array(meta), **extra)
 
 
 def read_matches(path: str | os.PathLike) -> MatchResult:
@@ -230,5 +241,8 @@ def read_matches(path: str | os.PathLike) -> MatchResult:
             )
         matches = npz["matches"]
         meta = _read_meta(npz, path)
+        # Optional per-match arrays (formats.md); keys of another shape are not ours to interpret: ignored.
+        arrays = {k: npz[k] for k in npz.files if k not in ("matches", "meta")}
     validate_matches(matches, source=str(path))
-    return MatchResult(matches, meta)
+    arrays = {k: v.astype(np.float32) for k, v in arrays.items() if v.shape == matches.shape and v.dtype.kind == "f"}
+    return MatchResult(matches, meta, arrays)

@@ -13,6 +13,9 @@ import cv2
 import numpy as np
 
 from cvstereo.depth import DepthModel
+
+# The data of the disparity pictures is public in cvstereo.disparity_maps; re-exported for the plots and video.
+from cvstereo.disparity_maps import disparity_image, match_window_slice, pixel_mean  # noqa: F401
 from cvstereo.events import time_slice
 from cvstereo.frames import frame_shape
 from cvstereo.matches import MatchResult
@@ -74,59 +77,6 @@ def context_rgb(events: np.ndarray, *, resolution: tuple[int, int]) -> np.ndarra
     return img.reshape(h, w, 3)
 
 
-def pixel_mean(x: np.ndarray, y: np.ndarray, values: np.ndarray, *, resolution: tuple[int, int]) -> np.ndarray:
-    """Mean of the finite ``values`` at each pixel, NaN where a pixel has none.
-
-    Parameters
-    ----------
-    x, y : (N,) int ndarray
-        Pixel of each value.
-    values : (N,) float ndarray
-    resolution : (width, height), keyword-only
-
-    Returns
-    -------
-    (height, width) float64 ndarray
-
-    Examples
-    --------
-    >>> pixel_mean(np.array([0, 0, 1]), np.array([0, 0, 0]), np.array([2.0, 4.0, np.nan]), resolution=(2, 1))
-    array([[ 3., nan]])
-    """
-    h, w = frame_shape(resolution)
-    values = np.asarray(values, dtype=np.float64)
-    finite = np.isfinite(values)
-    idx = np.asarray(y, np.intp)[finite] * w + np.asarray(x, np.intp)[finite]
-    sums = np.bincount(idx, weights=values[finite], minlength=h * w)
-    counts = np.bincount(idx, minlength=h * w)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        out = np.where(counts > 0, sums / np.maximum(counts, 1), np.nan)
-    return out.reshape(h, w)
-
-
-def match_window_slice(matches: np.ndarray, t_start: int, t_stop: int, *, anchor: str) -> slice:
-    """The matches that belong to the window ``[t_start, t_stop)``.
-
-    Event-anchored matches carry their event's time, so they belong when ``t_start <= t < t_stop``. Window-anchored
-    matches carry their window's *end* (formats.md), so they belong when ``t_start < t <= t_stop``.
-
-    Parameters
-    ----------
-    matches : (N,) ndarray of MATCH_DTYPE
-        Time-ordered.
-    t_start, t_stop : int
-        The window, us.
-    anchor : {"event", "window"}, keyword-only
-
-    Returns
-    -------
-    slice
-    """
-    side = "right" if anchor == "window" else "left"
-    lo, hi = np.searchsorted(matches["t"], [t_start, t_stop], side=side)
-    return slice(int(lo), int(max(lo, hi)))
-
-
 def anchor_of(result: MatchResult) -> tuple[str, int]:
     """(anchor, window_us) from a matches file's meta; event anchors when the meta does not say."""
     anchor = str(result.meta.get("anchor", "event"))
@@ -173,13 +123,6 @@ def truth_image(recording: Recording, camera: int, t_start: int, t_stop: int) ->
     ev = recording.events(camera)
     sl = time_slice(ev, t_start, t_stop)
     return pixel_mean(ev["x"][sl], ev["y"][sl], truth[sl], resolution=recording.resolution)
-
-
-def disparity_image(matches: np.ndarray, camera: int, *, resolution: tuple[int, int]) -> np.ndarray:
-    """Mean disparity of the matches anchored on camera ``camera`` at each pixel (NaN: no match)."""
-    sel = matches["camera"] == camera
-    m = matches[sel]
-    return pixel_mean(m["x"], m["y"], m["disparity"], resolution=resolution)
 
 
 #: The colour scale of disparities runs to this multiple of their 99th percentile: the scene's disparities then lie

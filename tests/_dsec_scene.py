@@ -1,0 +1,62 @@
+"""A small DSEC-style sequence made from a known scene: two event files, a cam_to_cam.yaml, true depths.
+
+Random dots on two fronto-parallel planes (a wall at 4 m, a box at 2 m in front of its centre) blink ON and OFF;
+every blink is seen by both event cameras of a calibrated 640x480 rig with lens distortion, a slightly turned
+right camera and a 10 cm baseline, at the same time. The events go through the real projection
+(``cv2.projectPoints``), so rectification is needed to bring a dot onto the same row of both cameras.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from cvstereo.events import make_events
+from tests._calibration_fixtures import dsec_cam_to_cam, dump_yaml
+from tests._hdf5_fixtures import write_dsec_events
+
+RES = (640, 480)
+K0 = np.array([[556.7, 0, 342.4], [0, 556.6, 215.1], [0, 0, 1]])
+K3 = np.array([[555.6, 0, 321.0], [0, 555.7, 224.7], [0, 0, 1]])
+D0, D3 = np.array([-0.098, 0.21, -0.00036, 6.7e-05]), np.array([-0.109, 0.268, 0.00042, -0.0081])
+R = cv2.Rodrigues(np.array([0.004, -0.006, 0.009]))[0]
+T = np.array([-0.10, 0.002, 0.003])
+DEPTHS = (2.0, 4.0)
+T_OFFSET = 52_000_000_000
+
+
+def _dots(rng, n_wall: int, n_box: int) -> np.ndarray:
+    wall = np.column_stack([rng.uniform(-2.6, 2.6, n_wall), rng.uniform(-2.0, 2.0, n_wall), np.full(n_wall, 4.0)])
+    box = np.column_stack([rng.uniform(-0.5, 0.5, n_box), rng.uniform(-0.4, 0.4, n_box), np.full(n_box, 2.0)])
+    return np.vstack([wall, box])
+
+
+def _project(points, rvec, tvec, K, D) -> np.ndarray:
+    return cv2.projectPoints(points.reshape(-1, 1, 3), rvec, tvec, K, D)[0].reshape(-1, 2)
+
+
+def write_dsec_sequence(root, *, seconds: float = 0.2, seed: int = 0) -> Path:
+    """Write ``root/events/{left,right}/events.h5`` and ``root/calibration/cam_to_cam.yaml``; return root."""
+    root = Path(root)
+    rng = np.random.default_rng(seed)
+    dots = _dots(rng, 3000, 1200)
+    pix = [_project(dots, np.zeros(3), np.zeros(3), K0, D0), _project(dots, cv2.Rodrigues(R)[0], T, K3, D3)]
+    steps = int(seconds * 1000)
+    per_step = 60
+    streams = [[], []]
+    for k in range(steps):
+        fire = rng.choice(dots.shape[0], per_step, replace=False)
+        t = T_OFFSET + k * 1000 + np.sort(rng.integers(0, 1000, per_step))
+        p = rng.integers(0, 2, per_step)
+        for cam in (0, 1):
+            xy = np.rint(pix[cam][fire]).astype(np.int64)
+            ok = (xy[:, 0] >= 0) & (xy[:, 0] < RES[0]) & (xy[:, 1] >= 0) & (xy[:, 1] < RES[1])
+            streams[cam].append(make_events(t[ok], xy[ok, 0], xy[ok, 1], p[ok]))
+    for cam, name in enumerate(("left", "right")):
+        (root / "events" / name).mkdir(parents=True, exist_ok=True)
+        write_dsec_events(root / "events" / name / "events.h5", np.concatenate(streams[cam]), t_offset=T_OFFSET)
+    (root / "calibration").mkdir(parents=True, exist_ok=True)
+    (root / "calibration" / "cam_to_cam.yaml").write_text(dump_yaml(dsec_cam_to_cam(K0, D0, K3, D3, R, T, RES)))
+    return root
