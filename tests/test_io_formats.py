@@ -12,7 +12,8 @@ from cvstereo.recording import Recording
 
 
 def test_formats_are_the_table():
-    assert cio.FORMATS == tuple(cio.FORMAT_TABLE) == ("npz", "edvs-text", "edvs-merged", "aedat2")
+    assert cio.FORMATS == tuple(cio.FORMAT_TABLE) == ("npz", "edvs-text", "edvs-merged", "aedat2", "aedat4", "dsec",
+                                                      "mvsec")
 
 
 def test_a_new_format_is_one_table_entry(tmp_path, monkeypatch):

@@ -251,8 +251,9 @@ def output_format(path: str | os.PathLike, *, format: str | None = None,
         fmt = (fitting or candidates or [None])[0]
     if fmt is None:
         raise ValueError(f"{path}: cannot tell the output format from '{suffix}'; give one of: {', '.join(FORMATS)}.")
-    if fmt not in FORMATS:
-        raise ValueError(f"cannot write format '{fmt}'; choose one of: {', '.join(FORMATS)}.")
+    if fmt not in FORMAT_TABLE or FORMAT_TABLE[fmt].write is None:
+        raise ValueError(f"cannot write format '{fmt}'; choose one of: "
+                         f"{', '.join(n for n, f in FORMAT_TABLE.items() if f.write is not None)}.")
     if ("right" in FORMAT_TABLE[fmt].write_options) != (right is not None):
         raise ValueError(f"{path}: format 'edvs-text' and only it writes two files (one per camera, named "
                          f"{'/'.join(TEXT_SUFFIXES)}): give the right camera's file exactly for it (format here: "
