@@ -11,7 +11,7 @@ import importlib
 import importlib.util
 import typing
 
-from cvstereo.matcher import StreamMatcher
+from cvstereo.matcher import StreamMatcher, check_param_value
 
 #: method name (formats.md) -> "module:Class" of its StreamMatcher.
 METHODS: dict[str, str] = {
@@ -104,6 +104,9 @@ def _parse_value(key: str, text: str, hint):
             value = text
     except ValueError:
         raise ValueError(f"parameter '{key}' needs a {getattr(base, '__name__', base)}, got '{text}'.") from None
+    # The generic range rule of every matcher's parameters (finite floats, ints a C int holds), named as
+    # the option the user typed.
+    value = check_param_value(key, value, base, where="--param")
     if choices and value not in choices:
         raise ValueError(f"parameter '{key}' must be one of {', '.join(map(str, choices))}, got '{text}'.")
     return value

@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from cvstereo.io._source import require_regular_file
 from cvstereo.io.aedat2 import open_aedat2, write_aedat2
 from cvstereo.io.edvs_text import open_edvs_merged, open_edvs_text, read_text_header, write_edvs_merged, write_edvs_pair
 from cvstereo.io.npz import read_matches, read_recording_npz, write_matches, write_recording_npz
@@ -42,8 +43,8 @@ def detect_format(path: str | os.PathLike) -> str:
 
     Raises
     ------
-    FileNotFoundError
-        A text or AEDAT file that does not exist.
+    FileNotFoundError, IsADirectoryError, OSError
+        A text or AEDAT file that does not exist, is a directory, or is not a regular file (FIFO, device).
     ValueError
         Unknown extension or column count; the message lists the ``--format`` values.
     """
@@ -53,8 +54,7 @@ def detect_format(path: str | os.PathLike) -> str:
         return "npz"
     if suffix not in TEXT_SUFFIXES + AEDAT_SUFFIXES:
         raise ValueError(f"{path}: cannot tell the format from '{suffix}'; give --format ({', '.join(FORMATS)}).")
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such file.")
+    require_regular_file(path)
     with open(path, "rb") as fh:
         if fh.read(9) == b"#!AER-DAT" or suffix in AEDAT_SUFFIXES:
             return "aedat2"
