@@ -18,12 +18,17 @@ from typing import Any, ClassVar
 import numpy as np
 
 from cvstereo.errors import EventFormatError
-from cvstereo.events import DEFAULT_RESOLUTION, EVENT_DTYPE, check_resolution, validate_events
+from cvstereo.events import DEFAULT_RESOLUTION, EVENT_DTYPE, MAX_RESOLUTION, check_resolution, validate_events
 from cvstereo.matches import empty_matches
 
 #: Largest magnitude of an integer parameter: a C int. Kernels, OpenCV and products of windows and counts
 #: stay far from int64 overflow below it (a window of 2**31 us is 36 minutes).
 MAX_PARAM_INT = 2**31 - 1
+
+#: Fields that size a square filter or block in pixels (by name, in every matcher's parameters): a side
+#: beyond the largest sensor is meaningless and would allocate side**2 values (99999: 75 GB).
+_EXTENT_FIELDS = ("kernel_size", "block", "block_size")
+MAX_EXTENT = max(MAX_RESOLUTION) - 1
 
 
 def check_param_value(name: str, value, kind: type, *, where: str = "parameter") -> Any:
@@ -32,7 +37,8 @@ def check_param_value(name: str, value, kind: type, *, where: str = "parameter")
     One rule for every matcher's parameters, whatever their class: floats must be finite (a NaN
     threshold compares false with everything and silently disables a test), integers must be whole
     numbers of at most :data:`MAX_PARAM_INT` in magnitude (a larger window overflows the int64 clock
-    arithmetic of the kernels). A whole float such as ``40000.0`` (JSON, YAML) is accepted as the int.
+    arithmetic of the kernels), and filter or block sides (``kernel_size``, ``block``, ``block_size``) at
+    most :data:`MAX_EXTENT` pixels. A whole float such as ``40000.0`` (JSON, YAML) is accepted as the int.
 
     Parameters
     ----------
@@ -59,6 +65,9 @@ def check_param_value(name: str, value, kind: type, *, where: str = "parameter")
             raise ValueError(f"{where} '{name}' must be an integer, got {_shown(value)}.")
         if abs(value) > MAX_PARAM_INT:
             raise ValueError(f"{where} '{name}' must be at most {MAX_PARAM_INT} in magnitude, got {_shown(value)}.")
+        if name in _EXTENT_FIELDS and value > MAX_EXTENT:
+            raise ValueError(f"{where} '{name}' must be at most {MAX_EXTENT} px (the largest sensor's side), "
+                             f"got {value}.")
     return value
 
 

@@ -190,6 +190,14 @@ def test_huge_int_parameter_refused(method, field, value):
         create_matcher(method, **{field: value})
 
 
+@pytest.mark.parametrize("method,field", [("event-time", "kernel_size"), ("event-area", "block"),
+                                          ("frame", "kernel_size"), ("frame-area", "block")])
+def test_filter_side_beyond_any_sensor_refused(method, field):
+    # 99999 asked numpy for a 99999 x 99999 kernel (75 GB: MemoryError) before this bound.
+    with pytest.raises(ValueError, match=rf"'{field}' must be at most {max(MAX_RESOLUTION) - 1} px"):
+        create_matcher(method, **{field: 99999})
+
+
 @pytest.mark.parametrize("value", [1e300, 40000.5, "40000", True])
 def test_int_parameter_of_another_type_refused(value):
     with pytest.raises(ValueError, match=r"'window_us' must be an integer"):
