@@ -16,6 +16,7 @@ import typing
 from typing import Any, ClassVar
 
 import numpy as np
+from numba import njit
 
 from cvstereo.errors import EventFormatError
 from cvstereo.events import DEFAULT_RESOLUTION, EVENT_DTYPE, MAX_RESOLUTION, check_resolution, validate_events
@@ -91,6 +92,19 @@ def check_params(params_cls: type, values: dict) -> dict:
     """Apply :func:`check_param_value` to every numeric field among ``values``; return the checked values."""
     kinds = _field_kinds(params_cls)
     return {k: check_param_value(k, v, kinds[k]) if k in kinds else v for k, v in values.items()}
+
+
+@njit(cache=True, nogil=True)
+def _first_bad_event(t, x, y, width, height):
+    """Index of the first event off the sensor or earlier than its predecessor, or -1 (one pass, no copies).
+
+    Three vectorised numpy passes over the strided fields cost 6-8 % of the fastest matchers' time at
+    40 ms packets; this single pass costs a few microseconds.
+    """
+    for i in range(t.size):
+        if x[i] < 0 or x[i] >= width or y[i] < 0 or y[i] >= height or (i > 0 and t[i] < t[i - 1]):
+            return i
+    return -1
 
 
 class StreamMatcher(abc.ABC):
@@ -205,7 +219,12 @@ class StreamMatcher(abc.ABC):
                 f"{source} starts at t={int(ev['t'][0])}, before events already fed "
                 f"(t={self.watermark}); packets must be time slices of both cameras."
             )
-        validate_events(ev, resolution=self.resolution, source=source)
+        if ev.ndim != 1:
+            raise EventFormatError(f"{source}: expected a 1-D event array, got shape {ev.shape}.")
+        bad = _first_bad_event(ev["t"], ev["x"], ev["y"], *self.resolution) if ev.size else -1
+        if bad >= 0:
+            # The prefix before `bad` is valid, so the contract's checker names exactly that event and field.
+            validate_events(ev[: bad + 1], resolution=self.resolution, source=source)
         return [int(ev["t"][-1])] if ev.size else []
 
     def flush(self) -> np.ndarray:
