@@ -546,3 +546,22 @@ def test_cli_info_matches_file_says_what_it_is(tmp_path, capsys, snapshot):
     snapshot(path)
     code, err = _cli(["info", path], capsys)
     _assert_one_line_error(code, err, "m.npz", "matches file")
+
+
+# ------------------------------------------------------------------------- file contents quoted in errors
+
+@pytest.mark.parametrize("name,content", [
+    ("e.txt", b"0 1 2 1\n5 \x1b[2J\x1b]0;owned\x07 3 1\n"),
+    ("e.txt", b"0 1 2 1\n7 1 2 1 1\r\x1b[1A\n"),
+    ("e.aedat", b"#!AER-DAT3.1\x1b[31m\r\n"),
+])
+def test_control_characters_are_not_echoed(tmp_path, capsys, snapshot, name, content):
+    path = tmp_path / name
+    path.write_bytes(content)
+    snapshot(path)
+    with pytest.raises(CorruptFileError, match=r"\\x1b"):
+        read_recording(path, path if name.endswith(".txt") else None, one_based=False) if name.endswith(".txt") \
+            else read_recording(path)
+    code, err = _cli(["info", path], capsys)
+    _assert_one_line_error(code, err, name)
+    assert "\x1b" not in err and "\r" not in err and "\x07" not in err

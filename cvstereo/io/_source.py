@@ -9,6 +9,7 @@ rather than hanging or filling memory.
 from __future__ import annotations
 
 import os
+import re
 import stat
 from pathlib import Path
 
@@ -47,3 +48,16 @@ def require_regular_file(path: str | os.PathLike) -> Path:
 def open_regular(path: str | os.PathLike):
     """Open a regular file for binary reading (see :func:`require_regular_file`)."""
     return open(require_regular_file(path), "rb")
+
+
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
+
+
+def printable(text: str) -> str:
+    r"""``text`` with control characters shown as ``\xNN``, so that file contents quoted in an error cannot
+    drive the terminal (escape sequences, carriage returns).
+
+    >>> printable("ab\x1b[2Jc")
+    'ab\\x1b[2Jc'
+    """
+    return _CONTROL.sub(lambda m: f"\\x{ord(m.group()):02x}", text)

@@ -35,7 +35,7 @@ from cvstereo.errors import CorruptFileError
 from cvstereo.events import EVENT_DTYPE, empty_events, validate_events
 from cvstereo.io._atomic import atomic_path
 from cvstereo.io._checked import ChunkChecker
-from cvstereo.io._source import open_regular
+from cvstereo.io._source import open_regular, printable
 from cvstereo.io.stream import MONO, Chunk, RecordingStream
 from cvstereo.recording import CAMERAS, Recording
 
@@ -125,7 +125,7 @@ def read_aedat2_header(path: str | os.PathLike) -> AedatHeader:
         first = fh.readline()
         if not first.startswith(MAGIC):
             if first.startswith(b"#!AER-DAT"):
-                version = first.strip().decode("latin-1")[2:]
+                version = printable(first.strip().decode("latin-1")[2:82])
                 raise CorruptFileError(
                     f"{path}: {version} is not supported, only AER-DAT2.0; convert it to AEDAT 2.0 with jAER "
                     "or DV, or to .npz with dv-processing."

@@ -43,7 +43,7 @@ from cvstereo.errors import CorruptFileError, EventFormatError
 from cvstereo.events import DEFAULT_RESOLUTION, check_resolution, validate_events
 from cvstereo.io._atomic import atomic_path
 from cvstereo.io._checked import ChunkChecker
-from cvstereo.io._source import open_regular
+from cvstereo.io._source import open_regular, printable
 from cvstereo.io.stream import MONO, Chunk, RecordingStream
 from cvstereo.recording import CAMERAS, Recording
 
@@ -175,7 +175,7 @@ def _split(text: bytes) -> list[bytes]:
 
 
 def _show(line: bytes, limit: int = 80) -> str:
-    text = line.decode("latin-1").strip()
+    text = printable(line.decode("latin-1").strip())
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
