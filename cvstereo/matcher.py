@@ -12,6 +12,7 @@ from __future__ import annotations
 import abc
 import dataclasses
 import math
+import numbers
 import typing
 from typing import Any, ClassVar
 
@@ -56,13 +57,24 @@ def check_param_value(name: str, value, kind: type, *, where: str = "parameter")
     -------
     The value (an int for int fields).
     """
-    if kind is float and not isinstance(value, bool) and isinstance(value, int | float):
-        if not math.isfinite(value):
-            raise ValueError(f"{where} '{name}' must be a finite number, got {value}.")
+    if kind is float:
+        if isinstance(value, bool) or not isinstance(value, numbers.Real):
+            raise ValueError(f"{where} '{name}' must be a number, got {_shown(value)}.")
+        try:
+            finite = math.isfinite(value)
+        except OverflowError:  # an int beyond any float
+            finite = False
+        if not finite:
+            raise ValueError(f"{where} '{name}' must be a finite number, got {_shown(value)}.")
     elif kind is int:
-        if isinstance(value, float) and math.isfinite(value) and value == int(value) and abs(value) <= MAX_PARAM_INT:
+        if isinstance(value, bool):
+            raise ValueError(f"{where} '{name}' must be an integer, got {value}.")
+        if isinstance(value, numbers.Integral):
             value = int(value)
-        if not isinstance(value, int) or isinstance(value, bool):
+        elif isinstance(value, numbers.Real) and math.isfinite(value) and value == int(value) \
+                and abs(value) <= MAX_PARAM_INT:
+            value = int(value)
+        if not isinstance(value, int):
             raise ValueError(f"{where} '{name}' must be an integer, got {_shown(value)}.")
         if abs(value) > MAX_PARAM_INT:
             raise ValueError(f"{where} '{name}' must be at most {MAX_PARAM_INT} in magnitude, got {_shown(value)}.")

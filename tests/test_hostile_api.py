@@ -204,9 +204,17 @@ def test_int_parameter_of_another_type_refused(value):
         create_matcher("frame", window_us=value)
 
 
-def test_int_parameter_as_whole_float_is_accepted():
-    # JSON meta and YAML configs write 40000.0; a whole float is an int in disguise, kept as such.
-    assert create_matcher("frame", window_us=40000.0).params.window_us == 40000
+@pytest.mark.parametrize("value", [40000.0, np.int64(40000), np.float32(40000)])
+def test_int_parameter_as_whole_number_is_accepted(value):
+    # JSON meta and YAML configs write 40000.0, numpy code passes np.int64: the int they stand for is kept.
+    got = create_matcher("frame", window_us=value).params.window_us
+    assert got == 40000 and type(got) is int
+
+
+@pytest.mark.parametrize("value", [10**400, "high", None])
+def test_float_parameter_that_is_no_finite_number_refused(value):
+    with pytest.raises(ValueError, match=r"'threshold' must be a (finite )?number"):
+        create_matcher("event-time", threshold=value)
 
 
 @pytest.mark.parametrize("item,fragment", [
