@@ -24,7 +24,56 @@ EVENT_DTYPE = np.dtype([("t", "<i8"), ("x", "<i2"), ("y", "<i2"), ("p", "i1")])
 #: Sensor size of the DVS128 / eDVS128, (width, height).
 DEFAULT_RESOLUTION = (128, 128)
 
+#: The largest sensor size accepted anywhere a resolution comes in (files, options, matchers), (width, height).
+MAX_RESOLUTION = (2048, 2048)
+
 _FIELDS = ("t", "x", "y", "p")
+
+
+def check_resolution(resolution, *, source: str = "resolution", error: type[Exception] = ValueError) -> tuple[int, int]:
+    """Return ``resolution`` as two ints, or raise unless it is a sensor size this library accepts.
+
+    Width and height must be whole numbers with ``1 <= width <= MAX_RESOLUTION[0]`` and
+    ``1 <= height <= MAX_RESOLUTION[1]``: every buffer a matcher or reader allocates is sized by it, so
+    a size no sensor has (100000x100000 would ask for tens of GB) is refused where it comes in.
+
+    Parameters
+    ----------
+    resolution : (width, height)
+    source : str, keyword-only
+        What to name in the message (a file and key, an option).
+    error : exception class, keyword-only
+        Raised on a bad value (a ValueError subclass, e.g. CorruptFileError for a file's header).
+
+    Examples
+    --------
+    >>> check_resolution((240, 180))
+    (240, 180)
+    >>> check_resolution((0, 0))  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ValueError: resolution (0, 0): width and height must be whole numbers in 1..2048 ...
+    """
+    try:
+        width, height = resolution
+        ok = all(float(v) == int(v) and not isinstance(v, bool) for v in (width, height))
+    except (TypeError, ValueError, OverflowError):
+        ok = False
+    if ok:
+        width, height = int(width), int(height)
+        ok = 1 <= width <= MAX_RESOLUTION[0] and 1 <= height <= MAX_RESOLUTION[1]
+    if not ok:
+        shown = resolution if isinstance(resolution, tuple | list) else repr(resolution)
+        raise error(
+            f"{source} {_short(shown)}: width and height must be whole numbers in 1..{MAX_RESOLUTION[0]} and "
+            f"1..{MAX_RESOLUTION[1]} (the largest supported sensor is {MAX_RESOLUTION[0]}x{MAX_RESOLUTION[1]})."
+        )
+    return width, height
+
+
+def _short(value, limit: int = 60) -> str:
+    text = str(tuple(value) if isinstance(value, list) else value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def empty_events(n: int = 0) -> np.ndarray:
@@ -153,40 +202,51 @@ def validate_events(events: np.ndarray, *, resolution: tuple[int, int] | None = 
     """
     if events.dtype != EVENT_DTYPE:
         raise EventFormatError(f"{source}: dtype {events.dtype} is not EVENT_DTYPE; convert with as_events().")
+    if events.ndim != 1:
+        raise EventFormatError(f"{source}: expected a 1-D event array, got shape {events.shape}.")
     if events.size == 0:
         return
-    for field in ("x", "y"):
-        bad = np.flatnonzero(events[field] < 0)
-        if bad.size:
-            i = int(bad[0])
-            raise EventFormatError(
-                f"{source}: field '{field}' at index {i + index_offset} is {int(events[field][i])}; "
-                "coordinates must be >= 0 (one-based files need the one-based option)."
-            )
-    if resolution is not None:
-        for field, size in (("x", resolution[0]), ("y", resolution[1])):
-            bad = np.flatnonzero(events[field] >= size)
-            if bad.size:
-                i = int(bad[0])
-                raise EventFormatError(
-                    f"{source}: field '{field}' at index {i + index_offset} is {int(events[field][i])}, outside "
-                    f"the {resolution[0]}x{resolution[1]} sensor (valid 0..{size - 1}); "
-                    "give the right resolution, or the one-based option if the file counts from 1."
-                )
+    _check_coordinates(events, resolution, source, index_offset)
     t = events["t"]
     if t_floor is not None and t[0] < t_floor:
         raise EventFormatError(
             f"{source}: field 't' at index {index_offset} is {int(t[0])}, earlier than the preceding event "
             f"({t_floor}); timestamps must not go backwards."
         )
-    back = np.flatnonzero(np.diff(t) < 0)
-    if back.size:
-        i = int(back[0]) + 1
+    back = t[1:] < t[:-1]
+    if back.any():
+        i = int(np.argmax(back)) + 1
         raise EventFormatError(
             f"{source}: field 't' at index {i + index_offset} is {int(t[i])}, earlier than index "
             f"{i - 1 + index_offset} ({int(t[i - 1])}); timestamps must not go backwards "
             "(sort with np.sort(events, order='t', kind='stable') if the order is known to be wrong)."
         )
+
+
+def _check_coordinates(events: np.ndarray, resolution, source: str, index_offset: int) -> None:
+    """Raise naming the first event (and of it, x before y) whose coordinate is negative or off the sensor."""
+    firsts = []
+    for k, field in enumerate(("x", "y")):
+        column = events[field]
+        # Read as unsigned, a negative int16 is >= 32768, beyond any sensor: one comparison tests both bounds
+        # (this runs on every packet a matcher is fed, so it is kept to one pass per coordinate).
+        bad = column < 0 if resolution is None else column.view(np.uint16) >= resolution[k]
+        if bad.any():
+            firsts.append((int(np.argmax(bad)), k, field))
+    if not firsts:
+        return
+    i, k, field = min(firsts)
+    value = int(events[field][i])
+    if value < 0:
+        raise EventFormatError(
+            f"{source}: field '{field}' at index {i + index_offset} is {value}; "
+            "coordinates must be >= 0 (one-based files need the one-based option)."
+        )
+    raise EventFormatError(
+        f"{source}: field '{field}' at index {i + index_offset} is {value}, outside "
+        f"the {resolution[0]}x{resolution[1]} sensor (valid 0..{resolution[k] - 1}); "
+        "give the right resolution, or the one-based option if the file counts from 1."
+    )
 
 
 def time_slice(events: np.ndarray, t_start: int | None = None, t_stop: int | None = None) -> slice:

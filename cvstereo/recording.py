@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cvstereo.errors import EventFormatError
-from cvstereo.events import DEFAULT_RESOLUTION, StereoPacket, as_events, distinct_sorted, time_slice
+from cvstereo.events import DEFAULT_RESOLUTION, StereoPacket, as_events, check_resolution, distinct_sorted, time_slice
 
 CAMERAS = ("left", "right")
 
@@ -37,7 +37,7 @@ class Recording:
     meta: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        res = (int(self.resolution[0]), int(self.resolution[1]))
+        res = check_resolution(self.resolution, source="Recording resolution")
         object.__setattr__(self, "resolution", res)
         for name in CAMERAS:
             ev = as_events(getattr(self, name), resolution=res, source=f"{name} camera")

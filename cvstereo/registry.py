@@ -21,7 +21,7 @@ import typing
 from collections.abc import Iterator, Mapping
 
 from cvstereo.errors import NoMatchersError
-from cvstereo.matcher import StreamMatcher
+from cvstereo.matcher import StreamMatcher, check_param_value
 from cvstereo.params import aliases_of, canonical_params
 
 #: The entry-point group that lists the matchers: name (formats.md) -> "module:Class".
@@ -157,6 +157,9 @@ def _parse_value(key: str, text: str, hint):
             value = text
     except ValueError:
         raise ValueError(f"parameter '{key}' needs a {getattr(base, '__name__', base)}, got '{text}'.") from None
+    # The generic range rule of every matcher's parameters (finite floats, ints a C int holds), named as
+    # the option the user typed.
+    value = check_param_value(key, value, base, where="--param")
     if choices and value not in choices:
         raise ValueError(f"parameter '{key}' must be one of {', '.join(map(str, choices))}, got '{text}'.")
     return value

@@ -33,11 +33,16 @@ def add_format_options(parser: argparse.ArgumentParser) -> None:
 
 
 def _resolution(text: str) -> tuple[int, int]:
+    from cvstereo.events import check_resolution
+
     try:
         w, h = (int(v) for v in text.lower().split("x"))
     except ValueError:
         raise argparse.ArgumentTypeError(f"'{text}' is not WIDTHxHEIGHT, e.g. 128x128") from None
-    return w, h
+    try:
+        return check_resolution((w, h), source="size")
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def format_options(args: argparse.Namespace) -> dict:

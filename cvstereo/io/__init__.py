@@ -14,6 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from cvstereo.io._source import require_regular_file
 from cvstereo.io.aedat2 import open_aedat2, write_aedat2
 from cvstereo.io.edvs_text import open_edvs_merged, open_edvs_text, read_text_header, write_edvs_merged, write_edvs_pair
 from cvstereo.io.npz import read_matches, read_recording_npz, write_matches, write_recording_npz
@@ -114,8 +115,8 @@ def detect_format(path: str | os.PathLike) -> str:
 
     Raises
     ------
-    FileNotFoundError
-        A text or AEDAT file that does not exist.
+    FileNotFoundError, IsADirectoryError, OSError
+        A text or AEDAT file that does not exist, is a directory, or is not a regular file (FIFO, device).
     ValueError
         Unknown extension or column count; the message lists the ``--format`` values.
     """
@@ -130,8 +131,7 @@ def detect_format(path: str | os.PathLike) -> str:
             if suffix in fmt.suffixes:
                 return name
         raise ValueError(f"{path}: cannot tell the format from '{suffix}'; give --format ({', '.join(FORMATS)}).")
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such file.")
+    require_regular_file(path)
     with open(path, "rb") as fh:
         magic = fh.read(12)
     if magic == b"#!AER-DAT4.0" or suffix in AEDAT4_SUFFIXES:

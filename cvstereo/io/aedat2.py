@@ -35,6 +35,7 @@ from cvstereo.errors import CorruptFileError
 from cvstereo.events import EVENT_DTYPE, empty_events, validate_events
 from cvstereo.io._atomic import atomic_path
 from cvstereo.io._checked import ChunkChecker
+from cvstereo.io._source import open_regular, printable
 from cvstereo.io.stream import MONO, Chunk, RecordingStream
 from cvstereo.recording import CAMERAS, Recording
 
@@ -119,15 +120,12 @@ def read_aedat2_header(path: str | os.PathLike) -> AedatHeader:
     CorruptFileError
         Not an AEDAT 2.0 file (another version says which), or a truncated last record (byte offset).
     """
-    try:
-        fh = open(path, "rb")  # closed by the with below
-    except FileNotFoundError:
-        raise FileNotFoundError(f"{path}: no such file.") from None
-    with fh:
+    # Regular files only: the size is taken from the file system and the records are read in a second pass.
+    with open_regular(path) as fh:
         first = fh.readline()
         if not first.startswith(MAGIC):
             if first.startswith(b"#!AER-DAT"):
-                version = first.strip().decode("latin-1")[2:]
+                version = printable(first.strip().decode("latin-1")[2:82])
                 raise CorruptFileError(
                     f"{path}: {version} is not supported, only AER-DAT2.0; convert it to AEDAT 2.0 with jAER "
                     "or DV, or to .npz with dv-processing."
@@ -154,7 +152,7 @@ def _iter_records(path, header: AedatHeader, chunk_records: int) -> Iterator[tup
     """Yield ``(records, index of the first)`` in chunks, checking for foreign (non-DVS128) addresses."""
     if chunk_records <= 0:
         raise ValueError(f"chunk_records must be positive, got {chunk_records}.")
-    with open(path, "rb") as fh:
+    with open_regular(path) as fh:
         fh.seek(header.data_offset)
         done = 0
         while done < header.records:

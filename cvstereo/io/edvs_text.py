@@ -40,9 +40,10 @@ from typing import NamedTuple
 import numpy as np
 
 from cvstereo.errors import CorruptFileError, EventFormatError
-from cvstereo.events import DEFAULT_RESOLUTION, validate_events
+from cvstereo.events import DEFAULT_RESOLUTION, check_resolution, validate_events
 from cvstereo.io._atomic import atomic_path
 from cvstereo.io._checked import ChunkChecker
+from cvstereo.io._source import open_regular, printable
 from cvstereo.io.stream import MONO, Chunk, RecordingStream
 from cvstereo.overlay import overlay_shift
 from cvstereo.recording import CAMERAS, Recording
@@ -101,13 +102,18 @@ def read_text_header(path: str | os.PathLike) -> TextHeader:
                     resolution = (int(words[1]), int(words[2]))
                     if min(resolution) <= 0:
                         raise ValueError
+                    # Every buffer of the readers and matchers is sized by it: bound it before anything is.
+                    check_resolution(resolution, source=f"{path}, line {lineno}: header resolution",
+                                     error=CorruptFileError)
                 elif key == b"fields":
                     fields = len(words) - 1
                 elif key == b"left_retina":
                     left_retina = int(words[1])
                     if left_retina not in (0, 1):
                         raise ValueError
-            except (IndexError, ValueError):
+            except (IndexError, ValueError) as exc:
+                if isinstance(exc, CorruptFileError):
+                    raise
                 raise CorruptFileError(
                     f"{path}, line {lineno}: header '{_show(line)}' is malformed; write '# resolution W H' "
                     "(positive integers) or '# left_retina 0|1'."
@@ -170,7 +176,7 @@ def _split(text: bytes) -> list[bytes]:
 
 
 def _show(line: bytes, limit: int = 80) -> str:
-    text = line.decode("latin-1").strip()
+    text = printable(line.decode("latin-1").strip())
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
@@ -180,10 +186,8 @@ def _line_text(path, lineno: int) -> str:
 
 
 def _open(path):
-    try:
-        return open(path, "rb")
-    except FileNotFoundError:
-        raise FileNotFoundError(f"{path}: no such file.") from None
+    # Regular files only: the readers take several passes (header, detection, one per camera).
+    return open_regular(path)
 
 
 # ------------------------------------------------------------------------------------- chunked reading
@@ -279,10 +283,7 @@ def _require_columns(path, header: TextHeader, columns: int) -> None:
 
 def _resolve_resolution(given, headers) -> tuple[tuple[int, int], str]:
     if given is not None:
-        res = (int(given[0]), int(given[1]))
-        if min(res) <= 0:
-            raise ValueError(f"resolution must be two positive integers (width, height), got {given}.")
-        return res, "given"
+        return check_resolution(given, source="resolution"), "given"
     stated = {h.resolution for _, h in headers if h.resolution is not None}
     if len(stated) > 1:
         names = ", ".join(f"{p}: {h.resolution[0]}x{h.resolution[1]}" for p, h in headers if h.resolution)
