@@ -86,27 +86,28 @@ def cut(buf, pos, limit, size, ts_bytes, delta, max_groups, wrap, sync, max_gap,
 
 @numba.njit(cache=True, nogil=True)
 def first_agreeing(buf, lo, hi, need, size, ts_bytes, delta, max_groups, wrap, sync, max_gap, prev_raw,
-                   has_prev, final):  # pragma: no cover - compiled
+                   has_prev, lenient, settle):  # pragma: no cover - compiled
     """The first byte in [lo, hi) from which ``need`` events agree (continuing ``prev_raw`` if ``has_prev``).
 
     Returns (q, undecided): q >= 0 found; else undecided >= 0 is the first position that more bytes could
     still confirm (every position before it is definitely not an event start), or -1 when none is left.
-    At the end of the stream (``final``) a position whose events run to the very last byte also counts.
+    ``settle`` 1 (the stream paused) or 2 (it ended): decide with the bytes there are; then with
+    ``lenient`` fewer events that run without a fault to the last byte also count, and with 2 a position
+    whose events are cut off by the end is given up.
     """
-    n = buf.shape[0]
     for q in range(lo, hi):
         if (buf[q] & 0x80) != sync:
             continue
-        starts, _ends, _ts, stop, failed = cut(buf, q, need, size, ts_bytes, delta, max_groups, wrap, sync,
-                                             max_gap, prev_raw, has_prev, not has_prev)
+        starts, _ends, _ts, _stop, failed = cut(buf, q, need, size, ts_bytes, delta, max_groups, wrap, sync,
+                                                max_gap, prev_raw, has_prev, not has_prev)
         k = starts.shape[0]
         if k >= need:
             return q, -1
         if failed:
             continue
-        if final:
-            if k > 0 and stop == n:
-                return q, -1
+        if lenient and settle and k > 0:
+            return q, -1
+        if settle == 2:
             continue
         return -1, q
     return -1, -1

@@ -41,6 +41,8 @@ Examples
 
 from __future__ import annotations
 
+import functools
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -69,6 +71,17 @@ ARRIVAL_SLACK_US = 2_000
 
 #: How fast the clock-offset estimate may rise without a faster event confirming it (clock drift), per us.
 OFFSET_LEAK = 1e-4
+
+
+@functools.cache
+def warm_up() -> None:
+    """Load the compiled scanners now (from numba's cache: a fraction of a second, holding the GIL), so that
+    a reader thread does not stall every thread at the start of a stream, when arrival times matter."""
+    data = bytes([0x81, 0x02, 0x00, 0x10] * 16) + b"\x00\x7f" * 8
+    for name in ("E1", "E2"):
+        dec = StreamDecoder(ProtocolSettings(event_format=name))
+        dec.decode(data)
+        dec.flush()
 
 
 @dataclass
@@ -172,12 +185,14 @@ class StreamDecoder:
                                                    self._last_raw or 0, has_prev, self._trust)
         return _Scan(starts, ends, ts, int(stop), bool(failed))
 
-    def _first_agreeing(self, buf: np.ndarray, lo: int, hi: int, prev_raw: int | None, final: bool):
+    def _first_agreeing(self, buf: np.ndarray, lo: int, hi: int, prev_raw: int | None, settle: int):
+        # A continuation of `prev_raw` needs all `resync_events`; the search after a pause or garbage may
+        # settle for fewer at a pause or the end of the stream (the real alignment comes first there).
         q, undecided = _scan.first_agreeing(buf, lo, hi, self.resync_events, *self._kernel_args(),
-                                            prev_raw or 0, prev_raw is not None, final)
+                                            prev_raw or 0, prev_raw is not None, prev_raw is None, settle)
         return int(q), int(undecided)
 
-    def _resync(self, buf: np.ndarray, sc: _Scan, final: bool) -> tuple[int, int] | None:
+    def _resync(self, buf: np.ndarray, sc: _Scan, settle: int) -> tuple[int, int] | None:
         """After bad bytes at ``sc.stop``: (position where time runs on, events of ``sc`` to keep), or
         (-1, len(sc)) when nothing continues (search onwards), or None when more bytes are needed."""
         m = len(sc)
@@ -190,16 +205,16 @@ class StreamDecoder:
         prevs = [(j + 1, int(sc.ts[j])) for j in range(m - 1, lo - 1, -1)]
         if lo == 0 and self._last_raw is not None:
             prevs.append((0, self._last_raw))
-        short = p + RESYNC_WINDOW > buf.size and not final
+        short = p + RESYNC_WINDOW > buf.size and not settle
         best = None
         for keep, prev in prevs:
             # The earliest resumption wins: from a garbage "event", time only seems to run on once the real
             # stream has caught up with its random timestamp, many events later.
             hi = min(buf.size, p + RESYNC_WINDOW, best[0] if best else buf.size)
-            q, undecided = self._first_agreeing(buf, p, hi, prev, final)
+            q, undecided = self._first_agreeing(buf, p, hi, prev, settle)
             if q >= 0:
                 best = (q, keep)
-            elif undecided >= 0 or (short and best is None):
+            elif (undecided >= 0 and not settle) or (short and best is None):
                 return None
         return best if best is not None else (-1, m)
 
@@ -245,12 +260,16 @@ class StreamDecoder:
         # Only a fresh arrival (a reader that waited for it) after a long quiet spell can reveal a pause.
         gaps = np.flatnonzero((arr - prev_arr >= wrap / 2) & fresh)
         if self._offset is not None:
-            for i in gaps.tolist():
+            bounds = [*gaps.tolist(), arr.size]
+            for i, nxt in itertools.pairwise(bounds):
                 off = self._offset + OFFSET_LEAK * (arr[i] - self._offset_at)
                 seen = (arr[:i] - t[:i])[fresh[:i]]
                 if seen.size:
                     off = min(off, float(seen.min()))
-                k = int((arr[i] - off + ARRIVAL_SLACK_US - t[i]) // wrap)
+                # Every event up to the next gap bounds the wraps: after a stall of the sender (events sent
+                # late in a burst) the burst's last events are timely again and veto a wrap.
+                slack = float((arr[i:nxt] - off + ARRIVAL_SLACK_US - t[i:nxt]).min())
+                k = int(slack // wrap)
                 if k > 0:
                     t[i:] += k * wrap
                     self.hidden_wraps += k
@@ -314,9 +333,11 @@ class StreamDecoder:
         pos = 0
         parts = []
         hold = 0 if (final or release) else self.confirm - 1
+        # At a pause (release) or the end (final) bad bytes are judged with the bytes there are.
+        settle = 2 if final else (1 if release else 0)
         while pos < buf.size:
             if self._searching:
-                q, undecided = self._first_agreeing(buf, pos, buf.size, None, final)
+                q, undecided = self._first_agreeing(buf, pos, buf.size, None, settle)
                 if q < 0:
                     stop = undecided if undecided >= 0 else buf.size
                     self.corrupt_bytes += stop - pos
@@ -337,7 +358,7 @@ class StreamDecoder:
                     self.tail_bytes = buf.size - pos
                     pos = buf.size
                 break
-            found = self._resync(buf, sc, final)
+            found = self._resync(buf, sc, settle)
             if found is None:
                 # Not enough bytes after the bad spot to decide: wait (a bounded number of bytes).
                 head = sc.head(max(0, m - hold))

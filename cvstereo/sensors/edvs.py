@@ -16,7 +16,7 @@ import numpy as np
 import serial
 
 from cvstereo.errors import SensorError
-from cvstereo.sensors.decoder import StreamDecoder
+from cvstereo.sensors.decoder import StreamDecoder, warm_up
 from cvstereo.sensors.detect import DETECT_BYTES, ProtocolMismatchError, check_protocol
 from cvstereo.sensors.protocol import BITS_PER_BYTE, DEFAULT_BAUD, ProtocolSettings
 
@@ -138,6 +138,7 @@ class EDVS:
                 f"{self.name} sensor: cannot open serial port {self.port} ({reason}); check that the eDVS is "
                 "plugged in and the port name is right (ls /dev/ttyUSB* /dev/ttyACM*)."
             ) from None
+        warm_up()  # now, not after the clocks are synchronised: a stall then would delay the stream
         return self
 
     def close(self) -> None:
@@ -232,6 +233,7 @@ class EDVS:
         """Start the reader thread, then streaming (``E+``)."""
         if self._thread is not None:
             return
+        warm_up()  # (done at open() already: then free)
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name=f"edvs-{self.name}", daemon=True)
         self.last_byte_us = host_us()
