@@ -114,17 +114,16 @@ def read_journal(path: str | os.PathLike) -> tuple[Recording, int]:
     """
     path = Path(path)
     try:
-        fh = open(path, "rb")
+        st = os.stat(path)  # before opening: opening a FIFO would wait for a writer
     except FileNotFoundError:
         raise FileNotFoundError(f"{path}: no such journal.") from None
-    except IsADirectoryError:
-        raise IsADirectoryError(f"{path}: is a directory, not a journal.") from None
-    with fh:
-        if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
-            raise CorruptFileError(f"{path}: not a regular file (a device or FIFO); a journal is a file on disk.")
-        size = os.fstat(fh.fileno()).st_size
-        if size == 0:
-            raise CorruptFileError(f"{path}: empty file, not a cvstereo journal.")
+    if stat.S_ISDIR(st.st_mode):
+        raise IsADirectoryError(f"{path}: is a directory, not a journal.")
+    if not stat.S_ISREG(st.st_mode):
+        raise CorruptFileError(f"{path}: not a regular file (a device or FIFO); a journal is a file on disk.")
+    if st.st_size == 0:
+        raise CorruptFileError(f"{path}: empty file, not a cvstereo journal.")
+    with open(path, "rb") as fh:
         data = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ)
     try:
         return _parse(path, data)
@@ -154,7 +153,11 @@ def _parse(path: Path, data) -> tuple[Recording, int]:
     while pos + _HEAD.size <= len(data):
         cam, count = _HEAD.unpack_from(data, pos)
         end = pos + _HEAD.size + count * size
-        if cam > 1 or end > len(data):
+        if cam > 1:
+            # A crash cuts only the last record short; a wrong camera id is damage, not a crash.
+            raise CorruptFileError(f"{path}: the journal record at byte {pos} names camera {cam} (0 = left or "
+                                   "1 = right expected); the file is damaged.")
+        if end > len(data):
             break
         parts[cam].append(np.frombuffer(data, EVENT_DTYPE, count, pos + _HEAD.size).copy())
         pos = end
@@ -162,4 +165,7 @@ def _parse(path: Path, data) -> tuple[Recording, int]:
     cams = [np.concatenate(p) if p else np.zeros(0, EVENT_DTYPE) for p in parts]
     meta = dict(meta)
     meta["journal_truncated_bytes"] = lost
-    return Recording(cams[0], cams[1], meta=meta), lost
+    try:
+        return Recording(cams[0], cams[1], meta=meta), lost
+    except ValueError as exc:
+        raise CorruptFileError(f"{path}: {exc}") from None
