@@ -100,7 +100,7 @@ class VirtualEDVS:
         self._t0 = int(time_origin_us) if time_origin_us is not None else (int(events["t"][0]) if events.size else 0)
         self._clock = clock
         self._zero: float | None = None  # host time at which this board's clock read 0 (None: not yet)
-        self._slave = False
+        self._is_slave = False
         self._stream_start: float | None = None
         self.lead_us = 0  # device time at which scene time `time_origin_us` is stamped
         self._next = 0
@@ -183,14 +183,14 @@ class VirtualEDVS:
             self.echo = False
         elif cmd in (c.timestamp_reset, "!ET", "!ET=0"):
             self._zero = time.monotonic() - self.reset_jitter_us / 1e6 / self.speed
-            self._slave = False
+            self._is_slave = False
         elif cmd == c.master_run:
             self._zero = time.monotonic()
-            self._slave = False
+            self._is_slave = False
             if self._clock is not None:
                 self._clock.zero = self._zero
         elif cmd == c.slave:
-            self._slave = True
+            self._is_slave = True
             self._zero = time.monotonic()  # without a shared clock: synchronised by the command itself
         elif cmd == c.master_arm:
             pass
@@ -220,7 +220,7 @@ class VirtualEDVS:
                 self._stream_start = now - (int(self.events["t"][self._next]) - self._t0) / 1e6 / self.speed
             return
         zero = self._zero
-        if self._slave:
+        if self._is_slave:
             # A slave counts on the master's clock (without a shared one: reset by the sync itself).
             if self._clock is not None and self._clock.zero is not None:
                 zero = self._clock.zero
