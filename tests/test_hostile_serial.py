@@ -271,3 +271,30 @@ def test_virtual_board_rejects_bad_speed(speed):
 def test_unknown_event_format_names_the_choices():
     with pytest.raises(ValueError, match="unknown eDVS event format 'E9'; choose one of: E0, E1, E2, E3, E4"):
         ProtocolSettings(event_format="E9")
+
+
+@pytest.mark.parametrize("auto", [False, True])
+def test_a_board_sending_200_kb_of_garbage_is_reported_honestly(auto):
+    import time
+
+    from cvstereo.sensors import EDVS
+
+    garbage = np.random.default_rng(7).integers(0, 256, 200_000, dtype=np.uint8).tobytes()
+    dev = VirtualEDVS(stream(0), baud=8_000_000)
+    with dev as port, EDVS(port, auto_format=auto, auto_sync=auto) as cam:
+        cam.configure()
+        cam.start()
+        dev.inject_garbage(garbage)
+        deadline = time.monotonic() + 20
+        while cam.bytes_received < len(garbage) and cam.error is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        cam.stop()
+        s = cam.status()
+    if auto:
+        assert isinstance(cam.error, ProtocolMismatchError)
+        assert "do not look like eDVS events in any format" in str(cam.error)
+    else:
+        assert s["bytes"] == len(garbage)
+        assert s["corrupt_bytes"] + cam.decoder.bytes_decoded == len(garbage)
+        assert s["corrupt_bytes"] > 0.99 * len(garbage)
+        assert "fits no format" in s["protocol"]

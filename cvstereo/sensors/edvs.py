@@ -272,8 +272,8 @@ class EDVS:
             if data:
                 self._probe += data
                 self._probe_times.append((len(self._probe), now, fresh))
-            if len(self._probe) < self._probe_tried + DETECT_BYTES and not (final or release):
-                return  # look again once a fresh sample has come (detection is not free)
+            if len(self._probe) < max(DETECT_BYTES, 2 * self._probe_tried) and not (final or release):
+                return  # look again at twice the sample (detection is not free: linear in all)
             self._probe_tried = len(self._probe)
             settled = check_protocol(bytes(self._probe), self.settings, auto_format=self.auto_format,
                                      auto_sync=self.auto_sync, name=self.name, final=final, pause=release)
