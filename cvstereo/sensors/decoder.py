@@ -69,6 +69,10 @@ DEFAULT_MAX_GAP_US = 16_384
 #: Slack of the arrival-time bound on device time, us (host scheduling jitter, command transit).
 ARRIVAL_SLACK_US = 2_000
 
+#: Events after an arrival gap that must have come before the gap's wraps are decided (a sender that
+#: stalled sends a burst whose last events are timely again and veto a wrap).
+GAP_WITNESSES = 8
+
 #: How fast the clock-offset estimate may rise without a faster event confirming it (clock drift), per us.
 OFFSET_LEAK = 1e-4
 
@@ -350,7 +354,7 @@ class StreamDecoder:
             sc = self._cut(buf, pos)
             m = len(sc)
             if not sc.failed:
-                head = sc.head(max(0, m - hold))
+                head = sc.head(self._undeferred(max(0, m - hold), sc, settle))
                 parts.append(self._emit(head, host_t))
                 pos = head.stop
                 if final and pos < buf.size:
@@ -380,6 +384,23 @@ class StreamDecoder:
         if not parts:
             return empty_events()
         return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
+    def _undeferred(self, k: int, sc: _Scan, settle: int) -> int:
+        """How many of the first ``k`` events to emit now: not those from an arrival gap on that fewer than
+        ``GAP_WITNESSES`` events follow yet (its hidden wraps are decided with them), unless settling."""
+        if settle or k == 0 or not self.fmt.ts_bytes:
+            return k
+        got = self._arrivals(sc.starts)
+        if got is None:
+            return k
+        arr, fresh = got
+        prev = np.empty_like(arr)
+        prev[0] = arr[0] if self._last_arrival is None else self._last_arrival
+        prev[1:] = arr[:-1]
+        gaps = np.flatnonzero((arr - prev >= self.fmt.wrap / 2) & fresh)
+        if gaps.size and len(sc) - gaps[-1] < GAP_WITNESSES:
+            return min(k, int(gaps[-1]))
+        return k
 
     def _drop(self, pos: int) -> None:
         del self._buf[:pos]
