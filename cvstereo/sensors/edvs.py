@@ -1,4 +1,7 @@
-"""One eDVS128 board over pyserial: open, configure, start/stop, and a reader thread feeding a bounded queue.
+"""One eDVS128 board over pyserial: open, configure, start/stop, and a reader thread feeding a queue.
+
+The reader detects (or checks) the protocol from the first bytes, waits while the consumer is behind (flow
+control) but never drops a chunk, and on stop reads the bytes still on their way before it ends.
 
 >>> # with hardware (or a VirtualEDVS port):
 >>> # with EDVS("/dev/ttyUSB0") as cam:
