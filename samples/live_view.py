@@ -30,7 +30,7 @@ def main(argv=None):
     if not args.simulate and not (args.left and args.right):
         parser.error("give --left and --right ports, or --simulate RECORDING")
 
-    from cvstereo.sensors import StereoEDVS, VirtualEDVS
+    from cvstereo.sensors import StereoEDVS, VirtualClock, VirtualEDVS
     from cvstereo.sensors.live import run_live
 
     with contextlib.ExitStack() as stack:
@@ -39,11 +39,10 @@ def main(argv=None):
             from cvstereo.io import read_recording
 
             rec = read_recording(args.simulate)
-            # Both virtual boards count from the recording's first event, as two boards reset together.
-            streams = [ev.copy() for ev in (rec.left, rec.right)]
-            for ev in streams:
-                ev["t"] -= rec.t_start
-            left, right = (stack.enter_context(VirtualEDVS(ev)) for ev in streams)
+            # One clock and one scene start for both virtual boards, as two real boards after !ETM.
+            clock = VirtualClock()
+            left, right = (stack.enter_context(VirtualEDVS(ev, clock=clock, time_origin_us=rec.t_start))
+                           for ev in (rec.left, rec.right))
         rig = stack.enter_context(StereoEDVS(left, right))
         rig.start()
         with contextlib.suppress(KeyboardInterrupt):

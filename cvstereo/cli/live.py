@@ -45,15 +45,25 @@ def run(args: argparse.Namespace) -> int:
     matcher = create_matcher(args.method, args.variant, **params)
     depth = (parse_depth_option(args.depth) if args.depth is not None else
              DepthModel.from_rig(focal_px=args.focal_px, baseline_m=args.baseline_m, offset_px=args.offset_px))
+    from cvstereo.sensors.detect import ProtocolMismatchError
+
     with stop_on_signals() as stop, open_rig(args) as (rig, devices):
         rig.start()
-        done = (lambda: all(d.done for d in devices) and all(c.silent for c in rig.cams)) if devices else None
+
+        def done() -> bool:
+            if any(isinstance(c.error, ProtocolMismatchError) for c in rig.cams):
+                return True  # the protocol settings were refused: stop and say why
+            return bool(devices) and all(d.done for d in devices) and all(c.silent for c in rig.cams)
+
         try:
             stats = run_live(rig, matcher, depth=depth, seconds=args.seconds, stop=stop, done=done)
         except KeyboardInterrupt:
             stats = None
         rig.stop()
         status = rig.status()
+    for cam in rig.cams:
+        if isinstance(cam.error, ProtocolMismatchError):
+            raise cam.error
     if stats is not None:
         s = stats.summary()
         print(f"behind real time: mean {s['lag_ms_mean']:.1f} ms, max {s['lag_ms_max']:.1f} ms; "

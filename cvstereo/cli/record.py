@@ -1,13 +1,14 @@
 """``cvstereo record``: record two eDVS128 boards into a stereo recording ``.npz``.
 
 Events go to a journal first (flushed at least every second); on Ctrl-C, SIGTERM or ``--seconds`` the
-journal is turned into the recording, written atomically. ``--from-journal`` converts a journal left by
-a crash.
+journal is turned into the recording, written atomically, and the journal is removed. A journal left by a
+crash is never overwritten: ``--from-journal`` converts it.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -20,66 +21,121 @@ def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
                               description=__doc__)
     add_rig_arguments(p)
     p.add_argument("-o", "--output", required=True, metavar="OUT.npz", help="recording to write")
-    p.add_argument("--journal", default=None, metavar="PATH", help="journal file (default: OUT.npz.journal)")
+    p.add_argument("--journal", default=None, metavar="PATH",
+                   help="journal file, which must not exist yet (default: OUT.npz.journal)")
     p.add_argument("--from-journal", default=None, metavar="JOURNAL",
                    help="do not record: convert this journal (e.g. left by a crash) into OUT.npz")
     return p
 
 
-def _write(journal_path: Path, out: str) -> None:
+def _same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
+    """Whether two paths name the same file (through symlinks and hard links too)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return os.path.realpath(a) == os.path.realpath(b)
+
+
+def _refuse_output_over_inputs(output: str, inputs: dict[str, str | None]) -> None:
+    # Local check until cvstereo.io._paths.refuse_output_over_input is available to every command.
+    for option, path in inputs.items():
+        if path is not None and _same_file(output, path):
+            raise ValueError(f"-o {output} is the same file as {option} {path}: it would be overwritten; write "
+                             "the recording to another path.")
+
+
+def _write(journal_path: Path, out: str, extra_meta: dict | None = None) -> None:
     from cvstereo.io.npz import write_recording_npz
     from cvstereo.sensors.journal import read_journal
 
     rec, lost = read_journal(journal_path)
+    rec.meta.update(extra_meta or {})
     write_recording_npz(out, rec)
     print(f"wrote {out}: {rec.left.size} left and {rec.right.size} right events, {rec.duration_s:.2f} s"
           + (f" ({lost} bytes of a cut-short last journal record dropped)" if lost else ""), file=sys.stderr)
 
 
-def run(args: argparse.Namespace) -> int:
-    from cvstereo.sensors.journal import Journal
+def _report(rig, devices, args) -> None:
+    from cvstereo.sensors.detect import ProtocolMismatchError
 
-    if args.from_journal:
-        _write(Path(args.from_journal), args.output)
-        return 0
-    journal_path = Path(args.journal or args.output + ".journal")
-    with stop_on_signals() as stop, open_rig(args) as (rig, devices):
-        meta = {"source": "cvstereo record", "ports": [c.port for c in rig.cams],
-                "event_format": args.event_format, "clock": args.clock,
-                "simulated_from": args.simulate}
-        with Journal(journal_path, meta) as journal:
-            rig.start()
-            t_end = None if args.seconds is None else time.monotonic() + args.seconds
-            warned = [False, False]
-            reported = set()
-            try:
-                while not stop.is_set() and (t_end is None or time.monotonic() < t_end):
-                    for cam_i, chunk in rig.poll(0.05):
-                        journal.append(cam_i, chunk.events)
-                    journal.maybe_flush()
-                    for i, cam in enumerate(rig.cams):
-                        if cam.silent and not warned[i]:
-                            print(f"cvstereo record: warning: {cam.name} sensor ({cam.port}) silent for "
-                                  f"{cam.silence_s:g} s; still recording the other", file=sys.stderr, flush=True)
-                        warned[i] = cam.silent
-                        if cam.error is not None and i not in reported:
-                            print(f"cvstereo record: warning: {cam.error}", file=sys.stderr, flush=True)
-                            reported.add(i)
-                    if devices and all(d.done for d in devices) and all(c.queue.empty() for c in rig.cams) \
-                            and all(c.silent for c in rig.cams):
-                        break  # --simulate: the recording has been played in full
-            except KeyboardInterrupt:
-                pass
-            rig.stop()
-            for cam_i, chunk in rig.poll(0):
-                journal.append(cam_i, chunk.events)
-            status = rig.status()
-    for cam in ("left", "right"):
+    status = rig.status()
+    for i, cam in enumerate(("left", "right")):
         s = status[cam]
-        print(f"{cam}: {s['events']} events, {s['corrupt_bytes']} corrupt bytes, {s['silences']} silences"
+        received = s["bytes"]
+        share = f" ({s['corrupt_bytes'] / received:.1%} of {received} bytes received)" if received else ""
+        sent = f" (the virtual board sent {devices[i].sent_events})" if devices else ""
+        print(f"{cam}: {s['events']} events{sent}, {s['protocol'] or 'no bytes to tell the protocol'}, "
+              f"{s['corrupt_bytes']} corrupt bytes{share}, {s['silences']} silences"
               + (f", {s['error']}" if s["error"] else ""), file=sys.stderr)
     if status["residual_offset_us"] is not None and args.clock == "align":
         print(f"clock: residual offset right - left ~ {status['residual_offset_us']} us (estimated)",
               file=sys.stderr)
-    _write(journal_path, args.output)
+    for cam in rig.cams:
+        if isinstance(cam.error, ProtocolMismatchError):
+            raise cam.error
+
+
+def run(args: argparse.Namespace) -> int:
+    from cvstereo.sensors.detect import ProtocolMismatchError
+    from cvstereo.sensors.journal import Journal, journal_exists_message
+
+    if args.from_journal:
+        _refuse_output_over_inputs(args.output, {"--from-journal": args.from_journal})
+        _write(Path(args.from_journal), args.output)
+        print(f"journal {args.from_journal} kept; delete it once {args.output} is checked", file=sys.stderr)
+        return 0
+    journal_path = Path(args.journal or args.output + ".journal")
+    _refuse_output_over_inputs(args.output, {"--simulate": args.simulate, "--journal": str(journal_path)})
+    if os.path.lexists(journal_path):
+        raise FileExistsError(journal_exists_message(journal_path))
+    with stop_on_signals() as stop, open_rig(args) as (rig, devices):
+        meta = {"source": "cvstereo record", "ports": [c.port for c in rig.cams],
+                "event_format": args.event_format, "clock": args.clock,
+                "simulated_from": args.simulate}
+        journal = Journal(journal_path, meta)  # refuses an existing file: never truncates it
+        try:
+            _record(rig, devices, journal, stop, args)
+        finally:
+            journal.close()
+        try:
+            _report(rig, devices, args)
+        except ProtocolMismatchError:
+            journal_path.unlink()  # this run's own journal: the settings were refused, nothing to keep
+            raise
+    _write(journal_path, args.output, {"protocol": {cam.name: cam.protocol for cam in rig.cams}})
+    journal_path.unlink()  # everything is in the recording now
     return 0
+
+
+def _record(rig, devices, journal, stop, args) -> None:
+    from cvstereo.sensors.detect import ProtocolMismatchError
+
+    rig.start()
+    t_end = None if args.seconds is None else time.monotonic() + args.seconds
+    warned = [False, False]
+    reported = set()
+    try:
+        while not stop.is_set() and (t_end is None or time.monotonic() < t_end):
+            for cam_i, chunk in rig.poll(0.05):
+                journal.append(cam_i, chunk.events)
+            journal.maybe_flush()
+            for i, cam in enumerate(rig.cams):
+                if cam.silent and not warned[i]:
+                    print(f"cvstereo record: warning: {cam.name} sensor ({cam.port}) silent for "
+                          f"{cam.silence_s:g} s; still recording the other", file=sys.stderr, flush=True)
+                warned[i] = cam.silent
+                if cam.error is not None and i not in reported:
+                    if isinstance(cam.error, ProtocolMismatchError):
+                        return  # refused: the other board is stopped too, and the run reports why
+                    print(f"cvstereo record: warning: {cam.error}", file=sys.stderr, flush=True)
+                    reported.add(i)
+            if devices and all(d.done for d in devices) and all(c.queue.empty() for c in rig.cams) \
+                    and all(c.silent for c in rig.cams):
+                break  # --simulate: the recording has been played in full
+    except KeyboardInterrupt:
+        pass
+    finally:
+        # Every event received before the stop: the readers drain the ports, then the queues are emptied.
+        rig.stop()
+        for cam_i, chunk in rig.poll(0):
+            journal.append(cam_i, chunk.events)

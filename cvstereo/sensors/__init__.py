@@ -8,6 +8,7 @@ _EXPORTS = {
     "StreamDecoder": "decoder", "EDVS": "edvs", "Chunk": "edvs", "Journal": "journal", "read_journal": "journal",
     "FORMATS": "protocol", "Commands": "protocol", "ProtocolSettings": "protocol", "encode_events": "protocol",
     "link_event_rate": "protocol", "StereoEDVS": "stereo", "StereoSettings": "stereo", "VirtualEDVS": "virtual",
+    "VirtualClock": "virtual", "ProtocolMismatchError": "detect", "detect_protocol": "detect",
 }
 
 
@@ -18,6 +19,7 @@ def __getattr__(name: str):
 
 
 __all__ = [
-    "EDVS", "FORMATS", "Chunk", "Commands", "Journal", "ProtocolSettings", "StereoEDVS", "StereoSettings",
-    "StreamDecoder", "VirtualEDVS", "encode_events", "link_event_rate", "read_journal",
+    "EDVS", "FORMATS", "Chunk", "Commands", "Journal", "ProtocolMismatchError", "ProtocolSettings", "StereoEDVS",
+    "StereoSettings", "StreamDecoder", "VirtualClock", "VirtualEDVS", "detect_protocol", "encode_events",
+    "link_event_rate", "read_journal",
 ]

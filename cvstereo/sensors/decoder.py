@@ -6,18 +6,26 @@ between calls and returns time-ordered events of :data:`~cvstereo.events.EVENT_D
 How corrupt bytes are handled (the protocol has only one sync bit per event, so a single check would
 let garbage through about half of the time):
 
-1. Events are cut at the current alignment (vectorised for the fixed-size formats) until the first
-   event whose sync bit is wrong or whose timestamp is implausible (more than ``max_gap_us`` after the
-   previous one, modulo the wrap).
-2. From there the decoder looks for the first byte position at which ``confirm`` consecutive events
+1. Events are cut at the current alignment until the first event whose sync bit is wrong or whose
+   timestamp is implausible (more than ``max_gap_us`` after the previous one, modulo the wrap).
+2. From there the decoder looks for the first byte position at which ``resync_events`` consecutive events
    parse with correct sync bits and plausible timestamps between them; the bytes skipped are counted in
-   :attr:`StreamDecoder.corrupt_bytes`. A genuine long pause passes this test at once, costing nothing.
-   The search first tries positions where time runs on plausibly from the last event before the bad
-   bytes (or, if that one may be garbage that parsed by chance, from the one before it, ...), which
-   also decides which of those last events were real.
+   :attr:`StreamDecoder.corrupt_bytes`. It first tries positions (within ``RESYNC_WINDOW`` bytes) where
+   time runs on plausibly from the last event before the bad bytes (or, if that one may be garbage that
+   parsed by chance, from the one before it, ...), which also decides which of those events were real.
+   Otherwise (a long pause, or garbage only) it searches onwards; positions that can no longer become an
+   event start are counted as corrupt at once, so garbage costs linear time and is reported as it comes.
 
 The last ``confirm - 1`` events of a call are held back until more bytes confirm them (or
 :meth:`StreamDecoder.flush` releases them), so garbage cannot slip out before it is recognised.
+
+Hidden wraps (formats.md): a pause longer than one wrap of the timestamp (65.536 ms for E2) looks like a
+short step. When the host's arrival time of the bytes is given (``host_t``), the decoder counts the wraps
+a pause hid: an event cannot arrive before it happened, so its device time is at most its arrival time
+minus the smallest ``arrival - device time`` seen recently (the clock offset); the largest number of
+wraps within that bound is taken. This is only done after a gap in arrival times of half a wrap or more,
+so a continuous stream is never changed, and it is exact as long as the host reads the bytes less than
+about 60 ms after they arrive.
 
 Examples
 --------
@@ -33,13 +41,15 @@ Examples
 
 from __future__ import annotations
 
+import functools
+import itertools
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from cvstereo.events import EVENT_DTYPE, empty_events
-from cvstereo.sensors.protocol import MAX_DELTA_BYTES, ProtocolSettings
+from cvstereo.sensors import _scan
+from cvstereo.sensors.protocol import BITS_PER_BYTE, DEFAULT_BAUD, MAX_DELTA_BYTES, ProtocolSettings
 
 #: Events that must agree before the decoder trusts an alignment (and events held back per call).
 DEFAULT_CONFIRM = 4
@@ -56,68 +66,44 @@ RESYNC_WINDOW = 512
 #: ms; a longer pause only takes the confirmation path (no event is lost), while garbage fails it.
 DEFAULT_MAX_GAP_US = 16_384
 
+#: Slack of the arrival-time bound on device time, us (host scheduling jitter, command transit).
+ARRIVAL_SLACK_US = 2_000
+
+#: Events after an arrival gap that must have come before the gap's wraps are decided (a sender that
+#: stalled sends a burst whose last events are timely again and veto a wrap).
+GAP_WITNESSES = 8
+
+#: How fast the clock-offset estimate may rise without a faster event confirming it (clock drift), per us.
+OFFSET_LEAK = 1e-4
+
+
+@functools.cache
+def warm_up() -> None:
+    """Load the compiled scanners now (from numba's cache: a fraction of a second, holding the GIL), so that
+    a reader thread does not stall every thread at the start of a stream, when arrival times matter."""
+    data = bytes([0x81, 0x02, 0x00, 0x10] * 16) + b"\x00\x7f" * 8
+    for name in ("E1", "E2"):
+        dec = StreamDecoder(ProtocolSettings(event_format=name))
+        dec.decode(data)
+        dec.flush()
+
 
 @dataclass
 class _Scan:
-    """Events cut from a buffer: byte offsets, fields and where the cut stopped."""
+    """Events cut from a buffer: byte offsets, raw timestamps and where the cut stopped."""
 
-    starts: np.ndarray  # byte offset of each event
-    y: np.ndarray
-    x: np.ndarray
-    pbit: np.ndarray
+    starts: np.ndarray
+    ends: np.ndarray
     ts: np.ndarray  # raw timestamp (absolute formats) or delta (E1); zeros for E0
-    stop: int  # byte offset after the last event returned
-    failed: bool  # stopped at bad bytes (True) or at the end of the data (False)
+    stop: int
+    failed: bool
 
     def __len__(self) -> int:
         return self.starts.size
 
     def head(self, k: int) -> _Scan:
         stop = int(self.starts[k]) if k < len(self) else self.stop
-        return _Scan(self.starts[:k], self.y[:k], self.x[:k], self.pbit[:k], self.ts[:k], stop, False)
-
-
-@numba.njit(cache=True, nogil=True)
-def _cut_delta(buf, pos, sync, max_groups):  # pragma: no cover - compiled
-    # E1: [sync|y] [p|x] then 1..max_groups bytes of 7-bit delta, bit 7 set on the last one only.
-    n = buf.shape[0]
-    cap = (n - pos) // 3 + 1
-    starts = np.empty(cap, np.int64)
-    ys = np.empty(cap, np.uint8)
-    xs = np.empty(cap, np.uint8)
-    ps = np.empty(cap, np.uint8)
-    ds = np.empty(cap, np.int64)
-    k = 0
-    i = pos
-    failed = False
-    while i + 2 < n:
-        b0 = buf[i]
-        if (b0 & 0x80) != sync:
-            failed = True
-            break
-        j = i + 2
-        delta = 0
-        done = False
-        while j < n and j < i + 2 + max_groups:
-            b = buf[j]
-            delta = (delta << 7) | (b & 0x7F)
-            j += 1
-            if b & 0x80:
-                done = True
-                break
-        if not done:
-            if j >= n and j < i + 2 + max_groups:
-                break  # incomplete: wait for more bytes
-            failed = True
-            break
-        starts[k] = i
-        ys[k] = b0 & 0x7F
-        xs[k] = buf[i + 1] & 0x7F
-        ps[k] = buf[i + 1] >> 7
-        ds[k] = delta
-        k += 1
-        i = j
-    return starts[:k], ys[:k], xs[:k], ps[:k], ds[:k], i, failed
+        return _Scan(self.starts[:k], self.ends[:k], self.ts[:k], stop, False)
 
 
 class StreamDecoder:
@@ -133,6 +119,9 @@ class StreamDecoder:
         Consecutive events that must agree before a new alignment after corrupt bytes is trusted.
     max_gap_us : int, keyword-only
         Largest timestamp step taken without confirmation.
+    byte_rate : float, keyword-only
+        Bytes per second of the link (``baud / 10``); bytes read together cannot all have arrived at the
+        read time, which tightens the arrival time of the earlier ones.
 
     Attributes
     ----------
@@ -140,29 +129,48 @@ class StreamDecoder:
         Bytes skipped as not part of any event.
     events_decoded : int
         Events returned so far.
+    bytes_decoded : int
+        Bytes of the events returned so far.
+    hidden_wraps : int
+        Timestamp wraps added from arrival times (pauses longer than a wrap).
     """
 
     def __init__(self, settings: ProtocolSettings | None = None, *, confirm: int = DEFAULT_CONFIRM,
-                 resync_events: int = DEFAULT_RESYNC_EVENTS, max_gap_us: int = DEFAULT_MAX_GAP_US):
+                 resync_events: int = DEFAULT_RESYNC_EVENTS, max_gap_us: int = DEFAULT_MAX_GAP_US,
+                 byte_rate: float = DEFAULT_BAUD / BITS_PER_BYTE):
         self.settings = settings or ProtocolSettings()
         if confirm < 2:
             raise ValueError(f"confirm must be at least 2 events, got {confirm}.")
+        if not byte_rate > 0:
+            raise ValueError(f"byte_rate must be positive, got {byte_rate}.")
         self.fmt = self.settings.format
         self.confirm = int(confirm)
         self.resync_events = max(int(resync_events), self.confirm)
         self.max_gap_us = int(max_gap_us)
+        self.byte_rate = float(byte_rate)
         self._sync = 0x80 if self.settings.sync_bit_set else 0
         self._buf = bytearray()
+        self._segs: list[list] = []  # [end offset in _buf, host arrival us, fresh] per piece of bytes held
+        self._searching = False
         self.corrupt_bytes = 0
         self.events_decoded = 0
+        self.bytes_decoded = 0
+        self.hidden_wraps = 0
+        self.tail_bytes = 0  # bytes of an incomplete last event at the end of the stream
         self.reset_time()
 
-    def reset_time(self) -> None:
-        """Forget the timestamp history (after ``!ET0``): the next event starts a new unwrap."""
+    def reset_time(self, epoch_us: int | None = None) -> None:
+        """Forget the timestamp history (after ``!ET0``): the next event starts a new unwrap.
+
+        ``epoch_us`` is the host time (as ``host_t``) at which the device clock read zero, if known: the
+        first event's wraps are then counted from its arrival too.
+        """
         self._last_raw: int | None = None
-        self._wraps = 0
         self._last_t = 0
         self._trust = True
+        self._last_arrival = None if epoch_us is None else float(epoch_us)
+        self._offset = None if epoch_us is None else float(epoch_us)  # min(arrival - device time), us
+        self._offset_at = self._last_arrival
 
     @property
     def pending_bytes(self) -> int:
@@ -170,149 +178,135 @@ class StreamDecoder:
         return len(self._buf)
 
     # -- cutting ----------------------------------------------------------------------------------
-    def _cut(self, buf: np.ndarray, pos: int, prev_raw: int | None, trust: bool) -> _Scan:
-        """Cut events from ``pos`` at this alignment; stop at a bad sync bit or implausible timestamp."""
-        fmt = self.fmt
-        if fmt.delta:
-            starts, y, x, p, ts, stop, failed = _cut_delta(buf, pos, self._sync, MAX_DELTA_BYTES)
-            sc = _Scan(starts, y, x, p, ts, int(stop), bool(failed))
-        else:
-            s = fmt.size
-            n = (buf.size - pos) // s
-            rows = buf[pos:pos + n * s].reshape(n, s)
-            bad = np.flatnonzero((rows[:, 0] & 0x80) != self._sync)
-            failed = bad.size > 0
-            m = int(bad[0]) if failed else n
-            rows = rows[:m]
-            ts = np.zeros(m, np.int64)
-            for k in range(fmt.ts_bytes):
-                ts = (ts << 8) | rows[:, 2 + k]
-            sc = _Scan(pos + s * np.arange(m, dtype=np.int64), rows[:, 0] & 0x7F, rows[:, 1] & 0x7F,
-                       rows[:, 1] >> 7, ts, pos + m * s, failed)
-        if not fmt.has_time or len(sc) == 0:
-            return sc
-        # Plausibility of each timestamp step (why: one sync bit alone lets half of all garbage through).
-        if fmt.delta:
-            step = sc.ts
-        else:
-            prev = np.empty(len(sc), np.int64)
-            prev[0] = sc.ts[0] if prev_raw is None else prev_raw
-            prev[1:] = sc.ts[:-1]
-            step = (sc.ts - prev) % fmt.wrap
-        ok = step <= self.max_gap_us
-        if trust or (prev_raw is None and not fmt.delta):
-            ok[0] = True
-        bad = np.flatnonzero(~ok)
-        if bad.size:
-            cut = sc.head(int(bad[0]))
-            cut.failed = True
-            return cut
-        return sc
+    def _kernel_args(self):
+        f = self.fmt
+        return f.size, f.ts_bytes, f.delta, MAX_DELTA_BYTES, max(f.wrap, 1), self._sync, self.max_gap_us
 
-    def _consistent_at(self, buf: np.ndarray, q: int, final: bool, prev_raw: int | None = None) -> bool | None:
-        """Whether ``resync_events`` events agree from byte ``q`` (and continue ``prev_raw`` if given);
-        None when more bytes are needed to tell."""
-        end = min(buf.size, q + self.resync_events * self.fmt.max_size)
-        sc = self._cut(buf[:end], q, prev_raw, prev_raw is None)
-        if len(sc) >= self.resync_events:
-            return True
-        if sc.failed:
-            return False
-        if end < buf.size or final:
-            # Enough bytes were there but fewer events: or the stream ends here (final).
-            return final and len(sc) > 0 and sc.stop == buf.size
-        return None
+    def _cut(self, buf: np.ndarray, pos: int) -> _Scan:
+        limit = (buf.size - pos) // self.fmt.size + 1
+        has_prev = self._last_raw is not None
+        starts, ends, ts, stop, failed = _scan.cut(buf, pos, limit, *self._kernel_args(),
+                                                   self._last_raw or 0, has_prev, self._trust)
+        return _Scan(starts, ends, ts, int(stop), bool(failed))
 
-    def _continuation(self, buf: np.ndarray, p: int, prev_raw: int, final: bool) -> int | None:
-        """First byte within RESYNC_WINDOW of ``p`` where agreeing events continue time from ``prev_raw``.
+    def _first_agreeing(self, buf: np.ndarray, lo: int, hi: int, prev_raw: int | None, settle: int):
+        # A continuation of `prev_raw` needs all `resync_events`; the search after a pause or garbage may
+        # settle for fewer at a pause or the end of the stream (the real alignment comes first there).
+        q, undecided = _scan.first_agreeing(buf, lo, hi, self.resync_events, *self._kernel_args(),
+                                            prev_raw or 0, prev_raw is not None, prev_raw is None, settle)
+        return int(q), int(undecided)
 
-        Returns -1 when there is none, None when more bytes are needed to tell.
-        """
-        fmt = self.fmt
-        short = p + RESYNC_WINDOW > buf.size and not final
-        stop = min(buf.size - fmt.size + 1, p + RESYNC_WINDOW)
-        if stop <= p:
-            return None if short else -1
-        # Prefilter all candidate positions at once: sync bit and the first timestamp step.
-        qs = np.arange(p, stop)
-        ts = np.zeros(qs.size, np.int64)
-        for k in range(fmt.ts_bytes):
-            ts = (ts << 8) | buf[qs + 2 + k]
-        ok = ((buf[qs] & 0x80) == self._sync) & ((ts - prev_raw) % fmt.wrap <= self.max_gap_us)
-        for q in qs[ok].tolist():
-            verdict = self._consistent_at(buf, q, final, prev_raw)
-            if verdict is None:
-                return None
-            if verdict:
-                return q
-        return None if short else -1
-
-    def _resync(self, buf: np.ndarray, sc: _Scan, final: bool) -> tuple[int, int] | None:
-        """Where good events resume after the bad bytes at ``sc.stop``, and how many events of ``sc`` to keep.
-
-        Returns None when more bytes are needed to tell.
-        """
+    def _resync(self, buf: np.ndarray, sc: _Scan, settle: int) -> tuple[int, int] | None:
+        """After bad bytes at ``sc.stop``: (position where time runs on, events of ``sc`` to keep), or
+        (-1, len(sc)) when nothing continues (search onwards), or None when more bytes are needed."""
         m = len(sc)
         p = sc.stop
+        if not self.fmt.ts_bytes:
+            return -1, m
+        # Time runs on from the last real event before the garbage; which of the events just before it are
+        # themselves garbage (parsed by chance) is decided by trying to continue from each of them.
         lo = max(0, m - (self.confirm - 1))
-        if self.fmt.ts_bytes:
-            # The usual case: garbage inside a continuous stream. Time then runs on from the last real
-            # event before the garbage; which of the events just before it are themselves garbage (parsed
-            # by chance) is decided by trying to continue from each of them.
-            prevs = [(j + 1, int(sc.ts[j])) for j in range(m - 1, lo - 1, -1)]
-            if lo == 0 and self._last_raw is not None:
-                prevs.append((0, self._last_raw))
-            best = None
-            for keep, prev in prevs:
-                q = self._continuation(buf, p, prev, final)
-                if q is None:
-                    return None
-                # The earliest resumption wins: from a garbage "event", time only seems to run on once
-                # the real stream has caught up with its random timestamp, many events later.
-                if q >= 0 and (best is None or q < best[0]):
-                    best = (q, keep)
-            if best is not None:
-                return best
-        # A long pause (or no time to go by): the first position where enough events agree.
-        for q in range(p, buf.size):
-            verdict = self._consistent_at(buf, q, final)
-            if verdict is None:
+        prevs = [(j + 1, int(sc.ts[j])) for j in range(m - 1, lo - 1, -1)]
+        if lo == 0 and self._last_raw is not None:
+            prevs.append((0, self._last_raw))
+        short = p + RESYNC_WINDOW > buf.size and not settle
+        best = None
+        for keep, prev in prevs:
+            # The earliest resumption wins: from a garbage "event", time only seems to run on once the real
+            # stream has caught up with its random timestamp, many events later.
+            hi = min(buf.size, p + RESYNC_WINDOW, best[0] if best else buf.size)
+            q, undecided = self._first_agreeing(buf, p, hi, prev, settle)
+            if q >= 0:
+                best = (q, keep)
+            elif (undecided >= 0 and not settle) or (short and best is None):
                 return None
-            if verdict:
-                return q, m
-        return (buf.size, m) if final else None
+        return best if best is not None else (-1, m)
 
     # -- output -----------------------------------------------------------------------------------
+    def _arrivals(self, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """Latest possible arrival time (host us) of each event's first byte, and whether it came to a
+        waiting reader (``fresh``: a precise time); None if arrival times are unknown."""
+        if not self._segs or any(h is None for _, h, _ in self._segs):
+            return None
+        seg_end = np.array([e for e, _, _ in self._segs], np.int64)
+        seg_t = np.array([h for _, h, _ in self._segs], np.float64)
+        seg_fresh = np.array([f for _, _, f in self._segs], bool)
+        idx = np.minimum(np.searchsorted(seg_end, starts, side="right"), seg_end.size - 1)
+        # The bytes read after an event's first byte took at least this long to come over the link.
+        return seg_t[idx] - (seg_end[idx] - starts) / self.byte_rate * 1e6, seg_fresh[idx]
+
+    def _times(self, sc: _Scan, host_t: int | None) -> np.ndarray:
+        fmt = self.fmt
+        m = len(sc)
+        if fmt.delta:
+            return self._last_t + np.cumsum(sc.ts)
+        if not fmt.ts_bytes:
+            # E0 carries no time: stamp with the host's arrival time, never going backwards.
+            return np.full(m, max(self._last_t, 0 if host_t is None else int(host_t)), np.int64)
+        raw = sc.ts
+        prev = np.empty(m, np.int64)
+        prev[0] = raw[0] if self._last_raw is None else self._last_raw
+        prev[1:] = raw[:-1]
+        step = (raw - prev) % fmt.wrap
+        base = raw[0] if self._last_raw is None else self._last_t
+        t = base + np.cumsum(step)
+        arr = self._arrivals(sc.starts)
+        if arr is not None:
+            t = self._add_hidden_wraps(t, *arr)
+        self._last_raw = int(raw[-1])
+        return t
+
+    def _add_hidden_wraps(self, t: np.ndarray, arr: np.ndarray, fresh: np.ndarray) -> np.ndarray:
+        wrap = self.fmt.wrap
+        prev_arr = np.empty_like(arr)
+        prev_arr[0] = arr[0] if self._last_arrival is None else self._last_arrival
+        prev_arr[1:] = arr[:-1]
+        # Only a fresh arrival (a reader that waited for it) after a long quiet spell can reveal a pause.
+        gaps = np.flatnonzero((arr - prev_arr >= wrap / 2) & fresh)
+        if self._offset is not None:
+            bounds = [*gaps.tolist(), arr.size]
+            for i, nxt in itertools.pairwise(bounds):
+                off = self._offset + OFFSET_LEAK * (arr[i] - self._offset_at)
+                seen = (arr[:i] - t[:i])[fresh[:i]]
+                if seen.size:
+                    off = min(off, float(seen.min()))
+                # Every event up to the next gap bounds the wraps: after a stall of the sender (events sent
+                # late in a burst) the burst's last events are timely again and veto a wrap.
+                slack = float((arr[i:nxt] - off + ARRIVAL_SLACK_US - t[i:nxt]).min())
+                k = int(slack // wrap)
+                if k > 0:
+                    t[i:] += k * wrap
+                    self.hidden_wraps += k
+        if fresh.any():
+            off_now = float((arr - t)[fresh].min())
+            if self._offset is None:
+                self._offset = off_now
+            else:
+                self._offset = min(self._offset + OFFSET_LEAK * (arr[-1] - self._offset_at), off_now)
+            self._offset_at = float(arr[-1])
+        self._last_arrival = float(arr[-1])
+        return t
+
     def _emit(self, sc: _Scan, host_t: int | None) -> np.ndarray:
         m = len(sc)
         out = np.empty(m, EVENT_DTYPE)
         if m == 0:
             return out
-        fmt = self.fmt
-        if fmt.delta:
-            t = self._last_t + np.cumsum(sc.ts)
-        elif fmt.ts_bytes:
-            raw = sc.ts
-            prev = np.empty(m, np.int64)
-            prev[0] = raw[0] if self._last_raw is None else self._last_raw
-            prev[1:] = raw[:-1]
-            wraps = self._wraps + np.cumsum(raw < prev)
-            t = raw + fmt.wrap * wraps
-            self._wraps = int(wraps[-1])
-            self._last_raw = int(raw[-1])
-        else:
-            # E0 carries no time: stamp with the host's arrival time, never going backwards.
-            t = np.full(m, max(self._last_t, 0 if host_t is None else int(host_t)), np.int64)
+        t = self._times(sc, host_t)
         self._last_t = int(t[-1])
         self._trust = False
+        b0 = self._view[sc.starts]
+        b1 = self._view[sc.starts + 1]
         out["t"] = t
-        out["x"] = sc.x
-        out["y"] = sc.y
-        out["p"] = (sc.pbit == 0) if self.settings.off_bit_set else (sc.pbit != 0)
+        out["x"] = b1 & 0x7F
+        out["y"] = b0 & 0x7F
+        pbit = b1 >> 7
+        out["p"] = (pbit == 0) if self.settings.off_bit_set else (pbit != 0)
         self.events_decoded += m
+        self.bytes_decoded += int(sc.ends[-1] - sc.starts[0]) if m else 0
         return out
 
-    def decode(self, data: bytes, *, host_t: int | None = None, final: bool = False,
+    def decode(self, data: bytes, *, host_t: int | None = None, fresh: bool = True, final: bool = False,
                release: bool = False) -> np.ndarray:
         """Decode the next bytes of the stream.
 
@@ -321,7 +315,11 @@ class StreamDecoder:
         data : bytes
             The bytes, in any pieces.
         host_t : int, optional, keyword-only
-            Host time (us) stamped on events of format E0, which carries no time.
+            Host time (us) at which ``data`` was read: stamps events of format E0 (which carries no time)
+            and lets the decoder count the timestamp wraps a long pause hides.
+        fresh : bool, keyword-only
+            The reader was waiting when ``data`` came (nothing was left unread before the read), so
+            ``host_t`` is its arrival time and not just a bound; only fresh bytes reveal pauses.
         final : bool, keyword-only
             No more bytes will come: release held events and count trailing bytes as corrupt.
         release : bool, keyword-only
@@ -332,40 +330,81 @@ class StreamDecoder:
         (N,) ndarray of EVENT_DTYPE
             Time-ordered events.
         """
-        self._buf += data
-        buf = np.frombuffer(bytes(self._buf), np.uint8)
+        if data:
+            self._buf += data
+            self._segs.append([len(self._buf), host_t, bool(fresh)])
+        buf = self._view = np.frombuffer(bytes(self._buf), np.uint8)
         pos = 0
         parts = []
         hold = 0 if (final or release) else self.confirm - 1
+        # At a pause (release) or the end (final) bad bytes are judged with the bytes there are.
+        settle = 2 if final else (1 if release else 0)
         while pos < buf.size:
-            sc = self._cut(buf, pos, self._last_raw, self._trust)
+            if self._searching:
+                q, undecided = self._first_agreeing(buf, pos, buf.size, None, settle)
+                if q < 0:
+                    stop = undecided if undecided >= 0 else buf.size
+                    self.corrupt_bytes += stop - pos
+                    pos = stop
+                    break
+                self.corrupt_bytes += q - pos
+                pos = q
+                self._searching = False
+                self._trust = True
+            sc = self._cut(buf, pos)
             m = len(sc)
             if not sc.failed:
-                keep = max(0, m - hold)
-                parts.append(self._emit(sc.head(keep), host_t))
-                pos = sc.head(keep).stop
+                head = sc.head(self._undeferred(max(0, m - hold), sc, settle))
+                parts.append(self._emit(head, host_t))
+                pos = head.stop
                 if final and pos < buf.size:
                     self.corrupt_bytes += buf.size - pos  # an incomplete event at the very end
+                    self.tail_bytes = buf.size - pos
                     pos = buf.size
                 break
-            found = self._resync(buf, sc, final)
+            found = self._resync(buf, sc, settle)
             if found is None:
-                # Not enough bytes after the bad spot to find the next good event: wait.
-                keep = max(0, m - hold)
-                parts.append(self._emit(sc.head(keep), host_t))
-                pos = sc.head(keep).stop
+                # Not enough bytes after the bad spot to decide: wait (a bounded number of bytes).
+                head = sc.head(max(0, m - hold))
+                parts.append(self._emit(head, host_t))
+                pos = head.stop
                 break
             q, keep = found
             head = sc.head(keep)
             parts.append(self._emit(head, host_t))
+            if q < 0:
+                pos = head.stop
+                self._searching = True
+                continue
             self.corrupt_bytes += q - head.stop
             self._trust = True
             pos = q
-        del self._buf[:pos]
+        self._drop(pos)
         parts = [p for p in parts if p.size]
         if not parts:
             return empty_events()
         return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
+    def _undeferred(self, k: int, sc: _Scan, settle: int) -> int:
+        """How many of the first ``k`` events to emit now: not those from an arrival gap on that fewer than
+        ``GAP_WITNESSES`` events follow yet (its hidden wraps are decided with them), unless settling."""
+        if settle or k == 0 or not self.fmt.ts_bytes:
+            return k
+        got = self._arrivals(sc.starts)
+        if got is None:
+            return k
+        arr, fresh = got
+        prev = np.empty_like(arr)
+        prev[0] = arr[0] if self._last_arrival is None else self._last_arrival
+        prev[1:] = arr[:-1]
+        gaps = np.flatnonzero((arr - prev >= self.fmt.wrap / 2) & fresh)
+        if gaps.size and len(sc) - gaps[-1] < GAP_WITNESSES:
+            return min(k, int(gaps[-1]))
+        return k
+
+    def _drop(self, pos: int) -> None:
+        del self._buf[:pos]
+        self._segs = [[e - pos, h, f] for e, h, f in self._segs if e > pos]
 
     def flush(self, *, host_t: int | None = None, final: bool = True) -> np.ndarray:
         """Release the events held for confirmation.

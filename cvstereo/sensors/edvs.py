@@ -1,4 +1,7 @@
-"""One eDVS128 board over pyserial: open, configure, start/stop, and a reader thread feeding a bounded queue.
+"""One eDVS128 board over pyserial: open, configure, start/stop, and a reader thread feeding a queue.
+
+The reader detects (or checks) the protocol from the first bytes, waits while the consumer is behind (flow
+control) but never drops a chunk, and on stop reads the bytes still on their way before it ends.
 
 >>> # with hardware (or a VirtualEDVS port):
 >>> # with EDVS("/dev/ttyUSB0") as cam:
@@ -16,14 +19,21 @@ import numpy as np
 import serial
 
 from cvstereo.errors import SensorError
-from cvstereo.sensors.decoder import StreamDecoder
-from cvstereo.sensors.protocol import DEFAULT_BAUD, ProtocolSettings
+from cvstereo.sensors.decoder import StreamDecoder, warm_up
+from cvstereo.sensors.detect import DETECT_BYTES, ProtocolMismatchError, check_protocol
+from cvstereo.sensors.protocol import BITS_PER_BYTE, DEFAULT_BAUD, ProtocolSettings
 
 #: Seconds without a byte after which a streaming sensor counts as silent (the issue: "about a second").
 DEFAULT_SILENCE_S = 1.0
 
 #: Pause after which events held for confirmation are released, so a quiet sensor does not hold them.
 RELEASE_AFTER_S = 0.02
+
+#: After stop(): keep reading until the port is quiet this long (bytes already on their way are kept).
+DRAIN_QUIET_S = 0.05
+
+#: After stop(): read at most this long.
+DRAIN_MAX_S = 1.0
 
 
 class Chunk(NamedTuple):
@@ -56,6 +66,10 @@ class EDVS:
         A streaming sensor that sends nothing for this long is reported silent.
     rtscts : bool, keyword-only
         Hardware flow control (on for the eDVS).
+    auto_format, auto_sync : bool, keyword-only
+        Detect the event format / sync-bit polarity from the first bytes instead of taking
+        ``settings``' values; values not detected are checked against the stream (a mismatch stops the
+        reader with :class:`~cvstereo.sensors.detect.ProtocolMismatchError` in :attr:`error`).
 
     Attributes
     ----------
@@ -63,20 +77,32 @@ class EDVS:
     silent : bool
         No byte for ``silence_s`` while streaming.
     error : BaseException or None
-        Why the reader stopped (unplugged cable, ...).
+        Why the reader stopped (unplugged cable, wrong protocol settings, ...).
+    protocol : str or None
+        The format and sync bit decoded, and whether they were detected, checked or assumed.
     """
 
     def __init__(self, port: str, *, baud: int = DEFAULT_BAUD, settings: ProtocolSettings | None = None,
                  name: str = "sensor", queue_size: int = 1024, silence_s: float = DEFAULT_SILENCE_S,
-                 rtscts: bool = True):
+                 rtscts: bool = True, auto_format: bool = False, auto_sync: bool = False):
         self.port = str(port)
         self.baud = int(baud)
         self.settings = settings or ProtocolSettings()
         self.name = name
         self.silence_s = float(silence_s)
         self.rtscts = rtscts
-        self.queue: queue.Queue[Chunk] = queue.Queue(maxsize=queue_size)
-        self.decoder = StreamDecoder(self.settings)
+        # Unbounded: the reader itself waits while `queue_size` chunks are waiting (flow control), but a
+        # chunk is never dropped, not even while stopping.
+        self.queue_size = int(queue_size)
+        self.queue: queue.Queue[Chunk] = queue.Queue()
+        self.auto_format = auto_format
+        self.auto_sync = auto_sync
+        self.protocol: str | None = None
+        self._probe = bytearray()
+        self._probe_times: list[tuple[int, int, bool]] = []
+        self._probe_tried = 0
+        self._epoch_us: int | None = None
+        self.decoder = self._new_decoder(self.settings)
         self.silent = False
         self.silences = 0
         self.error: BaseException | None = None
@@ -86,6 +112,16 @@ class EDVS:
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
         self._lock = threading.Lock()
+
+    def _new_decoder(self, settings: ProtocolSettings) -> StreamDecoder:
+        dec = StreamDecoder(settings, byte_rate=self.baud / BITS_PER_BYTE)
+        dec.reset_time(self._epoch_us)
+        return dec
+
+    def clock_reset(self, epoch_us: int) -> None:
+        """The device clock read zero at host time ``epoch_us`` (after ``!ET0`` or ``!ETM+``)."""
+        self._epoch_us = int(epoch_us)
+        self.decoder.reset_time(self._epoch_us)
 
     # -- connection -------------------------------------------------------------------------------
     def open(self) -> EDVS:
@@ -105,6 +141,7 @@ class EDVS:
                 f"{self.name} sensor: cannot open serial port {self.port} ({reason}); check that the eDVS is "
                 "plugged in and the port name is right (ls /dev/ttyUSB* /dev/ttyACM*)."
             ) from None
+        warm_up()  # now, not after the clocks are synchronised: a stall then would delay the stream
         return self
 
     def close(self) -> None:
@@ -199,6 +236,7 @@ class EDVS:
         """Start the reader thread, then streaming (``E+``)."""
         if self._thread is not None:
             return
+        warm_up()  # (done at open() already: then free)
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name=f"edvs-{self.name}", daemon=True)
         self.last_byte_us = host_us()
@@ -225,50 +263,80 @@ class EDVS:
         return self._thread is not None and self._thread.is_alive()
 
     def _put(self, chunk: Chunk) -> None:
-        # Block while the consumer is behind (flow control), but never past a stop request.
-        while not self._stop.is_set():
-            try:
-                self.queue.put(chunk, timeout=0.1)
+        # Wait while the consumer is behind (flow control), never past a stop request, and never drop.
+        while self.queue.qsize() >= self.queue_size and not self._stop.is_set():
+            time.sleep(0.005)
+        self.queue.put(chunk)
+
+    def _decode(self, data: bytes, now: int, *, fresh: bool = True, final: bool = False,
+                release: bool = False) -> None:
+        """Decode bytes (after the protocol is settled: until then they wait in the probe)."""
+        if self.protocol is None:
+            if data:
+                self._probe += data
+                self._probe_times.append((len(self._probe), now, fresh))
+            if len(self._probe) < max(DETECT_BYTES, 2 * self._probe_tried) and not (final or release):
+                return  # look again at twice the sample (detection is not free: linear in all)
+            self._probe_tried = len(self._probe)
+            settled = check_protocol(bytes(self._probe), self.settings, auto_format=self.auto_format,
+                                     auto_sync=self.auto_sync, name=self.name, final=final, pause=release)
+            if settled is None:
                 return
-            except queue.Full:
-                continue
+            settings, self.protocol = settled
+            if settings != self.decoder.settings:
+                self.decoder = self._new_decoder(settings)
+            probe, times, self._probe, self._probe_times = bytes(self._probe), self._probe_times, bytearray(), []
+            start = 0
+            for end, t, f in times:  # replay with the arrival time of each piece
+                self._decode(probe[start:end], t, fresh=f)
+                start = end
+            data = b""
+        ev = self.decoder.decode(data, host_t=now, fresh=fresh, final=final, release=release and not final)
+        if ev.size:
+            self._put(Chunk(ev, now))
 
     def _run(self) -> None:
         ser = self._serial
         assert ser is not None
         held = False
+        stop_at: float | None = None
         try:
-            while not self._stop.is_set():
-                data = ser.read(max(1, min(ser.in_waiting, 1 << 16)))
+            while True:
+                if self._stop.is_set() and stop_at is None:
+                    stop_at = time.monotonic()
+                waiting = ser.in_waiting
+                data = ser.read(max(1, min(waiting, 1 << 16)))
                 now = host_us()
                 if data:
                     self.bytes_received += len(data)
                     self.last_byte_us = now
                     if self.silent:
                         self.silent = False
-                    ev = self.decoder.decode(data, host_t=now)
-                    held = self.decoder.pending_bytes > 0
-                    if ev.size:
-                        self._put(Chunk(ev, now))
+                    self._decode(data, now, fresh=waiting == 0)
+                    held = True
+                    if stop_at is not None and time.monotonic() - stop_at > DRAIN_MAX_S:
+                        break
                     continue
                 quiet_s = (now - (self.last_byte_us or now)) / 1e6
+                if stop_at is not None and (quiet_s >= DRAIN_QUIET_S or time.monotonic() - stop_at > DRAIN_MAX_S):
+                    break  # stopped, and the bytes already on their way have been read
                 if held and quiet_s >= RELEASE_AFTER_S:
-                    ev = self.decoder.flush(host_t=now, final=False)
+                    self._decode(b"", now, release=True)
                     held = False
-                    if ev.size:
-                        self._put(Chunk(ev, now))
                 if not self.silent and quiet_s >= self.silence_s:
                     self.silent = True
                     self.silences += 1
+        except ProtocolMismatchError as exc:
+            self.error = exc
+            return
         except (serial.SerialException, OSError, TypeError) as exc:
             # pyserial raises SerialException (or TypeError from a closed fd) when the device vanishes.
             self.error = SensorError(f"{self.name} sensor ({self.port}) disconnected: {exc}")
-        ev = self.decoder.flush(host_t=host_us(), final=False)
-        if ev.size:
-            try:
-                self.queue.put_nowait(Chunk(ev, host_us()))
-            except queue.Full:
-                pass
+        # The stream ended (stopped or unplugged): every byte received so far is decoded and delivered.
+        try:
+            self._decode(b"", host_us(), final=True)
+        except ProtocolMismatchError as exc:
+            self.error = exc
 
     def status(self) -> dict:
         """Counters for reports: bytes, events, corrupt bytes, silences, error."""
@@ -277,6 +345,7 @@ class EDVS:
             "bytes": self.bytes_received,
             "events": self.decoder.events_decoded,
             "corrupt_bytes": self.decoder.corrupt_bytes,
+            "protocol": self.protocol,
             "silences": self.silences,
             "silent": self.silent,
             "error": None if self.error is None else str(self.error),

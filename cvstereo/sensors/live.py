@@ -37,6 +37,11 @@ class LiveStats:
                 "latency_ms_p95": float(np.percentile(lat, 95)) if lat.size else None}
 
 
+def _num(value: float, width: int, digits: int) -> str:
+    """A number for the status line; "n/a" where there is none (no matches yet, no depth model)."""
+    return f"{value:{width}.{digits}f}" if np.isfinite(value) else f"{'n/a':>{width}}"
+
+
 def run_live(rig: StereoEDVS, matcher: StreamMatcher, *, depth: DepthModel | None = None,
              seconds: float | None = None, stop: threading.Event | None = None, out=sys.stdout,
              update_s: float = UPDATE_S, done=None) -> LiveStats:
@@ -81,8 +86,8 @@ def run_live(rig: StereoEDVS, matcher: StreamMatcher, *, depth: DepthModel | Non
             if offs and matcher.watermark is not None:
                 lag_ms = (host_us() - (matcher.watermark + min(offs))) / 1e3
                 stats.lags_ms.append(lag_ms)
-            line = (f"disparity {med:6.2f} px  distance {dist:6.2f} m  "
-                    f"L {counts[0] / dt:8.0f} ev/s  R {counts[1] / dt:8.0f} ev/s  lag {lag_ms:6.1f} ms")
+            line = (f"disparity {_num(med, 6, 2)} px  distance {_num(dist, 6, 2)} m  "
+                    f"L {counts[0] / dt:8.0f} ev/s  R {counts[1] / dt:8.0f} ev/s  lag {_num(lag_ms, 6, 1)} ms")
             counts = [0, 0]
             print(line, file=out, flush=True)
             if d.size and newest_arrival is not None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 import signal
 import threading
 from collections.abc import Iterator
@@ -17,21 +18,47 @@ if TYPE_CHECKING:  # the boards' modules load numba; the CLI imports them only w
     from cvstereo.sensors.virtual import VirtualEDVS
 
 
+def positive_number(what: str):
+    """An argparse type: a finite number > 0 (a usage error otherwise)."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{what} must be a number, got '{text}'") from None
+        if not (math.isfinite(value) and value > 0):
+            raise argparse.ArgumentTypeError(f"{what} must be a finite number greater than 0, got '{text}'")
+        return value
+
+    return parse
+
+
+def _baud(text: str) -> int:
+    value = positive_number("--baud")(text)
+    if value != int(value) or value > 100_000_000:
+        raise argparse.ArgumentTypeError(f"--baud must be a whole number of bit/s up to 100000000, got '{text}'")
+    return int(value)
+
+
 def add_rig_arguments(parser: argparse.ArgumentParser) -> None:
     """``--left/--right/--simulate`` and the protocol settings drivers disagree on."""
     parser.add_argument("--left", metavar="PORT", help="serial port of the left eDVS")
     parser.add_argument("--right", metavar="PORT", help="serial port of the right eDVS")
     parser.add_argument("--simulate", metavar="RECORDING", default=None,
                         help="start two virtual eDVS streaming this recording instead of real boards")
-    parser.add_argument("--speed", type=float, default=1.0, help="--simulate: stream time per wall time")
-    parser.add_argument("--event-format", choices=list(FORMATS), default="E2", help="event format (default E2)")
-    parser.add_argument("--baud", type=int, default=DEFAULT_BAUD, help="link speed (default 4000000)")
-    parser.add_argument("--seconds", type=float, default=None, help="stop after this long (default: Ctrl-C)")
+    parser.add_argument("--speed", type=positive_number("--speed"), default=1.0,
+                        help="--simulate: stream time per wall time")
+    parser.add_argument("--event-format", choices=["auto", *FORMATS], default="auto",
+                        help="event format (default auto: detected from the first bytes; a value given is checked "
+                        "against the stream)")
+    parser.add_argument("--baud", type=_baud, default=DEFAULT_BAUD, help="link speed (default 4000000)")
+    parser.add_argument("--seconds", type=positive_number("--seconds"), default=None,
+                        help="stop after this long (default: Ctrl-C)")
     g = parser.add_argument_group("protocol details where firmware and drivers differ")
     g.add_argument("--clock", choices=("master-slave", "align"), default="master-slave",
                    help="timestamp sync: firmware master/slave, or reset both and estimate the residual offset")
-    g.add_argument("--sync-bit", choices=("set", "clear"), default="set",
-                   help="bit 7 of an event's first byte (default set: 1yyyyyyy)")
+    g.add_argument("--sync-bit", choices=("auto", "set", "clear"), default="auto",
+                   help="bit 7 of an event's first byte (default auto: detected; set = 1yyyyyyy)")
     g.add_argument("--off-bit", choices=("set", "clear"), default="set",
                    help="polarity bit value meaning OFF (default set, as jAER)")
     g.add_argument("--numbering", choices=("current", "legacy"), default="current",
@@ -40,7 +67,9 @@ def add_rig_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def protocol_settings(args: argparse.Namespace) -> ProtocolSettings:
-    return ProtocolSettings(event_format=args.event_format, sync_bit_set=args.sync_bit == "set",
+    """The settings asked for (``auto`` asks the board for E2 and decodes what the stream turns out to be)."""
+    return ProtocolSettings(event_format="E2" if args.event_format == "auto" else args.event_format,
+                            sync_bit_set=args.sync_bit != "clear",
                             off_bit_set=args.off_bit == "set", numbering=args.numbering,
                             line_ending="\r\n" if args.crlf else "\n")
 
@@ -49,7 +78,7 @@ def protocol_settings(args: argparse.Namespace) -> ProtocolSettings:
 def open_rig(args: argparse.Namespace) -> Iterator[tuple[StereoEDVS, list[VirtualEDVS]]]:
     """Open the two boards named on the command line (or two virtual ones with --simulate)."""
     from cvstereo.sensors.stereo import StereoEDVS, StereoSettings
-    from cvstereo.sensors.virtual import VirtualEDVS
+    from cvstereo.sensors.virtual import VirtualClock, VirtualEDVS
 
     settings = protocol_settings(args)
     devices: list[VirtualEDVS] = []
@@ -58,13 +87,13 @@ def open_rig(args: argparse.Namespace) -> Iterator[tuple[StereoEDVS, list[Virtua
             from cvstereo.io.npz import read_recording_npz
 
             rec = read_recording_npz(args.simulate)
-            t0 = rec.t_start
+            # One clock and one scene start for both devices (as real boards after !ETM), so a camera whose
+            # first event comes later also starts later in the stream.
+            clock = VirtualClock()
             ports = []
             for ev in (rec.left, rec.right):
-                # Both devices count from the recording's first event, so their clocks agree.
-                ev = ev.copy()
-                ev["t"] -= t0
-                dev = VirtualEDVS(ev, baud=args.baud, speed=args.speed, settings=settings)
+                dev = VirtualEDVS(ev, baud=args.baud, speed=args.speed, settings=settings, clock=clock,
+                                  time_origin_us=rec.t_start)
                 ports.append(stack.enter_context(dev))
                 devices.append(dev)
             left, right = ports
@@ -73,8 +102,8 @@ def open_rig(args: argparse.Namespace) -> Iterator[tuple[StereoEDVS, list[Virtua
                 raise ValueError("give both --left PORT and --right PORT, or --simulate RECORDING to try without "
                                  "hardware.")
             left, right = args.left, args.right
-        rig = StereoEDVS(left, right, baud=args.baud, settings=settings,
-                         stereo=StereoSettings(clock=args.clock))
+        rig = StereoEDVS(left, right, baud=args.baud, settings=settings, stereo=StereoSettings(clock=args.clock),
+                         auto_format=args.event_format == "auto", auto_sync=args.sync_bit == "auto")
         stack.enter_context(rig)
         yield rig, devices
 

@@ -79,13 +79,17 @@ class StereoEDVS:
     settings : ProtocolSettings, keyword-only
         Both boards use the same protocol settings.
     stereo : StereoSettings, keyword-only
+    auto_format, auto_sync : bool, keyword-only
+        Detect the event format / sync bit of each board from its first bytes (see :class:`EDVS`).
     """
 
     def __init__(self, left_port: str, right_port: str, *, baud: int = DEFAULT_BAUD,
-                 settings: ProtocolSettings | None = None, stereo: StereoSettings | None = None):
+                 settings: ProtocolSettings | None = None, stereo: StereoSettings | None = None,
+                 auto_format: bool = False, auto_sync: bool = False):
         self.settings = settings or ProtocolSettings()
         self.stereo = stereo or StereoSettings()
-        self.cams = [EDVS(p, baud=baud, settings=self.settings, name=n, silence_s=self.stereo.silence_s)
+        self.cams = [EDVS(p, baud=baud, settings=self.settings, name=n, silence_s=self.stereo.silence_s,
+                          auto_format=auto_format, auto_sync=auto_sync)
                      for n, p in zip(CAMERAS, (left_port, right_port), strict=True)]
         self.sides = [_Side(c) for c in self.cams]
         self.watermark: int | None = None
@@ -108,13 +112,20 @@ class StereoEDVS:
         for cam in self.cams:
             cam.configure(biases=biases)
         c = self.settings.commands
+        # The host time of the clock reset lets each decoder count the 16-bit wraps before a camera's first
+        # event too (a camera that starts sending later must not start its clock later).
         if self.stereo.clock == "master-slave":
             left.command(c.master_arm)
             right.command(c.slave)
+            epoch = host_us()
             left.command(c.master_run)
+            for cam in self.cams:
+                cam.clock_reset(epoch)
         else:
-            left.command(c.timestamp_reset)
-            right.command(c.timestamp_reset)
+            for cam in self.cams:
+                epoch = host_us()
+                cam.command(c.timestamp_reset)
+                cam.clock_reset(epoch)
         for cam in self.cams:
             cam.drain(0.02)
         for cam in self.cams:

@@ -30,6 +30,15 @@ BANNER = "EDVS128 virtual board (cvstereo), 1us timestamps"
 TICK_S = 0.002
 
 
+class VirtualClock:
+    """What two virtual boards share, as two real boards after ``!ETM``: the master's clock, and the
+    moment the scene starts (the first ``E+`` of either board), so both stamp the same instant alike."""
+
+    def __init__(self):
+        self.zero: float | None = None  # host time (time.monotonic) at which the master's clock read 0
+        self.start: float | None = None  # host time at which scene time `time_origin_us` is played
+
+
 class VirtualEDVS:
     """A virtual eDVS128 streaming ``events`` on a pty; a context manager yielding the port path.
 
@@ -48,13 +57,20 @@ class VirtualEDVS:
         Device time of the first event before any timestamp synchronisation (a free-running board).
     reset_jitter_us : int, keyword-only
         Device clock after ``!ET0``, simulating two boards reset a little apart.
+    clock : VirtualClock, keyword-only
+        Shared with the other board of a pair: after ``!ETM+`` (master) / ``!ETS`` (slave) both count on
+        the master's clock, and both play the scene from the same moment, so the time between the two
+        cameras' events is kept exactly (real boards after ``!ETM`` do the same).
+    time_origin_us : int, keyword-only
+        Scene time played when streaming starts (default: the first event's); give both boards of a pair
+        the recording's start, so a camera that starts later also starts later here.
     echo : bool, keyword-only
         Echo command lines until ``!U0`` (as the firmware does).
     """
 
     def __init__(self, events: np.ndarray, *, baud: int = DEFAULT_BAUD, speed: float = 1.0,
                  settings: ProtocolSettings | None = None, clock_offset_us: int = 0, reset_jitter_us: int = 0,
-                 echo: bool = True):
+                 echo: bool = True, clock: VirtualClock | None = None, time_origin_us: int | None = None):
         self.events = events
         self.baud = int(baud)
         self.speed = float(speed)
@@ -79,8 +95,14 @@ class VirtualEDVS:
         self._stall_until = 0.0
         self._disconnect = False
         self._pending = b""
-        self._t0 = int(events["t"][0]) if events.size else 0
-        self._stream_start = 0.0
+        if not self.speed > 0 or self.speed == float("inf"):
+            raise ValueError(f"speed must be a positive finite number, got {speed}.")
+        self._t0 = int(time_origin_us) if time_origin_us is not None else (int(events["t"][0]) if events.size else 0)
+        self._clock = clock
+        self._zero: float | None = None  # host time at which this board's clock read 0 (None: not yet)
+        self._is_slave = False
+        self._stream_start: float | None = None
+        self.lead_us = 0  # device time at which scene time `time_origin_us` is stamped
         self._next = 0
         self._t_prev = 0
 
@@ -154,17 +176,24 @@ class VirtualEDVS:
             self.echo = True
             self._reply(BANNER)
         elif cmd in (c.start, "+"):
-            self.streaming = True
-            self._stream_start = time.monotonic() - self._stream_time_s()
+            self._start_stream(time.monotonic())
         elif cmd in (c.stop, "-"):
             self.streaming = False
         elif cmd == c.echo_off:
             self.echo = False
         elif cmd in (c.timestamp_reset, "!ET", "!ET=0"):
-            self.clock_offset_us = self.reset_jitter_us
-        elif cmd in (c.master_arm, c.master_run, c.slave):
-            # Master and slave share the master's clock: the offset of a free-running board vanishes.
-            self.clock_offset_us = 0
+            self._zero = time.monotonic() - self.reset_jitter_us / 1e6 / self.speed
+            self._is_slave = False
+        elif cmd == c.master_run:
+            self._zero = time.monotonic()
+            self._is_slave = False
+            if self._clock is not None:
+                self._clock.zero = self._zero
+        elif cmd == c.slave:
+            self._is_slave = True
+            self._zero = time.monotonic()  # without a shared clock: synchronised by the command itself
+        elif cmd == c.master_arm:
+            pass
         elif cmd.startswith("!E") and cmd[2:].isdigit():
             number = int(cmd[2:])
             names = {v: k for k, v in FORMAT_NUMBERS[self.settings.numbering].items()}
@@ -183,10 +212,27 @@ class VirtualEDVS:
         else:
             self._reply(f"?? {cmd}")
 
-    def _stream_time_s(self) -> float:
-        if self._next >= self.events.size:
-            return 0.0
-        return (int(self.events["t"][self._next]) - self._t0) / 1e6 / self.speed
+    def _start_stream(self, now: float) -> None:
+        self.streaming = True
+        if self._stream_start is not None:
+            # Resumed after E-: the next event is due now (the device clock runs on meanwhile).
+            if self._next < self.events.size:
+                self._stream_start = now - (int(self.events["t"][self._next]) - self._t0) / 1e6 / self.speed
+            return
+        zero = self._zero
+        if self._is_slave:
+            # A slave counts on the master's clock (without a shared one: reset by the sync itself).
+            if self._clock is not None and self._clock.zero is not None:
+                zero = self._clock.zero
+        if zero is None:
+            zero = now - self.clock_offset_us / 1e6 / self.speed  # free-running: `clock_offset_us` at E+
+        start = now
+        if self._clock is not None:
+            if self._clock.start is None:
+                self._clock.start = now
+            start = self._clock.start
+        self._stream_start = start
+        self.lead_us = round((start - zero) * self.speed * 1e6)
 
     def _due_events(self, now: float, budget: int) -> bytes:
         """Encode the events due by ``now`` (at most ``budget`` bytes), with garbage at a boundary."""
@@ -204,7 +250,7 @@ class VirtualEDVS:
             garbage, self._garbage = b"".join(self._garbage), []
         if hi > self._next:
             chunk = self.events[self._next:hi].copy()
-            chunk["t"] = chunk["t"] - self._t0 + self.clock_offset_us
+            chunk["t"] = chunk["t"] - self._t0 + self.lead_us
             s = ProtocolSettings(event_format=self.format, sync_bit_set=self.settings.sync_bit_set,
                                  off_bit_set=self.settings.off_bit_set, numbering=self.settings.numbering)
             out = encode_events(chunk, s, t_prev=self._t_prev)
