@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from calibration_free.registry import available_methods, create_matcher, matcher_class, parse_param_strings
+
 from cvstereo.cli import main
 from cvstereo.errors import EventFormatError
 from cvstereo.events import EVENT_DTYPE, MAX_RESOLUTION, make_events
