@@ -1,6 +1,6 @@
 """``cvstereo video RECORDING [MATCHES] -o OUT.mp4``: an MP4 of the events and, given matches, their disparities.
 
-One video frame per window (40 ms: real time at 25 fps): both cameras' events, ON green and OFF red, and the
+One video frame per window (40 ms: real time at 25 fps): both cameras' events, ON blue and OFF orange, and the
 colour-coded disparity at each anchor pixel, with time, median disparity and distance written on top.
 """
 
@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 
 from cvstereo.cli._common import add_depth_options, add_format_options, format_options
-from cvstereo.cli.plot import picture_depth
+from cvstereo.cli.plot import name_recording, picture_depth
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
@@ -24,6 +24,10 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p.add_argument("--seconds", type=float, default=None, help="only the first SECONDS of the recording")
     p.add_argument("--window-ms", type=float, default=40.0, metavar="MS",
                    help="time per video frame (default: %(default)g)")
+    p.add_argument("--vmin", type=float, default=None, metavar="PX",
+                   help="disparity at the low end of the colour scale (default: from the data)")
+    p.add_argument("--vmax", type=float, default=None, metavar="PX",
+                   help="disparity at the high end of the colour scale (default: from the data)")
     add_depth_options(p)
     add_format_options(p)
     return p
@@ -32,12 +36,17 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     from cvstereo.io import read_matches, read_recording
     from cvstereo.viz import write_video
+    from cvstereo.viz.video import CODEC_NAMES, video_codec
 
     if args.window_ms <= 0:
         raise ValueError(f"--window-ms must be > 0, got {args.window_ms:g}.")
     recording = read_recording(args.recording, args.right, **format_options(args))
+    name_recording(recording, args.recording)
     result = read_matches(args.matches) if args.matches is not None else None
     n = write_video(recording, args.output, result, fps=args.fps, window_us=round(args.window_ms * 1000),
-                    scale=args.scale, seconds=args.seconds, depth=picture_depth(args, recording, result))
-    print(f"{n} frames ({n / args.fps:.1f} s at {args.fps:g} fps) -> {args.output}")
+                    scale=args.scale, seconds=args.seconds, depth=picture_depth(args, recording, result),
+                    vmin=args.vmin, vmax=args.vmax)
+    codec = video_codec()
+    note = "" if codec == "avc1" else " (this OpenCV build has no H.264 encoder)"
+    print(f"{n} frames ({n / args.fps:.1f} s at {args.fps:g} fps, {CODEC_NAMES[codec]}{note}) -> {args.output}")
     return 0
