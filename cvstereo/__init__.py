@@ -6,9 +6,14 @@ sister package :mod:`calibration_free` and register through the entry-point grou
 that nothing here imports them by name.
 """
 
-from cvstereo.events import EVENT_DTYPE, as_events, make_events
-from cvstereo.matches import MATCH_DTYPE, MatchResult
-from cvstereo.recording import Recording
+from cvstereo import _numba_cache
+
+# Before any module with numba kernels is imported: a read-only installation must still compile them.
+_numba_cache.configure()
+
+from cvstereo.events import EVENT_DTYPE  # noqa: E402, as_events, make_events
+from cvstereo.matches import MATCH_DTYPE, MatchResult  # noqa: E402
+from cvstereo.recording import Recording  # noqa: E402
 
 __version__ = "0.1.0"
 

@@ -1,6 +1,6 @@
 """Write an MP4 of a recording with its disparities colour-coded, one frame per 40 ms window.
 
-Left and right events (ON green, OFF red) beside the matcher's disparities at the pixels it anchored on,
+Left and right events (ON blue, OFF orange) beside the matcher's disparities at the pixels it anchored on,
 with time, median disparity and the distance it means on top.
 
 Run:

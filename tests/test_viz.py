@@ -25,7 +25,8 @@ from cvstereo.viz._images import CONTEXT_RGB, match_window_slice, pixel_mean  # 
 RES = (16, 12)
 W = 40_000
 
-GREEN, RED, BLACK, YELLOW = (0, 255, 0), (255, 0, 0), (0, 0, 0), (255, 255, 0)
+#: The colour-blind-safe event colours (Okabe-Ito): ON sky blue, OFF orange, both white.
+ON_C, OFF_C, BLACK, BOTH_C = (86, 180, 233), (230, 159, 0), (0, 0, 0), (255, 255, 255)
 
 
 def _render(fig) -> np.ndarray:
@@ -69,7 +70,7 @@ def window_result() -> MatchResult:
 def test_event_frame_rgb_colours(rec):
     img = viz.event_frame_rgb(rec.left[:4], resolution=RES)
     assert img.shape == (12, 16, 3)
-    assert tuple(img[2, 3]) == GREEN and tuple(img[7, 5]) == RED and tuple(img[4, 9]) == YELLOW
+    assert tuple(img[2, 3]) == ON_C and tuple(img[7, 5]) == OFF_C and tuple(img[4, 9]) == BOTH_C
     assert tuple(img[0, 0]) == BLACK
     assert np.count_nonzero(img.any(axis=2)) == 3
 
@@ -78,11 +79,11 @@ def test_event_frames_picture_colours(rec):
     fig = viz.plot_event_frames(rec, 0, window_us=W)
     left_ax, right_ax = fig.axes[:2]
     img = _render(fig)
-    assert _color_at(img, left_ax, 3, 2) == GREEN
-    assert _color_at(img, left_ax, 5, 7) == RED
-    assert _color_at(img, left_ax, 9, 4) == YELLOW
+    assert _color_at(img, left_ax, 3, 2) == ON_C
+    assert _color_at(img, left_ax, 5, 7) == OFF_C
+    assert _color_at(img, left_ax, 9, 4) == BOTH_C
     assert _color_at(img, left_ax, 12, 10) == BLACK  # t = 50 ms: outside the window
-    assert _color_at(img, right_ax, 1, 2) == GREEN
+    assert _color_at(img, right_ax, 1, 2) == ON_C
     assert _color_at(img, right_ax, 3, 2) == BLACK
     assert "left" in left_ax.get_title() and "right" in right_ax.get_title()
     assert left_ax.get_xlabel() == "x (px)"
@@ -271,8 +272,8 @@ def test_video_frames_size_and_colours(rec, window_result, tmp_path):
     def at(i, x, y):
         px, py = layout.panel_origin(i)
         return frames[0][py + 4 * y + 2, px + 4 * x + 2].astype(int)
-    assert _close(at(0, 3, 2), GREEN, tol=40) and _close(at(0, 5, 7), RED, tol=40)
-    assert _close(at(1, 1, 2), GREEN, tol=40)
+    assert _close(at(0, 3, 2), ON_C, tol=40) and _close(at(0, 5, 7), OFF_C, tol=40)
+    assert _close(at(1, 1, 2), ON_C, tol=40)
     want = cv2.applyColorMap(np.array([[round(0.8 * 255)]], np.uint8), cv2.COLORMAP_TURBO)[0, 0, ::-1]
     assert _close(at(2, 9, 4), want, tol=40)
     assert _close(at(2, 0, 0), BLACK, tol=40)

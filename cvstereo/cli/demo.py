@@ -110,12 +110,14 @@ def _figures(recording, combos, folder: Path) -> None:
         "dynamic.png": viz.plot_dynamic_frames(recording, t0 + FIGURE_WINDOW_US),
     }
     depth = viz.depth_from_meta(recording.meta)
+    # File names as `cvstereo plot all` writes them, one folder per matcher for the pictures of its matches.
     for method, variant in combos:
         result = match(recording, method=method, variant=variant)
         name = f"{method}-{variant}"
-        pictures[f"{name}-over-time.png"] = viz.plot_disparity_over_time(recording, result, depth=depth)
-        pictures[f"{name}-map.png"] = viz.plot_disparity_map(recording, result, depth=depth)
-        pictures[f"{name}-error.png"] = viz.plot_error_histogram(recording, result)
+        (folder / name).mkdir(exist_ok=True)
+        pictures[f"{name}/disparity-time.png"] = viz.plot_disparity_over_time(recording, result, depth=depth)
+        pictures[f"{name}/disparity-map.png"] = viz.plot_disparity_map(recording, result, depth=depth)
+        pictures[f"{name}/error-hist.png"] = viz.plot_error_histogram(recording, result)
     for file, fig in pictures.items():
         viz.save_figure(fig, folder / file)
     print(f"Figures of {FIGURE_RECORDING} written to {folder}/: {', '.join(pictures)}")

@@ -28,6 +28,14 @@ MAX_WINDOWS = 50
 MAX_WINDOW_MS, MAX_TIME_MS = 3_600_000, 1e13
 
 
+def name_recording(recording, path) -> None:
+    """Give a recording without a preset or scene (a real file) its file name, so that titles name it."""
+    from cvstereo.viz._mpl import recording_name
+
+    if not recording_name(recording.meta):
+        recording.meta["name"] = Path(path).name
+
+
 def picture_depth(args: argparse.Namespace, recording, result):
     """The depth model for pictures: ``--depth``, else the one `cvstereo match` stored in the matches file, else
     the recording's rig; None with ``--no-metres``."""
@@ -45,7 +53,7 @@ def check_window_options(args: argparse.Namespace) -> None:
 
 #: Picture kind (also its file name under ``all``) -> (needs matches, what it shows).
 KINDS: dict[str, tuple[bool, str]] = {
-    "events": (False, "both cameras' events of one window, ON green, OFF red (thesis fig. 3.2)"),
+    "events": (False, "both cameras' events of one window, ON blue, OFF orange (thesis fig. 3.2)"),
     "filtered": (False, "Gaussian-filtered signed frames and the pixels above threshold (fig. 3.3)"),
     "dynamic": (False, "the decaying dynamic frames at the end of the window (fig. 3.5)"),
     "disparity-time": (True, "every match's disparity over time with the ground truth (figs. 4.4, 4.5)"),
@@ -76,6 +84,16 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
                    help="window length (default: %(default)g, the thesis'; frame matchers' own window for "
                    "their matches)")
     p.add_argument("--windows", type=int, default=3, metavar="N", help="disparity-map: number of windows (rows)")
+    p.add_argument("--vmin", type=float, default=None, metavar="PX",
+                   help="disparity-map: disparity at the low end of the colour scale (default: from the data)")
+    p.add_argument("--vmax", type=float, default=None, metavar="PX",
+                   help="disparity-map: disparity at the high end of the colour scale (default: from the data)")
+    p.add_argument("--log", action="store_true", help="error-hist: logarithmic count axis")
+    p.add_argument("--width-in", type=float, default=None, metavar="IN",
+                   help="figure width in inches, height in proportion, text shrunk to fit (e.g. 3.5 for one column "
+                   "of a two-column paper; default: the figure's own)")
+    p.add_argument("--column", dest="width_in", action="store_const", const=3.5,
+                   help="the same as --width-in 3.5 (a single paper column)")
     add_depth_options(p)
     p.add_argument("--dpi", type=float, default=None, help="resolution of raster pictures (default: 120)")
     add_format_options(p)
@@ -111,12 +129,13 @@ def run(args: argparse.Namespace) -> int:
         check_files(inputs, [args.output])
     with naming(args.recording, args.right):
         recording = read_recording(args.recording, args.right, **format_options(args))
+    name_recording(recording, args.recording)
     result = load_matches(args.matches) if args.matches is not None else None
     depth = picture_depth(args, recording, result)
     if args.kind != "all":
         with naming(args.recording, args.matches):
             figure = make_figure(args.kind, recording, result, args, depth)
-        save_figure(figure, args.output, dpi=args.dpi)
+        save_figure(figure, args.output, dpi=args.dpi, width_in=args.width_in)
         print(f"{args.kind} -> {args.output}")
         return 0
     folder.mkdir(parents=True, exist_ok=True)
@@ -130,7 +149,7 @@ def run(args: argparse.Namespace) -> int:
         path = folder / f"{kind}.png"
         with naming(args.recording, args.matches):
             figure = make_figure(kind, recording, result, args, depth)
-        save_figure(figure, path, dpi=args.dpi)
+        save_figure(figure, path, dpi=args.dpi, width_in=args.width_in)
         print(f"{kind} -> {path}")
     return 0
 
@@ -157,7 +176,7 @@ def make_figure(kind: str, recording, result, args: argparse.Namespace, depth):
         first = None if t_start is None else (t_start - t_start % w if anchor == "window" else t_start)
         ends = None if first is None else [first + w * (i + 1) for i in range(args.windows)]
         return viz.plot_disparity_map(recording, result, ends, n_windows=args.windows, window_us=window_us,
-                                      depth=depth)
+                                      depth=depth, vmin=args.vmin, vmax=args.vmax)
     if kind == "error-hist":
-        return viz.plot_error_histogram(recording, result)
+        return viz.plot_error_histogram(recording, result, log=args.log)
     raise ValueError(f"unknown picture kind {kind!r}; choose one of: {', '.join(KINDS)}, all.")

@@ -1,6 +1,6 @@
 """``cvstereo video RECORDING [MATCHES] -o OUT.mp4``: an MP4 of the events and, given matches, their disparities.
 
-One video frame per window (40 ms: real time at 25 fps): both cameras' events, ON green and OFF red, and the
+One video frame per window (40 ms: real time at 25 fps): both cameras' events, ON blue and OFF orange, and the
 colour-coded disparity at each anchor pixel, with time, median disparity and distance written on top.
 """
 
@@ -17,7 +17,7 @@ from cvstereo.cli._common import (
     naming,
     require_range,
 )
-from cvstereo.cli.plot import check_window_options, picture_depth
+from cvstereo.cli.plot import check_window_options, name_recording, picture_depth
 
 #: Limits of the video options: a frame rate a player shows, and a frame size that fits in memory.
 MAX_FPS, MAX_SCALE = 1000.0, 32
@@ -35,6 +35,10 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p.add_argument("--seconds", type=float, default=None, help="only the first SECONDS of the recording")
     p.add_argument("--window-ms", type=float, default=40.0, metavar="MS",
                    help="time per video frame (default: %(default)g)")
+    p.add_argument("--vmin", type=float, default=None, metavar="PX",
+                   help="disparity at the low end of the colour scale (default: from the data)")
+    p.add_argument("--vmax", type=float, default=None, metavar="PX",
+                   help="disparity at the high end of the colour scale (default: from the data)")
     add_depth_options(p)
     add_format_options(p)
     return p
@@ -43,6 +47,7 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     from cvstereo.io import read_recording
     from cvstereo.viz import write_video
+    from cvstereo.viz.video import CODEC_NAMES, video_codec
 
     check_window_options(args)
     require_range(args.fps, "--fps", gt=0, le=MAX_FPS)
@@ -52,9 +57,13 @@ def run(args: argparse.Namespace) -> int:
     check_files([args.recording, args.right, args.matches], [args.output])
     with naming(args.recording, args.right):
         recording = read_recording(args.recording, args.right, **format_options(args))
+    name_recording(recording, args.recording)
     result = load_matches(args.matches) if args.matches is not None else None
     n = write_video(recording, args.output, result, fps=args.fps, window_us=round(args.window_ms * 1000),
-                    scale=args.scale, seconds=args.seconds, depth=picture_depth(args, recording, result))
-    print(f"{n} frames ({n / args.fps:.1f} s at {args.fps:g} fps) -> {args.output}")
+                    scale=args.scale, seconds=args.seconds, depth=picture_depth(args, recording, result),
+                    vmin=args.vmin, vmax=args.vmax)
+    codec = video_codec()
+    note = "" if codec == "avc1" else " (this OpenCV build has no H.264 encoder)"
+    print(f"{n} frames ({n / args.fps:.1f} s at {args.fps:g} fps, {CODEC_NAMES[codec]}{note}) -> {args.output}")
     return 0
 

@@ -6,7 +6,7 @@ The plots need the ``viz`` extra (matplotlib: ``pip install 'cvstereo[viz]'``), 
 ===============================  ================================================================  ===========
 function                         shows                                                             thesis
 ===============================  ================================================================  ===========
-:func:`plot_event_frames`        one window's events of both cameras, ON green, OFF red            fig. 3.2
+:func:`plot_event_frames`        one window's events of both cameras, ON blue, OFF orange          fig. 3.2
 :func:`plot_filtered_frames`     Gaussian-filtered signed frames, threshold contour, thresholded   fig. 3.3
 :func:`plot_dynamic_frames`      the decaying dynamic frames of both cameras at an instant         fig. 3.5
 :func:`plot_disparity_over_time` every match against time, median per window, ground truth         figs. 4.4/5

@@ -24,10 +24,17 @@ from cvstereo.recording import Recording
 #: Window length of the thesis' frames (40 ms), us.
 DEFAULT_WINDOW_US = 40_000
 
-#: Colours of the event frames (thesis fig. 3.1/3.2): ON green, OFF red, on black. A pixel that saw both in one
-#: window gets both channels, i.e. yellow.
-ON_RGB = (0, 255, 0)
-OFF_RGB = (255, 0, 0)
+#: Colours of ON and OFF events in every picture and the video: blue ON, orange OFF, from the Okabe-Ito palette
+#: that people with any common colour-vision deficiency tell apart (the thesis' green/red is the pair that
+#: red-green colour-blind readers, about 1 in 12 men, cannot). Event frames draw them on black; the signed
+#: frames (filtered, dynamic) use the same hues from white (zero) to dark: ON positive, OFF negative.
+ON_RGB = (86, 180, 233)
+OFF_RGB = (230, 159, 0)
+#: A pixel that saw ON and OFF events in one window.
+BOTH_RGB = (255, 255, 255)
+#: The dark ends of the signed colour scale (Okabe-Ito blue and vermillion): strong ON, strong OFF.
+ON_DARK_RGB = (0, 114, 178)
+OFF_DARK_RGB = (213, 94, 0)
 
 #: Colour of pixels without a disparity in the colour-coded maps (not colour 0 of the map, which is a value).
 NO_DATA_RGB = (0, 0, 0)
@@ -40,7 +47,7 @@ CAMERA_NAMES = ("left", "right")
 
 
 def event_frame_rgb(events: np.ndarray, *, resolution: tuple[int, int]) -> np.ndarray:
-    """Pixels that saw ON events green, OFF events red, both yellow, none black (thesis fig. 3.2).
+    """Pixels that saw ON events blue, OFF events orange, both white, none black (thesis fig. 3.2).
 
     Parameters
     ----------
@@ -58,14 +65,18 @@ def event_frame_rgb(events: np.ndarray, *, resolution: tuple[int, int]) -> np.nd
     >>> from cvstereo.events import make_events
     >>> img = event_frame_rgb(make_events([0, 1], [0, 1], [0, 0], [1, 0]), resolution=(2, 1))
     >>> img[0].tolist()
-    [[0, 255, 0], [255, 0, 0]]
+    [[86, 180, 233], [230, 159, 0]]
     """
     h, w = frame_shape(resolution)
     idx = events["y"].astype(np.intp) * w + events["x"].astype(np.intp)
     img = np.zeros((h * w, 3), dtype=np.uint8)
-    for polarity, rgb in ((1, ON_RGB), (0, OFF_RGB)):
-        seen = np.unique(idx[events["p"] == polarity])
-        img[seen] |= np.array(rgb, dtype=np.uint8)
+    on = np.zeros(h * w, dtype=bool)
+    off = np.zeros(h * w, dtype=bool)
+    on[idx[events["p"] == 1]] = True
+    off[idx[events["p"] == 0]] = True
+    img[on] = ON_RGB
+    img[off] = OFF_RGB
+    img[on & off] = BOTH_RGB
     return img.reshape(h, w, 3)
 
 
@@ -125,29 +136,55 @@ def truth_image(recording: Recording, camera: int, t_start: int, t_stop: int) ->
     return pixel_mean(ev["x"][sl], ev["y"][sl], truth[sl], resolution=recording.resolution)
 
 
-#: The colour scale of disparities runs to this multiple of their 99th percentile: the scene's disparities then lie
-#: in the map's middle and upper colours, where they stand out against the grey silhouette, and matches too far
-#: out (the typical matcher error) get the map's last, dark-red colours instead of stretching the scale.
-RANGE_HEADROOM = 1.5
+#: Percentiles of the values that set the colour range of disparity maps: the scene's own spread, not its outliers.
+RANGE_PERCENTILES = (2.0, 98.0)
+#: Margin added on both sides of that range: this share of its width, and at least :data:`RANGE_MIN_MARGIN_PX`, so
+#: that a scene at one depth (29-30 px) still spans the colours instead of being one flat colour.
+RANGE_MARGIN = 0.15
+RANGE_MIN_MARGIN_PX = 1.0
 
 
-def disparity_range(*arrays: np.ndarray) -> tuple[float, float]:
-    """A colour range for disparities: from min(0, 1st percentile) to 1.5 x the 99th percentile of all values.
+def disparity_range(*arrays: np.ndarray, reference=None) -> tuple[float, float]:
+    """A colour range for disparities, scaled to the data: their 2nd-98th percentile plus a margin.
 
-    Percentiles rather than extremes, so that a few wild matches do not wash out the colours of the rest.
+    Parameters
+    ----------
+    *arrays : ndarray
+        Disparity values (images or lists; NaN ignored).
+    reference : ndarray or sequence of ndarrays, optional, keyword-only
+        Values that define the scene, e.g. the true disparities where known: the range follows them, so that a
+        matcher's wrong matches show at the ends of the colour scale (clipped) instead of stretching it.
+
+    Returns
+    -------
+    (float, float)
+        ``(vmin, vmax)``; never below 0 when no value is; ``(0, 1)`` without any value.
 
     Examples
     --------
-    >>> disparity_range(np.array([10.0] * 100), np.array([np.nan]))
-    (0.0, 15.0)
+    >>> disparity_range(np.array([29.0] * 50 + [30.0] * 50))
+    (28.0, 31.0)
+    >>> disparity_range(np.array([3.0, 29.5, 45.0]), reference=[np.array([29.0] * 50 + [30.0] * 50)])
+    (28.0, 31.0)
     """
-    values = np.concatenate([np.asarray(a, np.float64).ravel() for a in arrays] or [np.empty(0)])
-    values = values[np.isfinite(values)]
+    values = _finite(reference) if reference is not None else np.empty(0)
+    if values.size == 0:
+        values = _finite(arrays)
     if values.size == 0:
         return 0.0, 1.0
-    lo = min(0.0, float(np.percentile(values, 1)))
-    hi = float(np.percentile(values, 99)) * RANGE_HEADROOM
-    return lo, hi if hi > lo else lo + 1.0
+    lo, hi = (float(v) for v in np.percentile(values, RANGE_PERCENTILES))
+    margin = max(RANGE_MIN_MARGIN_PX, RANGE_MARGIN * (hi - lo))
+    lo, hi = lo - margin, hi + margin
+    if values.min() >= 0:
+        lo = max(lo, 0.0)
+    return round(lo, 6), round(hi, 6)
+
+
+def _finite(arrays) -> np.ndarray:
+    if isinstance(arrays, np.ndarray):
+        arrays = [arrays]
+    values = np.concatenate([np.asarray(a, np.float64).ravel() for a in arrays] or [np.empty(0)])
+    return values[np.isfinite(values)]
 
 
 def colorize(image: np.ndarray, vmin: float, vmax: float, *, background: np.ndarray | None = None) -> np.ndarray:

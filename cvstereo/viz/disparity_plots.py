@@ -223,7 +223,7 @@ def plot_disparity_map(recording: Recording, result, t_end_us: int | Sequence[in
                        vmin: float | None = None, vmax: float | None = None, title: str | None = None):
     """Colour-coded disparities at their anchor pixels, one row per window (thesis figs. 4.3, 4.6).
 
-    Each row shows a window ``[t_end - W, t_end)``: both cameras' events (ON green, OFF red), then for each
+    Each row shows a window ``[t_end - W, t_end)``: both cameras' events (ON blue, OFF orange), then for each
     camera the matches are anchored on, the mean disparity of its matches at each pixel, and the true disparity
     of its events there when the recording has ground truth. Pixels that saw events of that camera but have no
     value are dark grey (the object's silhouette), the others black.
@@ -274,7 +274,9 @@ def plot_disparity_map(recording: Recording, result, t_end_us: int | Sequence[in
             if recording.has_truth:
                 maps.append((f"truth ({CAMERA_NAMES[c]})", truth_image(recording, c, t0, t_end), None, context))
         rows.append((t0, t_end, frames, maps))
-    lo, hi = disparity_range(*(img for *_, maps in rows for _, img, _, _ in maps))
+    estimates = [img for *_, maps in rows for label, img, count, _ in maps if count is not None]
+    truths = [img for *_, maps in rows for label, img, count, _ in maps if count is None]
+    lo, hi = disparity_range(*estimates, reference=truths or None)
     norm_lo, norm_hi = lo if vmin is None else vmin, hi if vmax is None else vmax
     return _draw_map_grid(rows, norm_lo, norm_hi, depth=depth,
                           title=title or ("Disparity per window: " + (figure_title(result.meta, recording.meta)
@@ -286,7 +288,8 @@ def _draw_map_grid(rows, vmin: float, vmax: float, *, depth: DepthModel | None, 
 
     n_cols = 2 + len(rows[0][3])
     panel = 2.6
-    fig = new_figure(n_cols * panel + 1.0, len(rows) * panel + 0.5)
+    # 0.9 in beyond the panels for the title, the x labels and the colour bar's ends (one row clipped them at 0.5).
+    fig = new_figure(n_cols * panel + 1.0, len(rows) * panel + 0.9)
     axes = fig.subplots(len(rows), n_cols, sharex=True, sharey=True, squeeze=False)
     # NaN transparent: the anchor camera's events show through in grey where they got no disparity.
     cmap = cmap_with_background(DISPARITY_CMAP, background=(0.0, 0.0, 0.0, 0.0))
@@ -303,7 +306,8 @@ def _draw_map_grid(rows, vmin: float, vmax: float, *, depth: DepthModel | None, 
     for ax in axes.flat:
         ax.label_outer()
         ax.title.set_fontsize("small")
-    cbar = fig.colorbar(im, ax=axes, shrink=0.9 if len(rows) > 1 else 1.0, label="disparity (px)")
+    # Arrows at both ends: values beyond the range (a matcher's outliers) take the end colours.
+    cbar = fig.colorbar(im, ax=axes, shrink=0.9 if len(rows) > 1 else 1.0, label="disparity (px)", extend="both")
     if depth is not None:
         add_metres_axis(cbar.ax, depth, location="left")
     fig.suptitle(title)
@@ -311,7 +315,7 @@ def _draw_map_grid(rows, vmin: float, vmax: float, *, depth: DepthModel | None, 
 
 
 def plot_error_histogram(recording: Recording, result, *, bin_px: float = ERROR_BIN_PX,
-                         limit_px: float | None = None, title: str | None = None):
+                         limit_px: float | None = None, log: bool = False, title: str | None = None):
     """Histogram of the signed error (estimate - truth) of the matches that have ground truth.
 
     Parameters
@@ -324,6 +328,8 @@ def plot_error_histogram(recording: Recording, result, *, bin_px: float = ERROR_
     limit_px : float, optional, keyword-only
         Errors shown in ``[-limit_px, limit_px]``, larger ones counted in the outermost bins; default: the 99th
         percentile of ``|error|``, between 3 and 40 px.
+    log : bool, keyword-only
+        Logarithmic count axis, so that the tails of rare large errors show beside the peak.
     title : str, optional, keyword-only
         Default: method, MAE, bad1 (share of |error| > 1 px), false-match rate.
 
@@ -365,7 +371,9 @@ def plot_error_histogram(recording: Recording, result, *, bin_px: float = ERROR_
     ax.axvline(0, color="k", linewidth=0.8)
     ax.set_xlim(edges[0], edges[-1])
     ax.set_xlabel("disparity error: estimate − truth (px)")
-    ax.set_ylabel("matches")
+    ax.set_ylabel("matches (log scale)" if log else "matches")
+    if log:
+        ax.set_yscale("log")
     ax.legend(loc="upper right", fontsize="small")
     f = evaluate(recording, result)
     name = figure_title(result.meta, recording.meta) or "matches"

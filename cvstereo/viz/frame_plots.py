@@ -14,6 +14,7 @@ import numpy as np
 from cvstereo.events import time_slice
 from cvstereo.recording import Recording
 from cvstereo.viz._images import (
+    BOTH_RGB,
     CAMERA_NAMES,
     DEFAULT_WINDOW_US,
     OFF_RGB,
@@ -21,7 +22,7 @@ from cvstereo.viz._images import (
     busiest_window,
     event_frame_rgb,
 )
-from cvstereo.viz._mpl import SIGNED_CMAP, cmap_with_background, new_figure, show_sensor_image
+from cvstereo.viz._mpl import SIGNED_CMAP, cmap_with_background, new_figure, recording_name, show_sensor_image
 
 #: The thesis' threshold on filtered frames (eq. 3.7) and on dynamic frames (event-time matcher): 1.2.
 THESIS_THRESHOLD = 1.2
@@ -31,6 +32,12 @@ _DYNAMIC_NEGLIGIBLE = 1e-6
 
 #: Size of one sensor panel, inches.
 _PANEL_IN = 4.0
+
+
+def _of(recording: Recording) -> str:
+    """' of NAME' for titles, where the recording has a preset, scene or file name (else '')."""
+    name = recording_name(recording.meta)
+    return f" of {name}" if name else ""
 
 
 def _check_window(window_us: int) -> int:
@@ -55,7 +62,7 @@ def _camera_title(cam: int, n_events: int | None = None) -> str:
 
 def plot_event_frames(recording: Recording, t_start_us: int | None = None, *,
                       window_us: int = DEFAULT_WINDOW_US, title: str | None = None):
-    """Both cameras' events of one window, ON green and OFF red on black (thesis fig. 3.2).
+    """Both cameras' events of one window, ON blue and OFF orange on black (thesis fig. 3.2).
 
     Parameters
     ----------
@@ -86,9 +93,9 @@ def plot_event_frames(recording: Recording, t_start_us: int | None = None, *,
                           title=_camera_title(cam, ev.size))
         ax.label_outer()
     handles = [Patch(color=np.array(rgb) / 255, label=label)
-               for rgb, label in ((ON_RGB, "ON"), (OFF_RGB, "OFF"), ((255, 255, 0), "ON and OFF"))]
+               for rgb, label in ((ON_RGB, "ON"), (OFF_RGB, "OFF"), (BOTH_RGB, "ON and OFF"))]
     fig.legend(handles=handles, loc="outside lower center", ncols=3, frameon=False)
-    fig.suptitle(title or f"Events in [{_ms(t0)}, {_ms(t0 + window_us)})")
+    fig.suptitle(title or f"Events in [{_ms(t0)}, {_ms(t0 + window_us)}){_of(recording)}")
     return fig
 
 
@@ -150,7 +157,7 @@ def plot_filtered_frames(recording: Recording, t_start_us: int | None = None, *,
     Returns
     -------
     matplotlib.figure.Figure
-        2 x 2 axes: filtered frames (top), thresholded (bottom); red = ON, blue = OFF, as the thesis.
+        2 x 2 axes: filtered frames (top), thresholded (bottom); blue = ON, orange = OFF (as the event frames).
     """
     from cvstereo.frames import gaussian_filter, signed_frame
 
@@ -165,7 +172,8 @@ def plot_filtered_frames(recording: Recording, t_start_us: int | None = None, *,
     _signed_grid(fig, [(f"Gaussian {kernel_size}x{kernel_size}, σ={sigma:g}", filtered, False),
                        (f"|value| ≥ {threshold:g}", filtered, True)],
                  threshold=threshold, colorbar_label="filtered sum of event signs (ON +1, OFF −1)")
-    fig.suptitle(title or f"Filtered frames of [{_ms(t0)}, {_ms(t0 + window_us)}); contour at ±{threshold:g}")
+    fig.suptitle(title or f"Filtered frames of [{_ms(t0)}, {_ms(t0 + window_us)}){_of(recording)}; contour at "
+                 f"±{threshold:g}")
     return fig
 
 
@@ -231,6 +239,6 @@ def plot_dynamic_frames(recording: Recording, t_us: int | None = None, *, params
     rows = [(labels[i], [values[0][i], values[1][i]], False) for i in range(n_frames)]
     fig = new_figure(2 * _PANEL_IN + 1.2, n_frames * _PANEL_IN + 0.6)
     _signed_grid(fig, rows, threshold=threshold, colorbar_label="dynamic frame value (ON +, OFF −)")
-    fig.suptitle(title or f"Dynamic frames at t = {_ms(t)} (×{params.decay:g} every {params.decay_period_us} µs); "
-                 f"contour at ±{threshold:g}")
+    fig.suptitle(title or f"Dynamic frames{_of(recording)} at t = {_ms(t)} (×{params.decay:g} every "
+                 f"{params.decay_period_us} µs); contour at ±{threshold:g}")
     return fig

@@ -6,7 +6,10 @@ Needs only OpenCV (a core dependency), not the ``viz`` extra.
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
+import sys
+import tempfile
 from pathlib import Path
 
 import cv2
@@ -31,8 +34,12 @@ from cvstereo.viz._images import (
     window_grid,
 )
 
-#: MPEG-4 part 2: every OpenCV build with FFmpeg writes it, and every player reads it.
-FOURCC = "mp4v"
+#: Codecs tried in order: H.264 (``avc1``: about half the size at the same quality, where the OpenCV build has an
+#: encoder for it; the opencv-python wheels have none), then MPEG-4 part 2 (``mp4v``: every OpenCV build with
+#: FFmpeg writes it, and every player reads it).
+CODECS = ("avc1", "mp4v")
+#: What each codec is, for messages.
+CODEC_NAMES = {"avc1": "H.264", "mp4v": "MPEG-4 part 2"}
 
 #: Height of the text bar above the panels per unit of ``scale``, px, and its minimum: text grows with the panels.
 HEADER_PX_PER_SCALE = 8
@@ -56,8 +63,8 @@ def write_video(recording: Recording, path: str | os.PathLike, result=None, *, f
                 depth: DepthModel | None = None, vmin: float | None = None, vmax: float | None = None) -> int:
     """Write an MP4 with one frame per window: both cameras' events and, given matches, their disparities.
 
-    Each frame shows the window ``[k*W, (k+1)*W)`` of the absolute clock: the left and right events (ON green,
-    OFF red, on black), then for each camera the matches are anchored on, the mean disparity at each anchor
+    Each frame shows the window ``[k*W, (k+1)*W)`` of the absolute clock: the left and right events (ON blue,
+    OFF orange, on black), then for each camera the matches are anchored on, the mean disparity at each anchor
     pixel colour-coded with the turbo map (dark grey: events without a match; black: no event) and a colour
     bar. A text bar on top gives the time, and with matches their number, median disparity and, given
     ``depth``, the distance it means.
@@ -115,7 +122,7 @@ def write_video(recording: Recording, path: str | os.PathLike, result=None, *, f
         # The scene's true disparities, where known, set the colours as in plot_disparity_map: a matcher's wild
         # matches then show as outliers instead of stretching the scale.
         truths = [t for t in (recording.truth(c) for c in cams) if t is not None]
-        lo, hi = disparity_range(result.disparity, *truths)
+        lo, hi = disparity_range(result.disparity, reference=truths or None)
         vmin, vmax = (lo if vmin is None else vmin), (hi if vmax is None else vmax)
     layout = _Layout(recording.resolution, scale, n_disparity=len(cams))
     with _video_writer(path, fps, layout.size) as writer:
@@ -196,19 +203,55 @@ def _draw_colorbar(img: np.ndarray, layout: _Layout, vmin: float, vmax: float) -
                     (255, 255, 255), 1, cv2.LINE_AA)
 
 
+@functools.cache
+def video_codec() -> str:
+    """The first of :data:`CODECS` that this OpenCV build can encode to MP4 (probed once, on a tiny file).
+
+    Raises
+    ------
+    OSError
+        No codec works: the OpenCV build lacks FFmpeg.
+    """
+    with tempfile.TemporaryDirectory() as folder, _quiet_stderr():
+        for fourcc in CODECS:
+            writer = cv2.VideoWriter(os.path.join(folder, f"probe-{fourcc}.mp4"), cv2.VideoWriter_fourcc(*fourcc),
+                                     25.0, (16, 16))
+            ok = writer.isOpened()
+            writer.release()
+            if ok:
+                return fourcc
+    raise OSError(f"OpenCV cannot write MP4 video with any of {', '.join(CODECS)}; this opencv build may lack "
+                  "FFmpeg: try `pip install opencv-python-headless`.")
+
+
+@contextlib.contextmanager
+def _quiet_stderr():
+    """Silence file descriptor 2 (FFmpeg prints its failed encoder probes there, not through Python)."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with open(os.devnull, "wb") as null:
+            os.dup2(null.fileno(), 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
 @contextlib.contextmanager
 def _video_writer(path: str | os.PathLike, fps: float, size: tuple[int, int]):
     """A cv2.VideoWriter on a temporary file that becomes ``path`` when the block completes."""
     target = Path(path)
     if target.suffix.lower() != ".mp4":
-        raise ValueError(f"{target}: the video is written as MP4 ({FOURCC}); give a file name ending in .mp4.")
+        raise ValueError(f"{target}: the video is written as MP4; give a file name ending in .mp4.")
+    fourcc = video_codec()
     with atomic_path(target) as tmp:
         # OpenCV picks the container from the extension, so the temporary file must end in .mp4 itself.
         video_tmp = tmp.with_name(tmp.name + ".mp4")
-        writer = cv2.VideoWriter(str(video_tmp), cv2.VideoWriter_fourcc(*FOURCC), float(fps), size)
+        writer = cv2.VideoWriter(str(video_tmp), cv2.VideoWriter_fourcc(*fourcc), float(fps), size)
         try:
             if not writer.isOpened():
-                raise OSError(f"{target}: OpenCV cannot open a video writer ({FOURCC}, {size[0]}x{size[1]}); "
+                raise OSError(f"{target}: OpenCV cannot open a video writer ({fourcc}, {size[0]}x{size[1]}); "
                               "this opencv build may lack FFmpeg: try `pip install opencv-python-headless`.")
             yield writer
             writer.release()
