@@ -27,6 +27,7 @@ COMMANDS: dict[str, str] = {
     "live": "live",
     "rigcheck": "rigcheck",
     "simulate": "simulate",
+    "sweep": "sweep",
 }
 
 
