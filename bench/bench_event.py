@@ -37,8 +37,8 @@ HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
 sys.path.insert(0, str(REPO))
 
-from calibration_free.registry import create_matcher, matcher_class  # noqa: E402
 from cvstereo.events import make_events  # noqa: E402
+from cvstereo.registry import create_matcher, matcher_class  # noqa: E402
 
 METHODS = ("event-time", "event-area", "event-vector")
 #: Targets of issue 5, input events per second on one core.
@@ -157,7 +157,7 @@ _COMPILE_CHILD = """
 import os, sys, time
 sys.path.insert(0, {repo!r})
 t0 = time.perf_counter()
-from calibration_free.registry import create_matcher
+from cvstereo.registry import create_matcher
 from bench.bench_event import synthetic_packets
 packets = list(synthetic_packets(0.05))
 t_import = time.perf_counter() - t0
@@ -190,7 +190,7 @@ def compile_times(method: str, variant: str, cache_dir: str) -> dict:
 _MEMORY_CHILD = """
 import resource, sys, time
 sys.path.insert(0, {repo!r})
-from calibration_free.registry import create_matcher
+from cvstereo.registry import create_matcher
 from bench.bench_event import synthetic_packets
 method = {method!r}
 m = create_matcher(method, {variant!r}) if method else None

@@ -30,9 +30,9 @@ def share_near(disparity: np.ndarray, target: float = NOMINAL_PX, tol: float = 1
 
 
 def main() -> None:
-    from calibration_free.registry import available_methods
-    from calibration_free.run import match
     from cvstereo.io import read_recording
+    from cvstereo.pipeline import match
+    from cvstereo.registry import available_methods
     from cvstereo.rigcheck import check_rig
 
     methods = [m for m in METHODS if m in available_methods()]

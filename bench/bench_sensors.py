@@ -75,7 +75,7 @@ def live_latency(seconds: float = 5.0, rate: int = 20_000, method: str | None = 
     matchers = {"trivial": _Trivial}
     if method:
         try:
-            from calibration_free.registry import create_matcher
+            from cvstereo.registry import create_matcher
 
             create_matcher(method)
             matchers[method] = lambda: create_matcher(method)

@@ -18,44 +18,14 @@ Both cameras' events are processed in one merged order (by time, left first at e
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 from numba import njit
 
 from calibration_free._event_common import MergedEventMatcher
-from cvstereo.dynamic_frames import DynamicFrameParams, advance, splat
-
-
-@dataclass(frozen=True, kw_only=True)
-class EventAreaParams(DynamicFrameParams):
-    """Parameters of the event-area matcher (thesis defaults), besides those of the dynamic frames.
-
-    Attributes
-    ----------
-    threshold : float
-        Minimum ``|D|`` at the event's pixel (1.2; 4 for single-pixel updates).
-    block : int
-        Odd side of the compared patches (thesis: 5).
-    max_disparity : int
-        Largest disparity searched.
-    max_sad : float
-        A match needs a SAD below this (Algorithm 3's initial minimum).
-    """
-
-    threshold: float = 1.2
-    block: int = 5
-    max_disparity: int = 64
-    max_sad: float = 1000.0
-
-    def __post_init__(self):
-        super().__post_init__()
-        if self.block < 1 or self.block % 2 == 0:
-            raise ValueError(f"block must be odd and positive, got {self.block}.")
-        for name in ("threshold", "max_disparity"):
-            if getattr(self, name) < 0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}.")
+from calibration_free.params import EventAreaParams
+from cvstereo.dynamic_frames import advance, splat
 
 
 @njit(cache=True)

@@ -18,54 +18,15 @@ The reference implementation is :func:`calibration_free.reference.event_time.eve
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import ClassVar, Literal
+from typing import ClassVar
 
 import numpy as np
 from numba import njit
 
-from cvstereo.dynamic_frames import DynamicFrameParams, FrameBank, event_matrix
+from calibration_free.params import EventTimeParams
+from cvstereo.dynamic_frames import FrameBank, event_matrix
 from cvstereo.matcher import StreamMatcher
 from cvstereo.matches import empty_matches
-
-
-@dataclass(frozen=True, kw_only=True)
-class EventTimeParams(DynamicFrameParams):
-    """Parameters of the event-time matcher (thesis defaults), besides those of the dynamic frames.
-
-    Attributes
-    ----------
-    threshold : float
-        Minimum ``|D|`` at the event's pixel, in both frames.
-    value_tolerance : float
-        Maximum ``|D1 - D2|``.
-    time_window_us : int
-        Maximum ``|t2 - t|``.
-    row_tolerance : int
-        Maximum ``|y2 - y|`` (corresponding events may lie one row apart).
-    reference_camera : {0, 1}
-        The camera whose events are matched (0 left, 1 right = the thesis' eDVS1).
-    restrict_side : bool
-        Keep only candidates on the geometrically possible side.
-    max_disparity : int
-        Maximum ``|x2 - x|``.
-    """
-
-    threshold: float = 0.8
-    value_tolerance: float = 0.3
-    time_window_us: int = 300
-    row_tolerance: int = 1
-    reference_camera: Literal[0, 1] = 1
-    restrict_side: bool = True
-    max_disparity: int = 64
-
-    def __post_init__(self):
-        super().__post_init__()
-        if self.reference_camera not in (0, 1):
-            raise ValueError(f"reference_camera must be 0 (left) or 1 (right), got {self.reference_camera}.")
-        for name in ("threshold", "value_tolerance", "time_window_us", "row_tolerance", "max_disparity"):
-            if getattr(self, name) < 0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}.")
 
 
 @njit(cache=True)

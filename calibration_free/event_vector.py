@@ -19,42 +19,14 @@ Both cameras' events are processed in one merged order (by time, left first at e
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 from numba import njit
 
 from calibration_free._event_common import MergedEventMatcher
-from cvstereo.dynamic_frames import DynamicFrameParams, advance, splat
-
-
-@dataclass(frozen=True, kw_only=True)
-class EventVectorParams(DynamicFrameParams):
-    """Parameters of the event-vector matcher (thesis defaults), besides those of the dynamic frames.
-
-    Attributes
-    ----------
-    threshold : float
-        Minimum ``|D|`` at the event's pixel, and what makes a pixel part of an accumulation.
-    require_candidate_threshold : bool
-        Candidates must pass the threshold with the sign of D at the event; False: every x2 (Algorithm 4).
-    max_disparity : int
-        Largest disparity searched.
-    max_cost : int
-        A match needs a cost below this (Algorithm 4's initial minimum).
-    """
-
-    threshold: float = 0.8
-    require_candidate_threshold: bool = True
-    max_disparity: int = 64
-    max_cost: int = 1000
-
-    def __post_init__(self):
-        super().__post_init__()
-        for name in ("threshold", "max_disparity"):
-            if getattr(self, name) < 0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}.")
+from calibration_free.params import EventVectorParams
+from cvstereo.dynamic_frames import advance, splat
 
 
 @njit(cache=True, inline="always")

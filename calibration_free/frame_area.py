@@ -14,63 +14,16 @@ remains a loop, and it visits only the above-threshold pixels.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import ClassVar, Literal
+from typing import ClassVar
 
 import cv2
 import numba
 import numpy as np
 
-from cvstereo.frames import (
-    FrameMatcher,
-    Window,
-    WindowFrameParams,
-    event_mask,
-    gaussian_filter,
-    polarity_counts,
-    polarity_frames,
-)
+from calibration_free.params import FrameAreaParams
+from cvstereo.frames import event_mask, gaussian_filter, polarity_counts, polarity_frames
 from cvstereo.matches import empty_matches, make_matches
-
-
-@dataclass(frozen=True, kw_only=True)
-class FrameAreaParams(WindowFrameParams):
-    """Parameters of the frame-area SAD matcher (thesis defaults; algorithms.md section 3).
-
-    The window and Gaussian fields (window_us, gaussian, sigma, kernel_size) are those of
-    :class:`~cvstereo.frames.WindowFrameParams`.
-
-    Attributes
-    ----------
-    threshold : float
-        Reference pixels with ``|value| >= threshold`` are searched (2, or 4 without the Gaussian).
-    block : int
-        Odd side of the SAD block, and of the neighbourhood the winner is written into.
-    max_disparity : int
-        Largest disparity searched, px (the search also stops where the block would leave the sensor).
-    reference_camera : {0, 1}
-        The scanned camera, whose pixels carry the results (1 = right, the thesis' eDVS1; 0 = left).
-    """
-
-    threshold: float = 2.0
-    block: int = 5
-    max_disparity: int = 64
-    reference_camera: Literal[0, 1] = 1
-
-    def __post_init__(self):
-        super().__post_init__()
-        where = type(self).__name__
-        if not self.threshold > 0:
-            raise ValueError(f"{where}: threshold must be > 0 (the thesis uses 2, or 4 without the Gaussian), "
-                             f"got {self.threshold}.")
-        if self.block < 1 or self.block % 2 == 0:
-            raise ValueError(f"{where}: block must be a positive odd number (the thesis uses 5), got {self.block}.")
-        if int(self.max_disparity) != self.max_disparity or self.max_disparity < 0:
-            raise ValueError(f"{where}: max_disparity must be a whole number >= 0 (e.g. 64), "
-                             f"got {self.max_disparity}.")
-        if self.reference_camera not in (0, 1):
-            raise ValueError(f"{where}: reference_camera must be 0 (left) or 1 (right), "
-                             f"got {self.reference_camera}.")
+from cvstereo.windows import FrameMatcher, Window
 
 
 def sad_volume(reference: np.ndarray, other: np.ndarray, *, max_disparity: int, block: int = 5,

@@ -25,68 +25,19 @@ short of 50x real time on a 2-core Xeon.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import ClassVar, Literal, NamedTuple
+from typing import ClassVar, NamedTuple
 
 import numba
 import numpy as np
 
-from cvstereo.frames import (
-    FrameMatcher,
-    Polarity,
-    Window,
-    WindowFrameParams,
-    gaussian_filter,
-    stacked_frames,
-)
+from calibration_free.params import FrameClusterParams
+from cvstereo.frames import gaussian_filter, stacked_frames
 from cvstereo.matches import empty_matches, make_matches
+from cvstereo.windows import FrameMatcher, Window
 
 # Comparisons of integer widths against a float fraction: tolerate the rounding of 0.3 * w, so that the
 # rule holds exactly at its edge (|10 - 7| <= 0.3 * 10 must pass although 0.3 * 10 may round below 3).
 _EDGE_EPS = 1e-9
-
-
-@dataclass(frozen=True, kw_only=True)
-class FrameClusterParams(WindowFrameParams):
-    """Parameters of the frame-based cluster matcher (thesis defaults; algorithms.md section 1).
-
-    The window and Gaussian fields (window_us, gaussian, sigma, kernel_size) are those of
-    :class:`~cvstereo.frames.WindowFrameParams`.
-
-    Attributes
-    ----------
-    polarity : {"shared", "separate", "on", "off"}
-        ON and OFF events in one frame (sum of signs), in two frames matched each on its own, ON only, OFF only.
-    threshold : float
-        Pixels with ``|filtered value| >= threshold`` form clusters (eq. 3.7, on the magnitude).
-    width_tolerance : float
-        Paired clusters count only if ``|wL - wR| <= width_tolerance * max(wL, wR)``.
-    max_disparity : int
-        Pairs with disparity outside ``[0, max_disparity]`` are dropped, px.
-    anchor_camera : {0, 1}
-        The camera whose cluster pixels carry the results (0 = left, 1 = right).
-    """
-
-    polarity: Polarity = "shared"
-    threshold: float = 1.2
-    width_tolerance: float = 0.3
-    max_disparity: int = 64
-    anchor_camera: Literal[0, 1] = 0
-
-    def __post_init__(self):
-        super().__post_init__()
-        where = type(self).__name__
-        if self.polarity not in ("shared", "separate", "on", "off"):
-            raise ValueError(f"{where}: polarity must be one of shared, separate, on, off; got '{self.polarity}'.")
-        if not self.threshold > 0:
-            raise ValueError(f"{where}: threshold must be > 0 (the thesis uses 1.2), got {self.threshold}.")
-        if not self.width_tolerance >= 0:
-            raise ValueError(f"{where}: width_tolerance must be >= 0 (the thesis uses 0.3), "
-                             f"got {self.width_tolerance}.")
-        if not self.max_disparity >= 0:
-            raise ValueError(f"{where}: max_disparity must be >= 0 (e.g. 64), got {self.max_disparity}.")
-        if self.anchor_camera not in (0, 1):
-            raise ValueError(f"{where}: anchor_camera must be 0 (left) or 1 (right), got {self.anchor_camera}.")
 
 
 class Runs(NamedTuple):

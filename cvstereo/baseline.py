@@ -26,16 +26,10 @@ from typing import ClassVar, Literal
 import cv2
 import numpy as np
 
-from cvstereo.frames import (
-    FrameMatcher,
-    Window,
-    WindowFrameParams,
-    event_mask,
-    gaussian_filter,
-    polarity_counts,
-    polarity_frames,
-)
+from cvstereo.frames import event_mask, gaussian_filter, polarity_counts, polarity_frames
 from cvstereo.matches import empty_matches, make_matches
+from cvstereo.polarity import OFF, ON
+from cvstereo.windows import FrameMatcher, Window, WindowFrameParams
 
 #: OpenCV's fixed-point disparity scale (4 fractional bits).
 DISP_SCALE = 16
@@ -170,7 +164,7 @@ class _OpenCVMatcher(FrameMatcher):
         Parameters
         ----------
         counts : (2, height, width) int ndarray
-            ON and OFF counts (:func:`cvstereo.frames.polarity_counts`).
+            OFF and ON counts (:func:`cvstereo.frames.polarity_counts`).
 
         Returns
         -------
@@ -178,7 +172,7 @@ class _OpenCVMatcher(FrameMatcher):
         """
         p = self.params
         if p.image == "count":
-            frame, offset = (counts[0] + counts[1]).astype(np.float32), 0.0
+            frame, offset = (counts[ON] + counts[OFF]).astype(np.float32), 0.0
         else:
             ((_, frame),) = polarity_frames(counts, polarity="shared")
             offset = MID_GREY
@@ -225,7 +219,7 @@ def matches_at_left_events(t_end: int, left_counts: np.ndarray, disparity: np.nd
     t_end : int
         The window's end time, us: the stamp of every match.
     left_counts : (2, height, width) int ndarray
-        ON and OFF counts of the left camera in the window.
+        OFF and ON counts of the left camera in the window (:func:`cvstereo.frames.polarity_counts`).
     disparity : (height, width) float ndarray
         Disparity at the left image's pixels; NaN where there is none.
 
@@ -235,7 +229,7 @@ def matches_at_left_events(t_end: int, left_counts: np.ndarray, disparity: np.nd
     """
     y, x = np.nonzero(event_mask(left_counts) & ~np.isnan(disparity))
     # Polarity of a pixel: the sign of its sum of event signs (ties count as ON).
-    pol = (left_counts[0, y, x] >= left_counts[1, y, x]).astype(np.int8)
+    pol = (left_counts[ON, y, x] >= left_counts[OFF, y, x]).astype(np.int8)
     return make_matches(t_end, x, y, pol, 0, disparity[y, x])
 
 

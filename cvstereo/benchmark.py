@@ -22,9 +22,12 @@ import numpy as np
 
 from cvstereo.depth import fit_depth_model
 from cvstereo.evaluate import evaluate, format_figure, markdown_table, to_json
-from cvstereo.experiment import Combo, all_combos
+from cvstereo.experiment import Combo, all_combos, run_experiment
 from cvstereo.io._atomic import write_text_atomic
+from cvstereo.matches import MatchResult
+from cvstereo.pipeline import match
 from cvstereo.recording import Recording
+from cvstereo.registry import METHODS, available_methods, matcher_class
 from cvstereo.thesis import DISPARITY_TABLES, MATLAB_SECONDS, RECORDING_SECONDS, RECORDINGS
 
 #: The real recordings and the disparities known in them (README of tum-stereo): px.
@@ -162,14 +165,24 @@ def real_recordings(shared: Path | None) -> dict[str, Recording]:
 
 
 def run_timed(recording: Recording, combo: Combo):
-    """Run one combo with peak-memory sampling; return the MatchResult and the memory figures."""
-    from calibration_free import match
-
+    """Run one combo with peak-memory sampling; the MatchResult's meta holds the memory figures."""
     with PeakMemory() as mem:
         result = match(recording, method=combo.method, variant=combo.variant, **dict(combo.params))
     result.meta["peak_rss_mb"] = mem.peak_mb
     result.meta["rss_increase_mb"] = mem.increase_mb
     return result
+
+
+def bench_figures(name: str, recording: Recording, result: MatchResult) -> dict:
+    """The figures of one benchmark run: :func:`evaluate`'s, memory, time, the median disparity and, on the
+    real recordings, the share within 1 px of the known disparities."""
+    figures = evaluate(recording, result)
+    figures.update(peak_rss_mb=result.meta["peak_rss_mb"], rss_increase_mb=result.meta["rss_increase_mb"],
+                   elapsed_s=result.meta["elapsed_s"], input_events=result.meta["input_events"],
+                   median=float(np.median(result.disparity)) if len(result) else float("nan"))
+    if name in REAL_DISPARITIES:
+        figures["within_1px"] = share_within(result.disparity, REAL_DISPARITIES[name])
+    return figures
 
 
 def share_within(disparity: np.ndarray, known: tuple[float, ...], tolerance: float = 1.0) -> float:
@@ -184,7 +197,6 @@ def share_within(disparity: np.ndarray, known: tuple[float, ...], tolerance: flo
 
 def warm_up(combos: list[Combo]) -> dict[str, float]:
     """Run every method once on a tiny stream so compile time (numba) is not counted as matching time."""
-    from calibration_free import match
     from cvstereo.events import make_events
 
     rng = np.random.default_rng(0)
@@ -202,10 +214,6 @@ def warm_up(combos: list[Combo]) -> dict[str, float]:
 
 def run_bench(config: BenchConfig, *, progress: bool = True, log: Callable[[str], None] = print) -> dict:
     """Run the whole benchmark; return a JSON-ready dict (see :func:`bench_markdown`)."""
-    from tqdm.auto import tqdm
-
-    from calibration_free.registry import METHODS, available_methods, matcher_class
-
     requested = list(config.methods or METHODS)
     for method in requested:
         matcher_class(method)  # an unknown name is an error (it lists the known ones)
@@ -222,19 +230,12 @@ def run_bench(config: BenchConfig, *, progress: bool = True, log: Callable[[str]
     dists = distance_recordings(config) if config.distance else {}
     compile_s = warm_up(combos)
 
-    jobs = [(c, n, r) for c in combos for n, r in sims.items()]
-    jobs += [(c, n, r) for c in combos for n, r in reals.items()]
-    jobs += [(c, f"1arm-{round(z * 100)}cm", r) for c in combos for z, r in dists.items()]
-    runs: dict[str, dict[str, dict]] = {}
-    for combo, name, rec in tqdm(jobs, desc="bench", unit="run", disable=not progress, leave=False):
-        result = run_timed(rec, combo)
-        figures = evaluate(rec, result)
-        figures.update(peak_rss_mb=result.meta["peak_rss_mb"], rss_increase_mb=result.meta["rss_increase_mb"],
-                       elapsed_s=result.meta["elapsed_s"], input_events=result.meta["input_events"],
-                       median=float(np.median(result.disparity)) if len(result) else float("nan"))
-        if name in REAL_DISPARITIES:
-            figures["within_1px"] = share_within(result.disparity, REAL_DISPARITIES[name])
-        runs.setdefault(combo.label, {})[name] = figures
+    # The distance set is named like the presets (1arm-50cm, 1arm-150cm): under a shared name its recording
+    # is the one run and tabulated, as before the benchmark used the experiment's loop.
+    recordings = {**sims, **reals, **{f"1arm-{round(z * 100)}cm": r for z, r in dists.items()}}
+    experiment = run_experiment(recordings, combos, run=run_timed, score=bench_figures, progress=progress,
+                                desc="bench")
+    runs = {c.label: figures for c, figures in experiment.figures.items()}
 
     results = {
         "machine": machine_info(),

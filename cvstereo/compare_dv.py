@@ -16,8 +16,9 @@ import numpy as np
 
 from cvstereo.baseline import DISP_SCALE, matches_at_left_events
 from cvstereo.errors import require_extra
-from cvstereo.frames import FrameMatcher, Window, check_window_us, polarity_counts
+from cvstereo.frames import polarity_counts
 from cvstereo.matches import empty_matches
+from cvstereo.windows import FrameMatcher, Window, check_window_us
 
 
 @dataclass(frozen=True)

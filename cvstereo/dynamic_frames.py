@@ -9,7 +9,8 @@ camera and polarity) that changes with every event:
   with ``gaussian=False`` it adds s at (x, y) only (eq. 4.1);
 * on the absolute clock, at every t = k * ``decay_period_us`` (k = 1, 2, ...), all values are multiplied
   by ``decay`` (0.99 every 250 us). A tick at exactly the time of an event is applied *before* that event;
-* ON and OFF events share one frame, or use one each, or only one polarity is kept (``polarity``).
+* ON and OFF events share one frame, or use one each, or only one polarity is kept (``polarity``; the frame
+  slot of each polarity is that of :mod:`cvstereo.polarity`: with separate frames, slot = p).
 
 Decay is lazy: a frame is stored as ``S`` with one scale factor ``c`` per camera, the value being ``S * c``.
 A tick multiplies ``c`` only; an update adds ``w / c``; when ``c`` falls below :data:`RENORM` the frames are
@@ -17,13 +18,15 @@ renormalised (``S *= c; c = 1``). A gap of more than :data:`FORGET_TICKS` ticks 
 their values would be below 1e-4000 of what they were, i.e. zero in float64. A frame that never received an
 event skips its ticks (it is zero anyway), so that a stream starting at t = 10^12 us costs nothing.
 
-Two implementations do exactly the same float64 operations in the same order, so that they agree bit for
-bit: :class:`DynamicFrames`, plain Python, the reference; and :class:`FrameBank` with numba kernels
-(:func:`advance`, :func:`splat`, :func:`process_events`) that the fast matchers call from their own kernels.
+This module is the fast path: :class:`FrameBank` with numba kernels (:func:`advance`, :func:`splat`,
+:func:`process_events`) that the fast matchers call from their own kernels. Its reference twin, which does
+exactly the same float64 operations in the same order so that both agree bit for bit, is plain Python:
+:class:`calibration_free.reference.dynamic_frames.DynamicFrames`.
 
->>> frames = DynamicFrames()
->>> frames.add_event(t=0, x=5, y=5, p=1)
->>> round(frames.value(0, 5, 5), 4), round(frames.value(0, 4, 4), 4)
+>>> bank = FrameBank(1, DynamicFrameParams())
+>>> from cvstereo.events import make_events
+>>> _ = bank.process(0, make_events([0], [5], [5], [1]))
+>>> round(float(bank.values(0)[0, 5, 5]), 4), round(float(bank.values(0)[0, 4, 4]), 4)
 (0.4084, 0.1502)
 """
 
@@ -38,44 +41,13 @@ import numpy as np
 from numba import njit
 
 from cvstereo.events import DEFAULT_RESOLUTION
-
-#: Polarity handling: one frame for ON and OFF, one each, ON events only, OFF events only.
-POLARITY_MODES = ("shared", "separate", "on", "off")
+from cvstereo.polarity import Polarity, check_polarity, slot_of_p
 
 #: Renormalise the stored frames when the lazy decay factor falls below this (0.99^22900, about 5.7 s).
 RENORM = 1e-100
 
 #: A gap of more than this many decay ticks clears the frames (0.99^1e6 underflows to zero).
 FORGET_TICKS = 1_000_000
-
-#: Frame slot of an event with p = 0 (OFF) and p = 1 (ON) for each polarity mode; -1: the event is dropped.
-_SLOTS = {"shared": (0, 0), "separate": (0, 1), "on": (-1, 0), "off": (0, -1)}
-
-
-def polarity_slots(mode: str) -> tuple[int, np.ndarray]:
-    """Number of frames per camera and the frame of each polarity under a polarity mode.
-
-    Parameters
-    ----------
-    mode : {"shared", "separate", "on", "off"}
-
-    Returns
-    -------
-    n_frames : int
-        1, or 2 for ``"separate"``.
-    slot_of_p : (2,) int64 ndarray
-        Frame index of an OFF (p = 0) and an ON (p = 1) event; -1 where that polarity is dropped.
-
-    Examples
-    --------
-    >>> polarity_slots("on")[1].tolist()
-    [-1, 0]
-    """
-    if mode not in _SLOTS:
-        raise ValueError(f"polarity must be one of {', '.join(POLARITY_MODES)}; got {mode!r}.")
-    slots = np.array(_SLOTS[mode], dtype=np.int64)
-    return int(slots.max()) + 1, slots
-
 
 @dataclass(frozen=True, kw_only=True)
 class DynamicFrameParams:
@@ -99,7 +71,7 @@ class DynamicFrameParams:
         Tick period on the absolute clock (thesis: 250 us).
     """
 
-    polarity: Literal["shared", "separate", "on", "off"] = "shared"
+    polarity: Polarity = "shared"
     gaussian: bool = True
     kernel_size: int = 3
     kernel_sigma: float = 1.0
@@ -108,7 +80,7 @@ class DynamicFrameParams:
     decay_period_us: int = 250
 
     def __post_init__(self):
-        polarity_slots(self.polarity)
+        check_polarity(self.polarity, type(self).__name__)
         if self.kernel_size < 1 or self.kernel_size % 2 == 0:
             raise ValueError(f"kernel_size must be odd and positive, got {self.kernel_size}.")
         if not self.kernel_sigma > 0:
@@ -142,98 +114,8 @@ def update_kernel(params: DynamicFrameParams) -> np.ndarray:
     return np.ascontiguousarray(params.gaussian_gain * (g @ g.T))
 
 
-def _sign(value: float) -> float:
-    return 1.0 if value > 0 else (-1.0 if value < 0 else 0.0)
-
-
-class DynamicFrames:
-    """Reference dynamic frames of one camera: plain Python, one operation at a time.
-
-    Parameters
-    ----------
-    params : DynamicFrameParams, optional
-    resolution : (width, height), keyword-only
-
-    Attributes
-    ----------
-    stored : (n_frames, H, W) float64 ndarray
-        The stored frames S; the values are ``stored * scale``.
-    scale : float
-        The lazy decay factor c.
-    next_tick : int
-        Index k of the next decay tick, due at ``k * decay_period_us``.
-    touched : bool
-        Whether any event has been added since the frames were last clear.
-    """
-
-    def __init__(self, params: DynamicFrameParams | None = None, *,
-                 resolution: tuple[int, int] = DEFAULT_RESOLUTION):
-        self.params = params if params is not None else DynamicFrameParams()
-        self.n_frames, self.slot_of_p = polarity_slots(self.params.polarity)
-        self.kernel = update_kernel(self.params)
-        width, height = resolution
-        self.stored = np.zeros((self.n_frames, height, width))
-        self.scale = 1.0
-        self.next_tick = 0
-        self.touched = False
-
-    def slot(self, p: int) -> int:
-        """Frame index of polarity ``p`` (1 ON, 0 OFF), -1 if that polarity is dropped."""
-        return int(self.slot_of_p[1 if p > 0 else 0])
-
-    def advance(self, t: int) -> None:
-        """Apply every decay tick at ``k * period <= t`` not yet applied (call before an event at t)."""
-        period = self.params.decay_period_us
-        if self.touched and t // period + 1 - self.next_tick > FORGET_TICKS:
-            self.stored[...] = 0.0
-            self.scale = 1.0
-            self.touched = False
-        if not self.touched:
-            # The frames are zero: skip the ticks.
-            self.next_tick = t // period + 1
-            return
-        while self.next_tick * period <= t:
-            self.scale = self.scale * self.params.decay
-            if self.scale < RENORM:
-                self.stored *= self.scale
-                self.scale = 1.0
-            self.next_tick += 1
-
-    def add(self, slot: int, x: int, y: int, sign: float) -> None:
-        """Add ``sign * kernel`` centred on (x, y) to frame ``slot``, clipped at the border."""
-        k = self.kernel.shape[0]
-        r = k // 2
-        _, height, width = self.stored.shape
-        for j in range(k):
-            yy = y + j - r
-            if yy < 0 or yy >= height:
-                continue
-            for i in range(k):
-                xx = x + i - r
-                if xx < 0 or xx >= width:
-                    continue
-                self.stored[slot, yy, xx] += sign * self.kernel[j, i] / self.scale
-        self.touched = True
-
-    def value(self, slot: int, x: int, y: int) -> float:
-        """Current value of frame ``slot`` at (x, y)."""
-        return float(self.stored[slot, y, x] * self.scale)
-
-    def add_event(self, *, t: int, x: int, y: int, p: int) -> None:
-        """Advance to t and add one event (dropped if its polarity is not kept)."""
-        slot = self.slot(p)
-        if slot < 0:
-            return
-        self.advance(t)
-        self.add(slot, x, y, 1.0 if p > 0 else -1.0)
-
-    def values(self) -> np.ndarray:
-        """The current frame values, ``(n_frames, H, W)`` float64."""
-        return self.stored * self.scale
-
-
 # ----------------------------------------------------------------------------------------------------------
-# Fast path: the same operations as DynamicFrames, on state arrays of several cameras, in numba.
+# The same operations as the reference DynamicFrames, on state arrays of several cameras, in numba.
 # State of camera ``cam``: stored[cam] (n_frames, H, W), scale[cam], clock[cam] = (next_tick, touched).
 # advance() and splat() are inlined into their callers: a numba call with array arguments costs atomic
 # reference counting on every array, which made a 9-pixel splat ten times slower.
@@ -241,7 +123,7 @@ class DynamicFrames:
 
 @njit(cache=True, inline="always")
 def advance(stored, scale, clock, cam, t, decay, period):
-    """Apply the due decay ticks of camera ``cam`` up to time ``t`` (see :meth:`DynamicFrames.advance`)."""
+    """Apply the due decay ticks of camera ``cam`` up to time ``t`` (reference: ``DynamicFrames.advance``)."""
     if clock[cam, 1] != 0 and t // period + 1 - clock[cam, 0] > FORGET_TICKS:
         stored[cam] = 0.0
         scale[cam] = 1.0
@@ -266,7 +148,7 @@ def advance(stored, scale, clock, cam, t, decay, period):
 
 @njit(cache=True, inline="always")
 def splat(stored, scale, clock, cam, slot, x, y, sign, kernel):
-    """Add ``sign * kernel`` centred on (x, y) to frame ``slot`` of camera ``cam`` (see :meth:`DynamicFrames.add`)."""
+    """Add ``sign * kernel`` centred on (x, y) to frame ``slot`` of camera ``cam`` (reference: DynamicFrames.add)."""
     k = kernel.shape[0]
     r = k // 2
     height = stored.shape[2]
@@ -343,7 +225,7 @@ class FrameBank:
     def __init__(self, n_cameras: int, params: DynamicFrameParams, *,
                  resolution: tuple[int, int] = DEFAULT_RESOLUTION):
         self.params = params
-        self.n_frames, self.slot_of_p = polarity_slots(params.polarity)
+        self.n_frames, self.slot_of_p = slot_of_p(params.polarity)
         self.kernel = update_kernel(params)
         width, height = resolution
         self.stored = np.zeros((n_cameras, self.n_frames, height, width))

@@ -23,8 +23,9 @@ class SensorError(OSError):
     """A sensor port cannot be opened, or the sensor does not answer as an eDVS does."""
 
 
-class SensorTimeout(TimeoutError):
-    """A sensor stopped sending within the expected time."""
+class NoMatchersError(RuntimeError):
+    """No installed distribution registers a matcher (entry-point group ``cvstereo.matchers``): cvstereo is
+    on the path but not installed."""
 
 
 def require_extra(module: str, extra: str):

@@ -1,7 +1,7 @@
 """The thesis' experiment: every matcher variant on a set of recordings, scored and tabulated.
 
-Used by ``cvstereo demo`` and ``cvstereo bench``. Matchers are looked up by name in the registry of
-:mod:`calibration_free` (imported lazily, so that ``cvstereo`` itself never depends on it).
+Used by ``cvstereo demo`` and ``cvstereo bench`` (which adds memory sampling and its own figures through
+the hooks of :func:`run_experiment`). Matchers are looked up by name in :mod:`cvstereo.registry`.
 """
 
 from __future__ import annotations
@@ -10,7 +10,10 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 
 from cvstereo.evaluate import evaluate, markdown_table
+from cvstereo.matches import MatchResult
+from cvstereo.pipeline import match
 from cvstereo.recording import Recording
+from cvstereo.registry import available_methods, matcher_class
 from cvstereo.thesis import DISPARITY_TABLES
 
 
@@ -43,15 +46,25 @@ class ExperimentResult:
 
 def all_combos(methods: Iterable[str] | None = None) -> list[Combo]:
     """Every variant of every importable method (or of ``methods``), in registry order."""
-    from calibration_free.registry import available_methods, matcher_class
-
     names = available_methods() if methods is None else list(methods)
     return [Combo(m, v) for m in names for v in matcher_class(m).variants]
 
 
+def run_combo(recording: Recording, combo: Combo) -> MatchResult:
+    """Run one combo over a recording (the default ``run`` of :func:`run_experiment`)."""
+    return match(recording, method=combo.method, variant=combo.variant, **dict(combo.params))
+
+
+def score_result(name: str, recording: Recording, result: MatchResult) -> dict:
+    """The figures of one run (the default ``score`` of :func:`run_experiment`): :func:`evaluate`."""
+    return evaluate(recording, result)
+
+
 def run_experiment(recordings: Mapping[str, Recording], combos: Iterable[Combo], *,
                    on_result: Callable[[Combo, str, dict], None] | None = None,
-                   progress: bool = False) -> ExperimentResult:
+                   progress: bool = False, desc: str = "matching",
+                   run: Callable[[Recording, Combo], MatchResult] = run_combo,
+                   score: Callable[[str, Recording, MatchResult], dict] = score_result) -> ExperimentResult:
     """Run each combo on each recording and evaluate it.
 
     Parameters
@@ -63,26 +76,30 @@ def run_experiment(recordings: Mapping[str, Recording], combos: Iterable[Combo],
         Called with (combo, recording name, figures) after each run, e.g. to print progress.
     progress : bool
         Show a progress bar over the runs.
+    desc : str
+        The progress bar's label.
+    run : callable, keyword-only
+        ``run(recording, combo) -> MatchResult`` (e.g. with memory sampling); default :func:`run_combo`.
+    score : callable, keyword-only
+        ``score(name, recording, result) -> figures``; default :func:`score_result`.
 
     Returns
     -------
     ExperimentResult
     """
-    from calibration_free import match
-
     combos = list(combos)
     jobs = [(c, name) for c in combos for name in recordings]
     bar = None
     if progress:
         from tqdm.auto import tqdm
 
-        bar = tqdm(total=len(jobs), unit="run", desc="matching", leave=False)
+        bar = tqdm(total=len(jobs), unit="run", desc=desc, leave=False)
     result = ExperimentResult()
     for combo, name in jobs:
         if bar is not None:
             bar.set_postfix_str(f"{combo.label} on {name}")
-        res = match(recordings[name], method=combo.method, variant=combo.variant, **dict(combo.params))
-        figures = evaluate(recordings[name], res)
+        res = run(recordings[name], combo)
+        figures = score(name, recordings[name], res)
         result.add(combo, name, figures, res.meta)
         if on_result is not None:
             on_result(combo, name, figures)

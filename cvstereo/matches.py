@@ -1,4 +1,7 @@
-"""Disparity estimates ("matches") as produced by every matcher, and their metadata (formats.md)."""
+"""Disparity estimates ("matches") as produced by every matcher, and their metadata (formats.md).
+
+The data only; the matches ``.npz`` is read and written by :mod:`cvstereo.io.npz`.
+"""
 
 from __future__ import annotations
 
@@ -75,7 +78,9 @@ def validate_matches(matches: np.ndarray, *, source: str = "matches") -> None:
 
 @dataclass(eq=False)
 class MatchResult:
-    """A matches array with its metadata: what :func:`calibration_free.match` returns.
+    """A matches array with its metadata: what :func:`cvstereo.pipeline.match` returns.
+
+    Written and read by :func:`cvstereo.io.write_matches` and :func:`cvstereo.io.read_matches`.
 
     Attributes
     ----------
@@ -91,12 +96,6 @@ class MatchResult:
     def disparity(self) -> np.ndarray:
         """The disparities, px."""
         return self.matches["disparity"]
-
-    def save(self, path) -> None:
-        """Write to a matches ``.npz`` (atomically)."""
-        from cvstereo.io.npz import write_matches
-
-        write_matches(path, self.matches, self.meta)
 
     def __len__(self) -> int:
         return int(self.matches.size)

@@ -8,6 +8,7 @@ import pytest
 from calibration_free import create_matcher, match
 from cvstereo.baseline import StereoBMMatcher, StereoBMParams, StereoSGBMMatcher, StereoSGBMParams
 from cvstereo.events import make_events
+from cvstereo.polarity import OFF, ON
 from cvstereo.recording import Recording
 
 W = 40_000
@@ -63,8 +64,8 @@ def test_without_padding_the_left_strip_has_no_result(rng):
 def test_image_mapping():
     m = StereoBMMatcher()
     counts = np.zeros((2, 128, 128), int)
-    counts[0, 10, 10] = 40  # strongly ON
-    counts[1, 50, 50] = 40  # strongly OFF
+    counts[ON, 10, 10] = 40  # strongly ON
+    counts[OFF, 50, 50] = 40  # strongly OFF
     img = m.image(counts)
     assert img.dtype == np.uint8 and img[0, 0] == 128 and img[10, 10] == 255 and img[50, 50] == 0
     counted = StereoSGBMMatcher(StereoSGBMParams(image="count", gaussian=False)).image(counts)

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from cvstereo.events import make_events
-from cvstereo.io import read_matches, write_recording_npz
-from cvstereo.matches import MatchResult, make_matches
+from cvstereo.io import read_matches, write_matches, write_recording_npz
+from cvstereo.matches import make_matches
 from cvstereo.recording import Recording
 
 META = {"method": "frame", "variant": "shared", "params": {}, "anchor": "window", "window_us": 40_000}
@@ -26,7 +26,7 @@ def test_depth_fit_from_matches_files_recovers_a_and_c(tmp_path):
     # Disparities of a rig with a = 16 px m and c = 2.5 px at 0.5 and 1.5 m: 29.5 and 8.1667 px.
     for z in (0.5, 1.5):
         d = np.full(11, 16.0 / z - 2.5, np.float32)
-        MatchResult(make_matches(np.arange(11) * 40_000 + 40_000, 5, 5, 1, 0, d), META).save(tmp_path / f"m{z}.npz")
+        write_matches(tmp_path / f"m{z}.npz", make_matches(np.arange(11) * 40_000 + 40_000, 5, 5, 1, 0, d), META)
     proc = _cli("depth-fit", "m0.5.npz:0.5", "m1.5.npz:1.5", "-o", "depth.json", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     model = json.loads((tmp_path / "depth.json").read_text())

@@ -7,16 +7,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cvstereo.dynamic_frames import (
-    FORGET_TICKS,
-    POLARITY_MODES,
-    DynamicFrameParams,
-    DynamicFrames,
-    FrameBank,
-    polarity_slots,
-    update_kernel,
-)
+from calibration_free.reference.dynamic_frames import DynamicFrames
+from cvstereo.dynamic_frames import FORGET_TICKS, DynamicFrameParams, FrameBank, update_kernel
 from cvstereo.events import make_events
+from cvstereo.polarity import POLARITY_MODES, slot_of_p
 
 # Thesis eq. 3.8, to the four digits it prints.
 G3 = np.array([[0.0751, 0.1238, 0.0751], [0.1238, 0.2042, 0.1238], [0.0751, 0.1238, 0.0751]])
@@ -89,8 +83,8 @@ def test_untouched_frames_skip_their_ticks():
 @pytest.mark.parametrize(("mode", "slots"), [("shared", [0, 0]), ("separate", [0, 1]), ("on", [-1, 0]),
                                              ("off", [0, -1])])
 def test_polarity_modes(mode, slots):
-    n, slot_of_p = polarity_slots(mode)
-    assert slot_of_p.tolist() == slots and n == max(slots) + 1
+    n, slot_by_p = slot_of_p(mode)
+    assert slot_by_p.tolist() == slots and n == max(slots) + 1
     frames = DynamicFrames(DynamicFrameParams(polarity=mode))
     frames.add_event(t=0, x=5, y=5, p=1)
     frames.add_event(t=0, x=5, y=5, p=0)
@@ -114,20 +108,8 @@ def test_invalid_parameters_are_rejected():
 
 def _reference_values(events, params, *, read_after):
     frames = DynamicFrames(params, resolution=(24, 6))
-    out = []
-    for e in events:
-        t, x, y, p = (int(e[f]) for f in ("t", "x", "y", "p"))
-        slot = frames.slot(p)
-        if slot < 0:
-            out.append(np.nan)
-            continue
-        frames.advance(t)
-        if not read_after:
-            out.append(frames.value(slot, x, y))
-        frames.add(slot, x, y, 1.0 if p else -1.0)
-        if read_after:
-            out.append(frames.value(slot, x, y))
-    return np.array(out), frames
+    values = frames.process(events, after=read_after)
+    return np.array([np.nan if v is None else v for v in values]), frames
 
 
 @settings(max_examples=15, deadline=None)

@@ -10,9 +10,9 @@ from hypothesis import strategies as st
 
 from calibration_free.event_area import EventAreaMatcher, EventAreaParams
 from calibration_free.reference.event_area import event_area_reference
-from calibration_free.registry import create_matcher
 from cvstereo.events import make_events
 from cvstereo.matches import concat_matches, validate_matches
+from cvstereo.registry import create_matcher
 
 
 @settings(max_examples=10, deadline=None)

@@ -9,10 +9,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from calibration_free.event_vector import EventVectorMatcher, EventVectorParams
+from calibration_free.reference.dynamic_frames import DynamicFrames
 from calibration_free.reference.event_vector import accumulation_vector, event_vector_reference
-from calibration_free.registry import create_matcher
-from cvstereo.dynamic_frames import DynamicFrameParams, DynamicFrames
+from cvstereo.dynamic_frames import DynamicFrameParams
 from cvstereo.matches import validate_matches
+from cvstereo.registry import create_matcher
 
 
 @settings(max_examples=10, deadline=None)

@@ -10,7 +10,6 @@ from hypothesis import strategies as st
 from cvstereo.errors import EventFormatError
 from cvstereo.events import make_events
 from cvstereo.frames import (
-    WindowAccumulator,
     event_mask,
     gaussian_filter,
     polarity_counts,
@@ -18,6 +17,8 @@ from cvstereo.frames import (
     signed_frame,
     stacked_frames,
 )
+from cvstereo.polarity import OFF, ON
+from cvstereo.windows import WindowAccumulator
 
 W = 40_000
 
@@ -51,12 +52,14 @@ def test_polarity_modes(rng):
     for e in ev:  # the straightforward accumulation
         (on if e["p"] else off)[e["y"], e["x"]] += 1
     counts = polarity_counts(ev, resolution=(16, 16))
-    np.testing.assert_array_equal(counts, [on, off])
+    np.testing.assert_array_equal(counts, [off, on])  # indexed by p
+    np.testing.assert_array_equal(counts[ON], on)
+    np.testing.assert_array_equal(counts[OFF], off)
     frames = {mode: polarity_frames(counts, polarity=mode) for mode in ("shared", "separate", "on", "off")}
     np.testing.assert_array_equal(frames["shared"][0][1], on - off)
-    assert [c for c, _ in frames["separate"]] == [1, -1]
-    np.testing.assert_array_equal(frames["separate"][0][1], on)
-    np.testing.assert_array_equal(frames["separate"][1][1], -off)
+    assert [c for c, _ in frames["separate"]] == [-1, 1]  # slot = p: OFF frame first
+    np.testing.assert_array_equal(frames["separate"][0][1], -off)
+    np.testing.assert_array_equal(frames["separate"][1][1], on)
     np.testing.assert_array_equal(frames["on"][0][1], on)
     np.testing.assert_array_equal(frames["off"][0][1], -off)
     np.testing.assert_array_equal(signed_frame(ev, resolution=(16, 16), signs=(-1,)), -off)

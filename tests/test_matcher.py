@@ -8,11 +8,11 @@ from typing import Literal
 import numpy as np
 import pytest
 
-from calibration_free.registry import METHODS, matcher_class, parse_param_strings
 from cvstereo.errors import EventFormatError
 from cvstereo.events import make_events
 from cvstereo.matcher import StreamMatcher
 from cvstereo.matches import make_matches
+from cvstereo.registry import METHODS, matcher_class, parse_param_strings
 
 
 @dataclass(frozen=True)

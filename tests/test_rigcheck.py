@@ -216,7 +216,7 @@ def test_restore_maps_right_anchored_matches_back():
 
 def test_match_with_offsets_points_at_real_events(patches):
     pytest.importorskip("calibration_free.event_time")
-    from calibration_free.run import match
+    from cvstereo.pipeline import match
 
     base = patches.slice_time(0, 400_000)
     shifted = with_rig_errors(base, rows=2, time_us=3000)
@@ -288,7 +288,7 @@ def test_cli_rigcheck_json_and_match_auto(patches, tmp_path):
 
 
 def _available_methods():
-    from calibration_free.registry import available_methods
+    from cvstereo.registry import available_methods
 
     return available_methods()
 

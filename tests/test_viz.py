@@ -111,7 +111,7 @@ def test_filtered_frames_data_and_threshold(rng):
 
 
 def test_dynamic_frames_agree_with_reference():
-    from cvstereo.dynamic_frames import DynamicFrames
+    from calibration_free.reference.dynamic_frames import DynamicFrames
 
     left = make_events([0, 1000, 2000, 700_000], [4, 4, 8, 2], [5, 5, 6, 2], [1, 1, 0, 1])
     right = make_events([500], [3], [5], [1])

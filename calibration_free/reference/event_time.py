@@ -4,29 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from calibration_free.event_time import EventTimeParams
+from calibration_free.params import EventTimeParams
 from calibration_free.reference import sign
-from cvstereo.dynamic_frames import DynamicFrames
+from calibration_free.reference.dynamic_frames import DynamicFrames
 from cvstereo.events import DEFAULT_RESOLUTION
 from cvstereo.matches import empty_matches, make_matches
-
-
-def _frame_values(events: np.ndarray, frames: DynamicFrames, *, after: bool) -> list[float | None]:
-    """The value of each event's own frame at its pixel, before or just after its update (None: dropped)."""
-    values: list[float | None] = []
-    for e in events:
-        t, x, y, p = int(e["t"]), int(e["x"]), int(e["y"]), int(e["p"])
-        slot = frames.slot(p)
-        if slot < 0:
-            values.append(None)
-            continue
-        frames.advance(t)
-        if not after:
-            values.append(frames.value(slot, x, y))
-        frames.add(slot, x, y, 1.0 if p else -1.0)
-        if after:
-            values.append(frames.value(slot, x, y))
-    return values
 
 
 def event_time_reference(left: np.ndarray, right: np.ndarray, params: EventTimeParams | None = None, *,
@@ -50,8 +32,8 @@ def event_time_reference(left: np.ndarray, right: np.ndarray, params: EventTimeP
     ev1, ev2 = events[ref], events[1 - ref]
     fp = prm.frame_params()
     # D1 is read before e1 updates its frame; D2 as the frame stood just after e2's own update.
-    d1 = _frame_values(ev1, DynamicFrames(fp, resolution=resolution), after=False)
-    d2 = _frame_values(ev2, DynamicFrames(fp, resolution=resolution), after=True)
+    d1 = DynamicFrames(fp, resolution=resolution).process(ev1, after=False)
+    d2 = DynamicFrames(fp, resolution=resolution).process(ev2, after=True)
     t2_all = ev2["t"]
     rows = []
     for i, e1 in enumerate(ev1):

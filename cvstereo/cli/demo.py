@@ -67,11 +67,11 @@ def run(args: argparse.Namespace) -> int:
     if importlib.util.find_spec("cvstereo.simulate") is None:
         print("The simulator has not landed yet: no simulated recordings to run the matchers on.")
         return 0
-    from calibration_free.registry import available_methods
     from cvstereo.evaluate import to_json
     from cvstereo.experiment import all_combos, experiment_markdown, run_experiment
     from cvstereo.io import read_recording
     from cvstereo.io._atomic import write_text_atomic
+    from cvstereo.registry import available_methods
     from cvstereo.simulate import cached_preset
     from cvstereo.thesis import RECORDINGS
 
@@ -96,8 +96,8 @@ def _figures(recording, combos, folder: Path) -> None:
     if importlib.util.find_spec("matplotlib") is None:
         print("(figures skipped: matplotlib is not installed; pip install 'cvstereo[viz]')")
         return
-    from calibration_free import match
     from cvstereo import viz
+    from cvstereo.pipeline import match
 
     folder.mkdir(parents=True, exist_ok=True)
     t0 = viz.busiest_window(recording, FIGURE_WINDOW_US)

@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
         if path.endswith(".npz") and "matches" in npz_keys(path):
             disparity = read_matches(path).disparity
         else:
-            from calibration_free import match
+            from cvstereo.pipeline import match
 
             disparity = match(read_recording(path), method=args.method, variant=args.variant).disparity
         if disparity.size == 0:

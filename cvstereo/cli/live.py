@@ -30,8 +30,8 @@ def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from calibration_free.registry import available_methods, create_matcher, matcher_class, parse_param_strings
     from cvstereo.depth import DepthModel
+    from cvstereo.registry import available_methods, create_matcher, matcher_class, parse_param_strings
     from cvstereo.sensors.live import run_live
 
     try:

@@ -1,6 +1,6 @@
 """``cvstereo match RECORDING [RIGHT] --method M [--variant V] [--param key=value ...] -o MATCHES.npz``.
 
-Runs one matcher over a recording (through :func:`calibration_free.match`, so the file holds exactly what
+Runs one matcher over a recording (through :func:`cvstereo.pipeline.match`, so the file holds exactly what
 ``match()`` returns) and writes the matches file of formats.md. ``--list-methods`` prints every registered
 method with its variants and parameters.
 """
@@ -54,7 +54,7 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from calibration_free.registry import matcher_class, parse_param_strings
+    from cvstereo.registry import matcher_class, parse_param_strings
 
     if args.list_methods:
         print(list_methods())
@@ -65,8 +65,9 @@ def run(args: argparse.Namespace) -> int:
     overrides = parse_param_strings(cls.Params, args.param)  # ValueError listing the allowed names
     # Validate variant and values before reading a possibly long recording.
     cls.make_params(args.variant, **overrides)
-    from calibration_free.run import DEFAULT_PACKET_US, match
     from cvstereo.cli._common import load_recording
+    from cvstereo.io import write_matches
+    from cvstereo.pipeline import DEFAULT_PACKET_US, match
 
     recording = load_recording(args)
     recording, rig, offsets = _rig_correction(args, recording)
@@ -82,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
     if depth is not None:
         # The matches format is a contract: distances are not a column; the model that gives them is in meta.
         result.meta["depth"] = depth.to_dict()
-    result.save(args.output)
+    write_matches(args.output, result.matches, result.meta)
     m = result.meta
     print(f"{len(result)} matches from {m['input_events']} events ({args.method}, {m['variant']}) in "
           f"{m['elapsed_s']:.2f} s -> {args.output}")
@@ -124,7 +125,7 @@ def list_methods() -> str:
 
     Methods whose module cannot be imported here are listed as unavailable, with the reason.
     """
-    from calibration_free.registry import METHODS, matcher_class
+    from cvstereo.registry import METHODS, matcher_class
 
     lines = []
     for name in METHODS:

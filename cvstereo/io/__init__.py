@@ -9,6 +9,8 @@ is :class:`~cvstereo.io.stream.RecordingStream`.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 from cvstereo.io.aedat2 import open_aedat2, write_aedat2
@@ -17,28 +19,70 @@ from cvstereo.io.npz import read_matches, read_recording_npz, write_matches, wri
 from cvstereo.io.stream import RecordingStream, open_npz
 from cvstereo.recording import Recording
 
-#: Format names accepted by ``format=`` and the CLI's ``--format``.
-FORMATS = ("npz", "edvs-text", "edvs-merged", "aedat2")
-
 #: File extensions of the text formats (which of the two is told by the column count).
 TEXT_SUFFIXES = (".txt", ".dat", ".csv")
 AEDAT_SUFFIXES = (".aedat", ".aedat2")
 
-# Which reader options apply to which format; anything else given is a mistake worth reporting.
-_OPTIONS = {
-    "npz": (),
-    "edvs-text": ("right", "one_based", "resolution"),
-    "edvs-merged": ("left_retina", "one_based", "resolution"),
-    "aedat2": ("right", "resolution"),
+
+@dataclass(frozen=True)
+class Format:
+    """One recording format: how it is opened, read and written, and which options it takes.
+
+    Attributes
+    ----------
+    open : callable
+        ``open(path, **options) -> RecordingStream``, called with exactly the reader options in ``options``.
+    write : callable or None
+        ``write(path, recording, **write_options)``; None: the format is read-only.
+    options : tuple of str
+        Reader options that apply (``right``, ``left_retina``, ``one_based``, ``resolution``); any other
+        option given is reported as a mistake.
+    suffixes : tuple of str
+        Extensions that imply the format (for writing, and for reading where the content need not be checked).
+    write_options : tuple of str
+        Options of ``write`` (``right``: the format writes one file per camera; ``left_retina``).
+    read : callable, optional
+        ``read(path) -> Recording``, where it is faster than ``open(path).read()``.
+    """
+
+    open: Callable[..., RecordingStream]
+    write: Callable[..., None] | None
+    options: tuple[str, ...] = ()
+    suffixes: tuple[str, ...] = ()
+    write_options: tuple[str, ...] = ()
+    read: Callable[[str | os.PathLike], Recording] | None = None
+
+
+def _open_aedat2(path, right=None, *, resolution=None) -> RecordingStream:
+    if resolution is not None and tuple(resolution) != (128, 128):
+        raise ValueError(f"{path}: AEDAT 2.0 DVS128 files are 128x128; resolution {resolution} does not apply.")
+    return open_aedat2(path, right)
+
+
+def _write_edvs_pair(path, recording: Recording, *, right) -> None:
+    write_edvs_pair(path, right, recording)
+
+
+#: Every recording format by its name (``format=``, the CLI's ``--format``). Adding a format is one entry.
+FORMAT_TABLE: dict[str, Format] = {
+    "npz": Format(open_npz, write_recording_npz, (), (".npz",), read=read_recording_npz),
+    "edvs-text": Format(open_edvs_text, _write_edvs_pair, ("right", "one_based", "resolution"), TEXT_SUFFIXES,
+                        ("right",)),
+    "edvs-merged": Format(open_edvs_merged, write_edvs_merged, ("left_retina", "one_based", "resolution"),
+                          TEXT_SUFFIXES, ("left_retina",)),
+    "aedat2": Format(_open_aedat2, write_aedat2, ("right", "resolution"), AEDAT_SUFFIXES),
 }
+
+#: Format names accepted by ``format=`` and the CLI's ``--format``.
+FORMATS = tuple(FORMAT_TABLE)
 
 
 def detect_format(path: str | os.PathLike) -> str:
     """Tell a file's format from its content and extension.
 
-    ``#!AER-DAT`` at the start means AEDAT (jAER also used ``.dat`` for it); ``.npz`` is a recording
-    archive; ``.txt`` / ``.dat`` / ``.csv`` are eDVS text, ``edvs-text`` when the first event line has 4
-    columns and ``edvs-merged`` when it has 5.
+    ``#!AER-DAT`` at the start means AEDAT (jAER also used ``.dat`` for it); ``.txt`` / ``.dat`` / ``.csv``
+    are eDVS text, ``edvs-text`` when the first event line has 4 columns and ``edvs-merged`` when it has 5;
+    any other extension names the format whose ``suffixes`` hold it (``.npz``: a recording archive).
 
     Raises
     ------
@@ -49,9 +93,10 @@ def detect_format(path: str | os.PathLike) -> str:
     """
     path = Path(path)
     suffix = path.suffix.lower()
-    if suffix == ".npz":
-        return "npz"
     if suffix not in TEXT_SUFFIXES + AEDAT_SUFFIXES:
+        for name, fmt in FORMAT_TABLE.items():
+            if suffix in fmt.suffixes:
+                return name
         raise ValueError(f"{path}: cannot tell the format from '{suffix}'; give --format ({', '.join(FORMATS)}).")
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such file.")
@@ -96,15 +141,10 @@ def open_recording(path: str | os.PathLike, right: str | os.PathLike | None = No
     >>> for packet in stream.packets(10_000):  # doctest: +SKIP
     ...     matcher.feed(packet.left, packet.right)
     """
-    fmt = format or detect_format(path)
-    _check_options(fmt, path, right=right, left_retina=left_retina, one_based=one_based, resolution=resolution)
-    if fmt == "npz":
-        return open_npz(path)
-    if fmt == "edvs-text":
-        return open_edvs_text(path, right, one_based=one_based, resolution=resolution)
-    if fmt == "edvs-merged":
-        return open_edvs_merged(path, left_retina=left_retina, one_based=one_based, resolution=resolution)
-    return open_aedat2(path, right)
+    name = format or detect_format(path)
+    fmt = _format(name, path, right=right, left_retina=left_retina, one_based=one_based, resolution=resolution)
+    given = {"right": right, "left_retina": left_retina, "one_based": one_based, "resolution": resolution}
+    return fmt.open(path, **{k: given[k] for k in fmt.options})
 
 
 def read_recording(path: str | os.PathLike, right: str | os.PathLike | None = None, *, format: str | None = None,
@@ -128,25 +168,25 @@ def read_recording(path: str | os.PathLike, right: str | os.PathLike | None = No
     Recording
         For text and AEDAT input, ``meta`` says how undetermined properties were decided.
     """
-    fmt = format or detect_format(path)
-    if fmt == "npz":
-        _check_options(fmt, path, right=right, left_retina=left_retina, one_based=one_based, resolution=resolution)
-        return read_recording_npz(path)
-    return open_recording(path, right, format=fmt, left_retina=left_retina, one_based=one_based,
+    name = format or detect_format(path)
+    fmt = _format(name, path, right=right, left_retina=left_retina, one_based=one_based, resolution=resolution)
+    if fmt.read is not None:
+        return fmt.read(path)
+    return open_recording(path, right, format=name, left_retina=left_retina, one_based=one_based,
                           resolution=resolution).read()
 
 
-def _check_options(fmt: str, path, **given) -> None:
-    if fmt not in _OPTIONS:
-        raise ValueError(f"unknown format '{fmt}'; choose one of: {', '.join(FORMATS)}.")
-    wrong = [k for k, v in given.items() if v is not None and k not in _OPTIONS[fmt]]
+def _format(name: str, path, **given) -> Format:
+    """The table entry of format ``name``, after checking that the options ``given`` apply to it."""
+    if name not in FORMAT_TABLE:
+        raise ValueError(f"unknown format '{name}'; choose one of: {', '.join(FORMATS)}.")
+    fmt = FORMAT_TABLE[name]
+    wrong = [k for k, v in given.items() if v is not None and k not in fmt.options]
     if wrong:
         what = " and ".join("a second file" if k == "right" else k for k in wrong)
-        raise ValueError(f"{path}: {what} do(es) not apply to format '{fmt}' (it takes: "
-                         f"{', '.join(_OPTIONS[fmt]) or 'no options'}).")
-    if fmt == "aedat2" and given["resolution"] is not None and tuple(given["resolution"]) != (128, 128):
-        raise ValueError(f"{path}: AEDAT 2.0 DVS128 files are 128x128; resolution {given['resolution']} "
-                         "does not apply.")
+        raise ValueError(f"{path}: {what} do(es) not apply to format '{name}' (it takes: "
+                         f"{', '.join(fmt.options) or 'no options'}).")
+    return fmt
 
 
 def write_recording(path: str | os.PathLike, recording: Recording, *, format: str | None = None,
@@ -171,26 +211,29 @@ def write_recording(path: str | os.PathLike, recording: Recording, *, format: st
     Ground truth is kept by ``npz`` only; ``aedat2`` needs a 128x128 recording with timestamps below 2**32.
     """
     suffix = Path(path).suffix.lower()
-    fmt = format or {".npz": "npz", **dict.fromkeys(AEDAT_SUFFIXES, "aedat2"),
-                     **dict.fromkeys(TEXT_SUFFIXES, "edvs-merged" if right is None else "edvs-text")}.get(suffix)
-    if fmt is None:
+    name = format
+    if name is None:
+        candidates = [n for n, f in FORMAT_TABLE.items() if suffix in f.suffixes and f.write is not None]
+        # The text extensions serve two formats: the one that writes a file per camera when a right file is given.
+        fitting = [n for n in candidates if ("right" in FORMAT_TABLE[n].write_options) == (right is not None)]
+        name = (fitting or candidates or [None])[0]
+    if name is None:
         raise ValueError(f"{path}: cannot tell the output format from '{suffix}'; give one of: {', '.join(FORMATS)}.")
-    if (fmt == "edvs-text") != (right is not None):
+    fmt = FORMAT_TABLE.get(name)
+    if fmt is None or fmt.write is None:
+        raise ValueError(f"cannot write format '{name}'; choose one of: "
+                         f"{', '.join(n for n, f in FORMAT_TABLE.items() if f.write is not None)}.")
+    if ("right" in fmt.write_options) != (right is not None):
         raise ValueError(f"{path}: format 'edvs-text' and only it writes two files: give the right camera's file "
-                         f"exactly for it (format here: '{fmt}').")
-    if fmt == "npz":
-        return write_recording_npz(path, recording)
-    if fmt == "edvs-text":
-        return write_edvs_pair(path, right, recording)
-    if fmt == "edvs-merged":
-        return write_edvs_merged(path, recording, left_retina=left_retina)
-    if fmt == "aedat2":
-        return write_aedat2(path, recording)
-    raise ValueError(f"cannot write format '{fmt}'; choose one of: {', '.join(FORMATS)}.")
+                         f"exactly for it (format here: '{name}').")
+    options = {"right": right, "left_retina": left_retina}
+    fmt.write(path, recording, **{k: options[k] for k in fmt.write_options})
 
 
 __all__ = [
     "FORMATS",
+    "FORMAT_TABLE",
+    "Format",
     "RecordingStream",
     "detect_format",
     "open_recording",

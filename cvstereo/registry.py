@@ -1,33 +1,69 @@
-"""Matchers by name: the thesis' five, and the OpenCV baselines, looked up lazily.
+"""Matchers by name, found through the entry-point group ``cvstereo.matchers``.
 
-The CLI, ``calibration_free.match`` and the benchmark find matchers here, so adding a matcher means
-adding one line to :data:`METHODS`.
+Every distribution can register matchers in its ``pyproject.toml``::
+
+    [project.entry-points."cvstereo.matchers"]
+    frame = "calibration_free.frame_clusters:FrameClusterMatcher"
+
+cvstereo registers the thesis' five (in :mod:`calibration_free`) and its own OpenCV and dv-processing
+baselines this way, so the CLI, :func:`cvstereo.pipeline.match` and the benchmark find every matcher
+without importing :mod:`calibration_free` by name. A matcher's module is imported only when it is used.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import importlib
+import importlib.metadata
 import importlib.util
 import typing
+from collections.abc import Iterator, Mapping
 
+from cvstereo.errors import NoMatchersError
 from cvstereo.matcher import StreamMatcher
 
-#: method name (formats.md) -> "module:Class" of its StreamMatcher.
-METHODS: dict[str, str] = {
-    "frame": "calibration_free.frame_clusters:FrameClusterMatcher",
-    "frame-area": "calibration_free.frame_area:FrameAreaMatcher",
-    "event-time": "calibration_free.event_time:EventTimeMatcher",
-    "event-area": "calibration_free.event_area:EventAreaMatcher",
-    "event-vector": "calibration_free.event_vector:EventVectorMatcher",
-    "stereobm": "cvstereo.baseline:StereoBMMatcher",
-    "sgbm": "cvstereo.baseline:StereoSGBMMatcher",
-    "dv-semidense": "cvstereo.compare_dv:DvSemiDenseMatcher",
-}
+#: The entry-point group that lists the matchers: name (formats.md) -> "module:Class".
+ENTRY_POINT_GROUP = "cvstereo.matchers"
+
+#: The order in which tables and listings show the methods (the installed metadata sorts entry points by
+#: name); methods not named here follow in name order.
+LISTING_ORDER = ("frame", "frame-area", "event-time", "event-area", "event-vector", "stereobm", "sgbm",
+                 "dv-semidense")
+
+
+@functools.cache
+def _entry_points() -> dict[str, importlib.metadata.EntryPoint]:
+    found = {ep.name: ep for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)}
+    if not found:
+        raise NoMatchersError(f"no matcher is registered in the entry-point group '{ENTRY_POINT_GROUP}': cvstereo "
+                              "is not installed. Install it (from the repository: pip install -e .).")
+    rank = {name: i for i, name in enumerate(LISTING_ORDER)}
+    return {name: found[name] for name in sorted(found, key=lambda n: (rank.get(n, len(rank)), n))}
+
+
+class _Methods(Mapping):
+    """The registered methods, read from the entry points on first use: name -> "module:Class"."""
+
+    def __getitem__(self, name: str) -> str:
+        return _entry_points()[name].value
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(_entry_points())
+
+    def __len__(self) -> int:
+        return len(_entry_points())
+
+    def __repr__(self) -> str:
+        return f"METHODS({dict(self)!r})"
+
+
+#: method name (formats.md) -> "module:Class" of its StreamMatcher, in registration order.
+METHODS: Mapping[str, str] = _Methods()
 
 
 def available_methods() -> list[str]:
-    """Names of the methods whose module can be imported here."""
+    """Names of the methods whose module, and the optional extras it needs, can be imported here."""
     out = []
     for name in METHODS:
         try:
@@ -50,8 +86,7 @@ def matcher_class(method: str) -> type[StreamMatcher]:
     """
     if method not in METHODS:
         raise ValueError(f"unknown method '{method}'; choose one of: {', '.join(METHODS)}.")
-    module_name, cls_name = METHODS[method].split(":")
-    return getattr(importlib.import_module(module_name), cls_name)
+    return _entry_points()[method].load()
 
 
 def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 128), **params) -> StreamMatcher:
@@ -59,7 +94,9 @@ def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 
 
     Examples
     --------
-    >>> m = create_matcher("frame", "separate", width_tolerance=0.25)  # doctest: +SKIP
+    >>> m = create_matcher("frame", "separate", width_tolerance=0.25)
+    >>> m.params.polarity, m.params.width_tolerance
+    ('separate', 0.25)
     """
     return matcher_class(method).from_variant(variant, resolution=resolution, **params)
 
@@ -67,12 +104,15 @@ def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 
 def parse_param_strings(params_cls: type, items: list[str]) -> dict:
     """Turn ``["key=value", ...]`` into typed overrides for the dataclass ``params_cls``.
 
+    Old names of renamed fields (``params_cls.aliases``) are accepted and come back under the new name.
+
     Raises
     ------
     ValueError
         Malformed item, unknown name (the allowed ones are listed) or a value of the wrong type.
     """
     fields = {f.name: f for f in dataclasses.fields(params_cls)}
+    aliases = getattr(params_cls, "aliases", {})
     hints = typing.get_type_hints(params_cls)
     out = {}
     for item in items:
@@ -80,6 +120,7 @@ def parse_param_strings(params_cls: type, items: list[str]) -> dict:
         key = key.strip()
         if not sep:
             raise ValueError(f"--param '{item}' is not key=value.")
+        key = aliases.get(key, key)
         if key not in fields:
             raise ValueError(f"unknown parameter '{key}'; allowed: {', '.join(sorted(fields))}.")
         out[key] = _parse_value(key, text.strip(), hints[key])

@@ -1,19 +1,45 @@
-"""Run a matcher over a whole recording: :func:`match`."""
+"""Run a matcher over a whole recording: :func:`match`, streaming it packet by packet."""
 
 from __future__ import annotations
 
 import os
 import time
+from collections.abc import Iterator
 
 import cvstereo
-from calibration_free.registry import create_matcher
+from cvstereo.events import StereoPacket
 from cvstereo.matches import MatchResult, concat_matches, sort_matches
 from cvstereo.recording import Recording
+from cvstereo.registry import create_matcher
 
 #: Packet length used to stream a recording through a matcher. The result does not depend on it; the speed
 #: does: one frame window per packet saves the frame matchers from joining partial windows, and the event
 #: matchers pay a fixed cost per call (on 2arms-50cm event-time ran 3x faster with 40 ms than with 10 ms).
 DEFAULT_PACKET_US = 40_000
+
+
+class _Counted(Iterator[StereoPacket]):
+    """Packets passed through, counting events and the first and last timestamp (for the meta)."""
+
+    def __init__(self, packets: Iterator[StereoPacket]):
+        self._packets = iter(packets)
+        self.events = 0
+        self.t_first: int | None = None
+        self.t_last: int | None = None
+
+    def __next__(self) -> StereoPacket:
+        packet = next(self._packets)
+        for ev in (packet.left, packet.right):
+            if ev.size:
+                first, last = int(ev["t"][0]), int(ev["t"][-1])
+                self.t_first = first if self.t_first is None else min(self.t_first, first)
+                self.t_last = last if self.t_last is None else max(self.t_last, last)
+        self.events += packet.left.size + packet.right.size
+        return packet
+
+    @property
+    def duration_s(self) -> float:
+        return 0.0 if self.t_first is None else (self.t_last - self.t_first) / 1e6
 
 
 def match(recording, right=None, *, method: str = "frame", variant: str | None = None,
@@ -24,11 +50,13 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
     Parameters
     ----------
     recording : Recording or path-like
-        A recording, or a file that :func:`cvstereo.io.read_recording` can read.
+        A recording in memory, or a file that :func:`cvstereo.io.open_recording` can open: its packets are
+        read from the file as they are matched, so memory stays bounded whatever the file's size.
     right : path-like, optional
         The right camera's file, for formats with one file per camera.
     method : str, keyword-only
-        ``frame``, ``frame-area``, ``event-time``, ``event-area``, ``event-vector``, ``stereobm``, ``sgbm``.
+        A registered method (:data:`cvstereo.registry.METHODS`): ``frame``, ``frame-area``, ``event-time``,
+        ``event-area``, ``event-vector``, ``stereobm``, ``sgbm``, ...
     variant : str, optional
         Variant name (formats.md); default: the method's first.
     packet_us : int
@@ -40,30 +68,40 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         and its times by ``-time_offset_us`` before matching, and right-anchored matches are mapped back;
         recorded in meta under ``rig_correction``. :func:`cvstereo.rigcheck.check_rig` estimates both.
     **params
-        Parameter overrides (field names of the method's parameter dataclass).
+        Parameter overrides (field names of the method's parameter dataclass, or their old names).
 
     Returns
     -------
     MatchResult
         Time-ordered matches and the meta of formats.md.
+
+    Examples
+    --------
+    >>> from cvstereo.events import make_events
+    >>> left = make_events([0, 0, 0], [40, 41, 42], [5, 5, 5], [1, 1, 1])
+    >>> result = match(Recording(left, left), method="frame-area", threshold=0.5)
+    >>> result.meta["method"], result.meta["input_events"]
+    ('frame-area', 6)
     """
-    source = None
-    if not isinstance(recording, Recording):
-        from cvstereo.io import read_recording
+    if isinstance(recording, Recording):
+        stream, source = recording, recording.meta.get("source", "memory")
+        total = recording.left.size + recording.right.size
+    else:
+        from cvstereo.io import open_recording
 
         source = [os.fspath(recording)] + ([os.fspath(right)] if right is not None else [])
-        recording = read_recording(recording, right)
-    matcher = create_matcher(method, variant, resolution=recording.resolution, **params)
-    parts = []
-    bar = _progress_bar(progress, recording, method)
+        stream, total = open_recording(recording, right), None
+    matcher = create_matcher(method, variant, resolution=stream.resolution, **params)
+    bar = _progress_bar(progress, total, method)
     start = time.perf_counter()
-    packets = recording.packets(packet_us)
+    packets = counted = _Counted(stream.packets(packet_us))
     correction = None
     if row_offset or time_offset_us:
         from cvstereo.rigcorrect import RigCorrection
 
-        correction = RigCorrection(row_offset, int(time_offset_us), recording.resolution)
+        correction = RigCorrection(row_offset, int(time_offset_us), stream.resolution)
         packets = correction.stream(packets)
+    parts = []
     for packet in packets:
         parts.append(matcher.feed(packet.left, packet.right, until=packet.until))
         if bar is not None:
@@ -75,11 +113,11 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
     meta = matcher.describe()
     meta.update(
         elapsed_s=elapsed,
-        input_events=int(recording.left.size + recording.right.size),
-        duration_s=recording.duration_s,
-        resolution=list(recording.resolution),
+        input_events=int(counted.events),
+        duration_s=counted.duration_s,
+        resolution=list(stream.resolution),
         version=cvstereo.__version__,
-        input=source if source is not None else recording.meta.get("source", "memory"),
+        input=source,
     )
     matches = concat_matches(parts)
     if correction is not None:
@@ -89,10 +127,9 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
     return MatchResult(sort_matches(matches), meta)
 
 
-def _progress_bar(enabled: bool, recording: Recording, method: str):
+def _progress_bar(enabled: bool, total: int | None, method: str):
     if not enabled:
         return None
     from tqdm.auto import tqdm
 
-    return tqdm(total=recording.left.size + recording.right.size, unit="ev", unit_scale=True, desc=method,
-                leave=False)
+    return tqdm(total=total, unit="ev", unit_scale=True, desc=method, leave=False)

@@ -1,0 +1,194 @@
+"""The parameters of the thesis' five matchers: one frozen dataclass per matcher, with the thesis' defaults.
+
+They live apart from the matchers so that the fast kernels (:mod:`calibration_free.frame_clusters`, ...)
+and their reference twins (:mod:`calibration_free.reference`) both import them without the one importing
+the other. Variants (ON/OFF handling, Gaussian or not) are values of their fields (formats.md).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+from cvstereo.dynamic_frames import DynamicFrameParams
+from cvstereo.polarity import Polarity, check_polarity
+from cvstereo.windows import WindowFrameParams
+
+
+@dataclass(frozen=True, kw_only=True)
+class FrameClusterParams(WindowFrameParams):
+    """Parameters of the frame-based cluster matcher (thesis defaults; algorithms.md section 1).
+
+    The window and Gaussian fields (window_us, gaussian, sigma, kernel_size) are those of
+    :class:`~cvstereo.frames.WindowFrameParams`.
+
+    Attributes
+    ----------
+    polarity : {"shared", "separate", "on", "off"}
+        ON and OFF events in one frame (sum of signs), in two frames matched each on its own, ON only, OFF only.
+    threshold : float
+        Pixels with ``|filtered value| >= threshold`` form clusters (eq. 3.7, on the magnitude).
+    width_tolerance : float
+        Paired clusters count only if ``|wL - wR| <= width_tolerance * max(wL, wR)``.
+    max_disparity : int
+        Pairs with disparity outside ``[0, max_disparity]`` are dropped, px.
+    anchor_camera : {0, 1}
+        The camera whose cluster pixels carry the results (0 = left, 1 = right).
+    """
+
+    polarity: Polarity = "shared"
+    threshold: float = 1.2
+    width_tolerance: float = 0.3
+    max_disparity: int = 64
+    anchor_camera: Literal[0, 1] = 0
+
+    def __post_init__(self):
+        super().__post_init__()
+        where = type(self).__name__
+        check_polarity(self.polarity, where)
+        if not self.threshold > 0:
+            raise ValueError(f"{where}: threshold must be > 0 (the thesis uses 1.2), got {self.threshold}.")
+        if not self.width_tolerance >= 0:
+            raise ValueError(f"{where}: width_tolerance must be >= 0 (the thesis uses 0.3), "
+                             f"got {self.width_tolerance}.")
+        if not self.max_disparity >= 0:
+            raise ValueError(f"{where}: max_disparity must be >= 0 (e.g. 64), got {self.max_disparity}.")
+        if self.anchor_camera not in (0, 1):
+            raise ValueError(f"{where}: anchor_camera must be 0 (left) or 1 (right), got {self.anchor_camera}.")
+
+
+@dataclass(frozen=True, kw_only=True)
+class FrameAreaParams(WindowFrameParams):
+    """Parameters of the frame-area SAD matcher (thesis defaults; algorithms.md section 3).
+
+    The window and Gaussian fields (window_us, gaussian, sigma, kernel_size) are those of
+    :class:`~cvstereo.frames.WindowFrameParams`.
+
+    Attributes
+    ----------
+    threshold : float
+        Reference pixels with ``|value| >= threshold`` are searched (2, or 4 without the Gaussian).
+    block : int
+        Odd side of the SAD block, and of the neighbourhood the winner is written into.
+    max_disparity : int
+        Largest disparity searched, px (the search also stops where the block would leave the sensor).
+    reference_camera : {0, 1}
+        The scanned camera, whose pixels carry the results (1 = right, the thesis' eDVS1; 0 = left).
+    """
+
+    threshold: float = 2.0
+    block: int = 5
+    max_disparity: int = 64
+    reference_camera: Literal[0, 1] = 1
+
+    def __post_init__(self):
+        super().__post_init__()
+        where = type(self).__name__
+        if not self.threshold > 0:
+            raise ValueError(f"{where}: threshold must be > 0 (the thesis uses 2, or 4 without the Gaussian), "
+                             f"got {self.threshold}.")
+        if self.block < 1 or self.block % 2 == 0:
+            raise ValueError(f"{where}: block must be a positive odd number (the thesis uses 5), got {self.block}.")
+        if int(self.max_disparity) != self.max_disparity or self.max_disparity < 0:
+            raise ValueError(f"{where}: max_disparity must be a whole number >= 0 (e.g. 64), "
+                             f"got {self.max_disparity}.")
+        if self.reference_camera not in (0, 1):
+            raise ValueError(f"{where}: reference_camera must be 0 (left) or 1 (right), "
+                             f"got {self.reference_camera}.")
+
+
+@dataclass(frozen=True, kw_only=True)
+class EventTimeParams(DynamicFrameParams):
+    """Parameters of the event-time matcher (thesis defaults), besides those of the dynamic frames.
+
+    Attributes
+    ----------
+    threshold : float
+        Minimum ``|D|`` at the event's pixel, in both frames.
+    value_tolerance : float
+        Maximum ``|D1 - D2|``.
+    time_window_us : int
+        Maximum ``|t2 - t|``.
+    row_tolerance : int
+        Maximum ``|y2 - y|`` (corresponding events may lie one row apart).
+    reference_camera : {0, 1}
+        The camera whose events are matched (0 left, 1 right = the thesis' eDVS1).
+    restrict_side : bool
+        Keep only candidates on the geometrically possible side.
+    max_disparity : int
+        Maximum ``|x2 - x|``.
+    """
+
+    threshold: float = 0.8
+    value_tolerance: float = 0.3
+    time_window_us: int = 300
+    row_tolerance: int = 1
+    reference_camera: Literal[0, 1] = 1
+    restrict_side: bool = True
+    max_disparity: int = 64
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.reference_camera not in (0, 1):
+            raise ValueError(f"reference_camera must be 0 (left) or 1 (right), got {self.reference_camera}.")
+        for name in ("threshold", "value_tolerance", "time_window_us", "row_tolerance", "max_disparity"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}.")
+
+
+@dataclass(frozen=True, kw_only=True)
+class EventAreaParams(DynamicFrameParams):
+    """Parameters of the event-area matcher (thesis defaults), besides those of the dynamic frames.
+
+    Attributes
+    ----------
+    threshold : float
+        Minimum ``|D|`` at the event's pixel (1.2; 4 for single-pixel updates).
+    block : int
+        Odd side of the compared patches (thesis: 5).
+    max_disparity : int
+        Largest disparity searched.
+    max_sad : float
+        A match needs a SAD below this (Algorithm 3's initial minimum).
+    """
+
+    threshold: float = 1.2
+    block: int = 5
+    max_disparity: int = 64
+    max_sad: float = 1000.0
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.block < 1 or self.block % 2 == 0:
+            raise ValueError(f"block must be odd and positive, got {self.block}.")
+        for name in ("threshold", "max_disparity"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}.")
+
+
+@dataclass(frozen=True, kw_only=True)
+class EventVectorParams(DynamicFrameParams):
+    """Parameters of the event-vector matcher (thesis defaults), besides those of the dynamic frames.
+
+    Attributes
+    ----------
+    threshold : float
+        Minimum ``|D|`` at the event's pixel, and what makes a pixel part of an accumulation.
+    require_candidate_threshold : bool
+        Candidates must pass the threshold with the sign of D at the event; False: every x2 (Algorithm 4).
+    max_disparity : int
+        Largest disparity searched.
+    max_cost : int
+        A match needs a cost below this (Algorithm 4's initial minimum).
+    """
+
+    threshold: float = 0.8
+    require_candidate_threshold: bool = True
+    max_disparity: int = 64
+    max_cost: int = 1000
+
+    def __post_init__(self):
+        super().__post_init__()
+        for name in ("threshold", "max_disparity"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}.")

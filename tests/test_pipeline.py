@@ -1,0 +1,81 @@
+"""``match()`` from a path streams the reader's packets: same matches and meta as from the loaded recording."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from _event_scenes import moving_edges
+
+import cvstereo.io
+import cvstereo.io.npz
+import cvstereo.io.stream
+from cvstereo.errors import NoMatchersError
+from cvstereo.io import read_recording, write_recording
+from cvstereo.pipeline import match
+from cvstereo.recording import Recording
+
+
+def _recording(seed: int = 0) -> Recording:
+    """Moving edges seen 6 px apart, starting at 1 ms (so that the duration is not the last time stamp)."""
+    left, right = moving_edges(shift=6, duration_us=60_000, rows=(20, 40), seed=seed)
+    left["t"] += 1_000
+    right["t"] += 1_000
+    return Recording(left, right, meta={"source": "test"})
+
+
+@pytest.fixture(params=["recording.npz", "recording.txt", "recording.aedat"])
+def recording_file(request, tmp_path):
+    rec = _recording()
+    path = tmp_path / request.param
+    write_recording(path, rec)
+    return path
+
+
+def _no_whole_reads(monkeypatch):
+    def refuse(*args, **kwargs):
+        raise AssertionError("match(path) read the whole file")
+
+    monkeypatch.setattr(cvstereo.io.stream.RecordingStream, "read", refuse)
+    monkeypatch.setattr(cvstereo.io.npz, "read_recording_npz", refuse)
+    monkeypatch.setattr(cvstereo.io, "read_recording_npz", refuse)
+    monkeypatch.setattr(cvstereo.io, "read_recording", refuse)
+
+
+@pytest.mark.parametrize(("method", "variant"), [("frame", "separate"), ("event-time", "shared"),
+                                                 ("frame-area", "gaussian")])
+def test_match_from_a_path_streams_and_equals_the_loaded_recording(recording_file, monkeypatch, method, variant):
+    loaded = read_recording(recording_file)
+    expected = match(loaded, method=method, variant=variant, packet_us=7_000)
+    _no_whole_reads(monkeypatch)
+    got = match(recording_file, method=method, variant=variant, packet_us=7_000)
+    assert expected.matches.size > 0
+    np.testing.assert_array_equal(got.matches, expected.matches)
+    assert got.meta["input_events"] == loaded.left.size + loaded.right.size == expected.meta["input_events"]
+    assert got.meta["duration_s"] == pytest.approx(loaded.duration_s) and loaded.duration_s > 0.05
+    assert got.meta["resolution"] == list(loaded.resolution)
+    assert got.meta["input"] == [str(recording_file)]
+
+
+def test_match_from_a_path_with_a_rig_correction(tmp_path, monkeypatch):
+    path = tmp_path / "r.npz"
+    write_recording(path, _recording(1))
+    expected = match(read_recording(path), method="frame", row_offset=1, time_offset_us=300)
+    _no_whole_reads(monkeypatch)
+    got = match(path, method="frame", row_offset=1, time_offset_us=300)
+    np.testing.assert_array_equal(got.matches, expected.matches)
+    assert got.meta["rig_correction"] == expected.meta["rig_correction"]
+
+
+def test_no_registered_matcher_says_how_to_install(monkeypatch):
+    import cvstereo.registry as registry
+
+    monkeypatch.setattr(registry.importlib.metadata, "entry_points", lambda **kw: [])
+    registry._entry_points.cache_clear()
+    try:
+        with pytest.raises(NoMatchersError, match=r"pip install -e \."):
+            registry.matcher_class("frame")
+        assert isinstance(NoMatchersError("x"), RuntimeError)
+    finally:
+        monkeypatch.undo()
+        registry._entry_points.cache_clear()
+    assert registry.matcher_class("frame").method == "frame"
