@@ -98,10 +98,9 @@ def test_local_cluster_equals_serial_and_isolates_failures(clips, tmp_path):
     ok = [r for r in serial.rows if r["error"] is None]
     assert len(ok) == 10 and all(r["matches"] > 0 for r in ok)
     # Each row is what match + evaluate give for that cell on its own.
-    from cvstereo.pipeline import match
-
     from cvstereo.evaluate import evaluate
     from cvstereo.io import read_recording
+    from cvstereo.pipeline import match
 
     r = ok[1]
     res = match(r["recording"], method=r["method"], variant=r["variant"], **json.loads(r["params"]))
@@ -143,3 +142,53 @@ def test_killed_sweep_resumes_without_recomputing(clips, tmp_path):
     assert {p.name: p.stat().st_mtime_ns for p in (out / "cells").glob("*.json") if p.name in before} == before
     full = run_sweep(_cells(paths), tmp_path / "fresh", workers=0)
     assert _without_timing(result.rows) == _without_timing(full.rows)
+
+
+def test_cli_help_shows_a_grid_file_example(capsys):
+    from cvstereo.cli import main
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(["sweep", "--help"])
+    assert exit_info.value.code == 0
+    out = capsys.readouterr().out
+    assert "[[grid]]" in out and "--scheduler" in out and "params = { threshold" in out
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+def test_cli_sweep_writes_table_and_summary(clips, tmp_path, capsys):
+    import pyarrow.parquet as pq
+
+    from cvstereo.cli import main
+
+    paths, bad = clips
+    grid = tmp_path / "grid.toml"
+    grid.write_text('figure = "coverage"\n[[grid]]\nmethods = ["event-time"]\nparams = { threshold = [0.6, 0.8] }\n')
+    out = tmp_path / "out"
+    assert main(["sweep", paths[0], bad, "--grid", os.fspath(grid), "--workers", "0", "-o", os.fspath(out)]) == 0
+    text = capsys.readouterr().out
+    assert "4 cells: 4 run now, 0 from an earlier run, 2 failed" in text
+    assert "best parameters by median coverage" in (out / "summary.md").read_text()
+    rows = pq.read_table(out / "results.parquet").to_pylist()
+    assert [r["param.threshold"] for r in rows] == [0.6, 0.8, 0.6, 0.8]
+    assert [r["error"] is None for r in rows] == [True, True, False, False]
+    # Run again: nothing recomputed.
+    assert main(["sweep", paths[0], bad, "--grid", os.fspath(grid), "--workers", "0", "-o", os.fspath(out)]) == 0
+    assert "0 run now, 4 from an earlier run" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["a.npz", "-o", "x"], "nothing to sweep"),
+    (["--method", "frame", "-o", "x"], "no recordings"),
+    (["missing.npz", "--method", "frame", "-o", "x"], "does not exist"),
+    (["a.npz", "--param", "threshold=1", "-o", "x"], "need --method"),
+    (["a.npz", "--method", "frame", "--param", "threshold", "-o", "x"], "is not KEY=V1,V2"),
+    (["a.npz", "--method", "frame", "--param", "bogus=1", "-o", "x"], "none of the methods"),
+    (["a.npz", "--method", "frame", "--workers", "-1", "-o", "x"], "--workers -1"),
+])
+def test_cli_sweep_errors(argv, message, capsys):
+    from cvstereo.cli import main
+
+    assert main(["sweep", *argv]) == 1
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
