@@ -11,7 +11,7 @@ $(BIN)/python:
 
 # Stamp files: reinstall only when pyproject.toml changes.
 $(VENV)/.demo-installed: pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install --quiet -e ".[viz]"
+	$(BIN)/python -m pip install --quiet -e ".[viz,sweep]"
 	touch $@
 
 $(VENV)/.test-installed: pyproject.toml | $(BIN)/python

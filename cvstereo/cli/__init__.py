@@ -34,6 +34,7 @@ COMMANDS: dict[str, str] = {
     "live": "live",
     "rigcheck": "rigcheck",
     "simulate": "simulate",
+    "sweep": "sweep",
 }
 
 
