@@ -121,8 +121,8 @@ class StereoBMParams(_OpenCVParams):
 
     def __post_init__(self):
         super().__post_init__()
-        if self.block_size < 5:
-            raise ValueError(f"StereoBMParams: block_size must be an odd number >= 5 for StereoBM, "
+        if not 5 <= self.block_size <= 255:
+            raise ValueError(f"StereoBMParams: block_size must be an odd number in 5..255 for StereoBM, "
                              f"got {self.block_size}.")
         if not 1 <= self.prefilter_cap <= 63:
             raise ValueError(f"StereoBMParams: prefilter_cap must be in 1..63, got {self.prefilter_cap}.")
@@ -163,6 +163,11 @@ class _OpenCVMatcher(FrameMatcher):
 
     def __init__(self, params=None, *, resolution=(128, 128)):
         super().__init__(params, resolution=resolution)
+        # OpenCV refuses (with a C++ traceback) a block that does not fit in the image.
+        if self.params.block_size >= min(self.resolution):
+            raise ValueError(f"{type(self.params).__name__}: block_size {self.params.block_size} does not fit a "
+                             f"{self.resolution[0]}x{self.resolution[1]} sensor; give an odd number below "
+                             f"{min(self.resolution)} (e.g. 9).")
         self._stereo = self._create()
 
     def anchor_cameras(self) -> tuple[int, ...]:

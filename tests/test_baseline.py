@@ -75,10 +75,19 @@ def test_image_mapping():
 @pytest.mark.parametrize(("cls", "kwargs", "message"), [
     (StereoBMParams, {"num_disparities": 40}, "multiple of 16"),
     (StereoBMParams, {"block_size": 8}, "odd"),
-    (StereoBMParams, {"block_size": 3}, ">= 5"),
+    (StereoBMParams, {"block_size": 3}, r"in 5\.\.255"),
+    (StereoBMParams, {"block_size": 999}, r"in 5\.\.255"),
     (StereoSGBMParams, {"p1": 100, "p2": 50}, "p2 must exceed p1"),
     (StereoSGBMParams, {"image": "gray"}, "filtered"),
 ])
 def test_invalid_parameters(cls, kwargs, message):
     with pytest.raises(ValueError, match=message):
         cls(**kwargs)
+
+
+@pytest.mark.parametrize(("method", "block_size", "resolution"), [("stereobm", 129, (128, 128)),
+                                                                   ("sgbm", 129, (128, 128)), ("sgbm", 61, (64, 60))])
+def test_block_larger_than_the_sensor_is_refused_before_opencv(method, block_size, resolution):
+    """OpenCV would stop with a C++ error on the first window; the matcher says what fits instead."""
+    with pytest.raises(ValueError, match=f"block_size {block_size} does not fit"):
+        create_matcher(method, block_size=block_size, resolution=resolution)
