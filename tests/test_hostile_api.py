@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from calibration_free.registry import available_methods, create_matcher, matcher_class, parse_param_strings
+from cvstereo.registry import available_methods, create_matcher, matcher_class, parse_param_strings
 
 from cvstereo.cli import main
 from cvstereo.errors import EventFormatError
@@ -52,7 +52,7 @@ def _first_outside(events: np.ndarray, resolution) -> tuple[int, str]:
 _FEED = textwrap.dedent("""
     import sys
     import numpy as np
-    from calibration_free.registry import create_matcher
+    from cvstereo.registry import create_matcher
     left, right = np.load(sys.argv[1]), np.load(sys.argv[2])
     m = create_matcher(sys.argv[3], resolution=(int(sys.argv[4]), int(sys.argv[5])))
     try:
@@ -180,7 +180,7 @@ def test_non_finite_refused_when_params_are_built_directly(field):
 
 @pytest.mark.parametrize("method,field", [
     ("frame", "window_us"), ("frame-area", "window_us"), ("stereobm", "window_us"),
-    ("event-time", "decay_period_us"), ("event-time", "time_window_us"), ("event-vector", "max_cost"),
+    ("event-time", "decay_period_us"), ("event-time", "time_window_us"), ("event-vector", "max_disparity"),
 ])
 @pytest.mark.parametrize("value", [99999999999999999999, 2**63, 2**40])
 def test_huge_int_parameter_refused(method, field, value):
