@@ -69,9 +69,10 @@ DEFAULT_MAX_GAP_US = 16_384
 #: Slack of the arrival-time bound on device time, us (host scheduling jitter, command transit).
 ARRIVAL_SLACK_US = 2_000
 
-#: Events after an arrival gap that must have come before the gap's wraps are decided (a sender that
-#: stalled sends a burst whose last events are timely again and veto a wrap).
-GAP_WITNESSES = 8
+#: Most events held after an arrival gap while waiting for a fresh (timely) later event, which decides the
+#: gap's wraps: a sender that stalled sends a catch-up burst of late events, and only the first event that
+#: comes to a waiting reader again is timely enough to veto a wrap the late ones seem to show.
+MAX_GAP_WITNESSES = 4096
 
 #: How fast the clock-offset estimate may rise without a faster event confirming it (clock drift), per us.
 OFFSET_LEAK = 1e-4
@@ -386,8 +387,8 @@ class StreamDecoder:
         return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
     def _undeferred(self, k: int, sc: _Scan, settle: int) -> int:
-        """How many of the first ``k`` events to emit now: not those from an arrival gap on that fewer than
-        ``GAP_WITNESSES`` events follow yet (its hidden wraps are decided with them), unless settling."""
+        """How many of the first ``k`` events to emit now: not those from an arrival gap on while no fresh
+        event has followed it yet (see ``MAX_GAP_WITNESSES``), unless settling."""
         if settle or k == 0 or not self.fmt.ts_bytes:
             return k
         got = self._arrivals(sc.starts)
@@ -398,8 +399,11 @@ class StreamDecoder:
         prev[0] = arr[0] if self._last_arrival is None else self._last_arrival
         prev[1:] = arr[:-1]
         gaps = np.flatnonzero((arr - prev >= self.fmt.wrap / 2) & fresh)
-        if gaps.size and len(sc) - gaps[-1] < GAP_WITNESSES:
-            return min(k, int(gaps[-1]))
+        if gaps.size:
+            g = int(gaps[-1])
+            # The witness must be emitted with the gap (the last events of a call may be held back).
+            if g < k and not fresh[g + 1:k].any() and k - g < MAX_GAP_WITNESSES:
+                return min(k, g)
         return k
 
     def _drop(self, pos: int) -> None:
