@@ -90,7 +90,7 @@ def test_record_output_over_its_simulate_input_is_refused(via, rec_path, tmp_pat
     before = rec_path.read_bytes()
     assert main(["record", "--simulate", str(rec_path), "-o", str(out), "--seconds", "1"]) == 1
     err = capsys.readouterr().err
-    assert "is the same file as --simulate" in err and len(err.strip().splitlines()) == 1
+    assert "is the --simulate file" in err and len(err.strip().splitlines()) == 1
     assert rec_path.read_bytes() == before
 
 
@@ -119,7 +119,7 @@ def test_existing_crash_journal_is_refused_not_wiped(rec_path, tmp_path, capsys)
 def test_output_equal_to_journal_is_refused(rec_path, tmp_path, capsys):
     out = tmp_path / "o.npz"
     assert main(["record", "--simulate", str(rec_path), "-o", str(out), "--journal", str(out)]) == 1
-    assert "is the same file as --journal" in capsys.readouterr().err
+    assert "is the --journal file" in capsys.readouterr().err
     assert not out.exists()
 
 
@@ -128,7 +128,7 @@ def test_from_journal_onto_itself_is_refused(tmp_path, capsys):
     data = journal_bytes(b"{}", record(0, stream(10)))
     journal.write_bytes(data)
     assert main(["record", "--from-journal", str(journal), "-o", str(journal)]) == 1
-    assert "is the same file as --from-journal" in capsys.readouterr().err
+    assert "is the --from-journal file" in capsys.readouterr().err
     assert journal.read_bytes() == data
 
 

@@ -28,20 +28,12 @@ def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
     return p
 
 
-def _same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
-    """Whether two paths name the same file (through symlinks and hard links too)."""
-    try:
-        return os.path.samefile(a, b)
-    except OSError:
-        return os.path.realpath(a) == os.path.realpath(b)
-
-
 def _refuse_output_over_inputs(output: str, inputs: dict[str, str | None]) -> None:
-    # Local check until cvstereo.io._paths.refuse_output_over_input is available to every command.
+    """``-o`` must not be the file of any of these options (through symlinks and hard links too)."""
+    from cvstereo.io._paths import refuse_output_over_input
+
     for option, path in inputs.items():
-        if path is not None and _same_file(output, path):
-            raise ValueError(f"-o {output} is the same file as {option} {path}: it would be overwritten; write "
-                             "the recording to another path.")
+        refuse_output_over_input(output, [path], what=f"{option} file")
 
 
 def _write(journal_path: Path, out: str, extra_meta: dict | None = None) -> None:
