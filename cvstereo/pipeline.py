@@ -44,7 +44,8 @@ class _Counted(Iterator[StereoPacket]):
 
 def match(recording, right=None, *, method: str = "frame", variant: str | None = None,
           packet_us: int = DEFAULT_PACKET_US, progress: bool = False, row_offset: float = 0,
-          time_offset_us: int = 0, rectification=None, **params) -> MatchResult:
+          time_offset_us: int = 0, rectification=None, columns: str | None = None, time_unit: str = "us",
+          resolution: tuple[int, int] | None = None, **params) -> MatchResult:
     """Run one matcher over a recording, streaming it packet by packet.
 
     Parameters
@@ -67,6 +68,9 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         The rig's offsets (:mod:`cvstereo.rigcorrect`): the right camera's rows are shifted by ``row_offset``
         and its times by ``-time_offset_us`` before matching, and right-anchored matches are mapped back;
         recorded in meta under ``rig_correction``. :func:`cvstereo.rigcheck.check_rig` estimates both.
+    columns, time_unit, resolution : keyword-only
+        For events given as arrays: the column order of ``(N, 4)`` arrays, the unit of their times and the
+        sensor size (default 128x128); see :func:`cvstereo.arrays.events_from`.
     rectification : cvstereo.rectify.Rectification, optional, keyword-only
         Rectify the events with a calibration before matching (:mod:`cvstereo.rectify`); matches are mapped
         back to the recording's pixels, disparities are the rectified pair's; recorded in meta under
@@ -87,6 +91,7 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
     >>> result.meta["method"], result.meta["input_events"]
     ('frame-area', 6)
     """
+    recording = _as_source(recording, right, method, columns=columns, time_unit=time_unit, resolution=resolution)
     if isinstance(recording, Recording):
         stream, source = recording, recording.meta.get("source", "memory")
         total = recording.left.size + recording.right.size
@@ -143,6 +148,40 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
     if rectified is not None:
         meta["rectification"] = {**rectification.describe(), "dropped_events": sum(rectified.dropped)}
     return MatchResult(sort_matches(matches), meta)
+
+
+def _as_source(recording, right, method: str, *, columns, time_unit, resolution):
+    """A Recording or a path for :func:`match`, after catching the easy mistakes with the arguments."""
+    from cvstereo.arrays import events_from, is_event_data
+
+    if isinstance(right, str) and right in _method_names() and not os.path.exists(right):
+        raise TypeError(f"match(recording, {right!r}): the method is keyword-only; write "
+                        f"match(recording, method={right!r}) (the second argument is the right camera).")
+    if isinstance(recording, Recording):
+        if right is not None:
+            raise TypeError("match(recording, right): a Recording holds both cameras already; give right only "
+                            "with the left camera's file or events.")
+        return recording
+    if is_event_data(recording):
+        if right is None or not is_event_data(right):
+            raise TypeError("match(left_events, right_events, method=...): give the right camera's events too.")
+        res = resolution or (128, 128)
+        return Recording(events_from(recording, columns=columns, time_unit=time_unit, resolution=res,
+                                     source="left events"),
+                         events_from(right, columns=columns, time_unit=time_unit, resolution=res,
+                                     source="right events"), resolution=res, meta={"source": "arrays"})
+    if is_event_data(right):
+        raise TypeError("match(path, right_events): give both cameras as files, or both as event arrays.")
+    if columns is not None or resolution is not None or time_unit != "us":
+        raise TypeError("columns=, time_unit= and resolution= are for events given as arrays; a file says its "
+                        "own (or use the --format options of open_recording).")
+    return recording
+
+
+def _method_names() -> set[str]:
+    from cvstereo.registry import METHODS
+
+    return set(METHODS)
 
 
 def _progress_bar(enabled: bool, total: int | None, method: str):
