@@ -59,18 +59,23 @@ class Cell:
         Variant name; None: the method's default.
     params : tuple of (name, value)
         Parameter overrides, sorted by name.
+    param_set : str or None
+        The parameter set (``thesis``, ``adaptive``) the overrides apply to; None: the default set.
     """
 
     recording: str
     method: str
     variant: str | None
     params: tuple[tuple[str, object], ...] = ()
+    param_set: str | None = None
 
     @property
     def label(self) -> str:
         """``method/variant [k=v,...] on FILE``, as progress and errors show it."""
         extra = ",".join(f"{k}={v}" for k, v in self.params)
         config = f"{self.method}/{self.variant or 'default'}" + (f" [{extra}]" if extra else "")
+        if self.param_set:
+            config += f" ({self.param_set} set)"
         return f"{config} on {Path(self.recording).name}"
 
 
@@ -86,11 +91,15 @@ class Grid:
     params : tuple of (name, values)
         Each parameter with the values to try. A parameter applies to the methods whose parameter class
         has it; a name that no chosen method knows is an error.
+    param_sets : tuple of str or None
+        Parameter sets to run each configuration under (``thesis``, ``adaptive``); ``(None,)``: the default.
+        Applied to the methods that have sets (the thesis' five), others run once.
     """
 
     methods: tuple[str, ...]
     variants: tuple[str, ...] = ()
     params: tuple[tuple[str, tuple], ...] = ()
+    param_sets: tuple[str | None, ...] = (None,)
 
     def cells(self, recordings: Sequence[str]) -> list[Cell]:
         """Every cell, in a fixed order: recording, then method, variant and parameter values.
@@ -122,12 +131,25 @@ class Grid:
             names = [k for k, _ in mine]
             for variant in variants:
                 for values in itertools.product(*(vals for _, vals in mine)):
-                    configs.append((method, variant, tuple(sorted(zip(names, values, strict=True)))))
+                    for param_set in (self.param_sets if _has_param_sets(method) else (None,)):
+                        configs.append((method, variant, tuple(sorted(zip(names, values, strict=True))),
+                                        param_set))
         unknown = [k for k, _ in self.params if k not in used]
         if unknown:
             raise ValueError(f"parameter(s) {', '.join(unknown)} belong to none of the methods "
                              f"{', '.join(self.methods)}; see `cvstereo match --list-methods`.")
-        return [Cell(os.fspath(r), m, v, p) for r in recordings for m, v, p in configs]
+        return [Cell(os.fspath(r), m, v, p, ps) for r in recordings for m, v, p, ps in configs]
+
+
+def _has_param_sets(method: str) -> bool:
+    """Whether a method has the thesis/adaptive parameter sets (the thesis' five do, the peers do not)."""
+    try:
+        from cvstereo.param_sets import PARAM_SETS
+    except ImportError:
+        return False
+    from cvstereo.registry import matcher_class
+
+    return "threshold_mode" in matcher_class(method).Params.__dataclass_fields__ and bool(PARAM_SETS)
 
 
 def read_grid_file(path: str | os.PathLike) -> tuple[list[Grid], list[str], dict]:
@@ -166,7 +188,8 @@ def read_grid_file(path: str | os.PathLike) -> tuple[list[Grid], list[str], dict
             raise ValueError(f"{path}: [[grid]] number {i + 1} has no `methods`.")
         params = block.get("params", {})
         grids.append(Grid(tuple(methods), tuple(block.get("variants", ())),
-                          tuple((k, tuple(v if isinstance(v, list) else [v])) for k, v in params.items())))
+                          tuple((k, tuple(v if isinstance(v, list) else [v])) for k, v in params.items()),
+                          tuple(block.get("param_sets", (None,)))))
     recordings = data.pop("recordings", [])
     return grids, list(recordings), data
 
@@ -248,6 +271,7 @@ def source_digest() -> str:
 def cell_key(cell: Cell, recording_digest: str, code_digest: str) -> str:
     """The cell's identity: recording content, method, variant, parameters and source code (hex, 24)."""
     text = json.dumps({"recording": recording_digest, "method": cell.method, "variant": cell.variant,
+                       **({"param_set": cell.param_set} if cell.param_set else {}),
                        "params": [[k, v] for k, v in cell.params], "code": code_digest}, sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()[:24]
 
@@ -268,7 +292,8 @@ def run_cell(cell: Cell) -> dict:
         from cvstereo.io import read_recording
         from cvstereo.pipeline import match
 
-        result = match(cell.recording, method=cell.method, variant=cell.variant, **dict(cell.params))
+        extra = {"param_set": cell.param_set} if cell.param_set else {}
+        result = match(cell.recording, method=cell.method, variant=cell.variant, **extra, **dict(cell.params))
         figures = evaluate(read_recording(cell.recording), result)
         for name in (*FIGURE_COLUMNS, "events_per_s", "realtime_x"):
             row[name] = _plain(figures.get(name))
@@ -417,6 +442,7 @@ def _read_cell(out: Path, key: str) -> dict:
 
 def _table_row(cell: Cell, key: str, row: dict) -> dict:
     out = {"key": key, "recording": cell.recording, "method": cell.method, "variant": cell.variant or "default",
+           "param_set": cell.param_set or "default",
            "params": json.dumps(dict(cell.params), sort_keys=True)}
     out.update({f"param.{k}": v for k, v in cell.params})
     out.update({name: row.get(name) for name in (*FIGURE_COLUMNS, *TIMING_COLUMNS, "error")})
@@ -460,14 +486,15 @@ def summary_markdown(rows: Sequence[dict], *, figure: str = "bad2") -> str:
     if figure not in FIGURE_COLUMNS:
         raise ValueError(f"figure '{figure}' is not one of {', '.join(FIGURE_COLUMNS)}.")
     sign = 1.0 if figure in LOWER_IS_BETTER else -1.0
-    groups: dict[tuple[str, str], dict[str, list[dict]]] = {}
+    groups: dict[tuple[str, str, str], dict[str, list[dict]]] = {}
     for r in rows:
-        groups.setdefault((r["method"], r["variant"]), {}).setdefault(r["params"], []).append(r)
+        key = (r["method"], r["variant"], r.get("param_set", "default"))
+        groups.setdefault(key, {}).setdefault(r["params"], []).append(r)
     lines = [f"# Sweep summary: best parameters by median {figure} "
              f"({'lower' if sign > 0 else 'higher'} is better)", "",
-             f"| method | variant | parameters | median {figure} | median coverage | recordings | failed |",
-             "|---|---|---|---:|---:|---:|---:|"]
-    for (method, variant), by_params in groups.items():
+             f"| method | variant | set | parameters | median {figure} | median coverage | recordings | failed |",
+             "|---|---|---|---|---:|---:|---:|---:|"]
+    for (method, variant, param_set), by_params in groups.items():
         scored = []
         for params, cell_rows in by_params.items():
             values = [r[figure] for r in cell_rows if r["error"] is None and r[figure] is not None]
@@ -478,7 +505,8 @@ def summary_markdown(rows: Sequence[dict], *, figure: str = "bad2") -> str:
             rank = (not complete, math.inf if med is None else sign * med)
             scored.append((rank, params, med, _median(cover), len(cell_rows), failed))
         rank, params, med, cover, n, failed = min(scored, key=lambda s: s[0])
-        lines.append(f"| {method} | {variant} | {_params_text(params)} | {_fmt(med)} | {_fmt(cover)} | {n} | "
+        lines.append(f"| {method} | {variant} | {param_set} | {_params_text(params)} | {_fmt(med)} | {_fmt(cover)} | "
+                     f"{n} | "
                      f"{failed} |")
     return "\n".join(lines) + "\n"
 

@@ -23,6 +23,7 @@ grid file example (TOML):
   [[grid]]
   methods = ["frame"]
   variants = ["all"]
+  param_sets = ["thesis", "adaptive"]
 
 examples:
   cvstereo sweep preset:1arm-100cm:2 --method event-area --param threshold=1.5,2.5 -o sweep-out
@@ -48,6 +49,9 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
                    help="variant (repeatable; 'all' for every variant; default: each method's default)")
     p.add_argument("--param", "-p", action="append", default=[], metavar="KEY=V1,V2,...",
                    help="parameter values to try (repeatable)")
+    p.add_argument("--param-set", default=None, metavar="SET[,SET]",
+                   help="parameter set(s) of the thesis' matchers to run: thesis, adaptive or both "
+                   "(thesis,adaptive); default: the default set")
     p.add_argument("--figure", default=None, help="figure the summary ranks by (default: bad2)")
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="local worker processes (default: one per core; 0: run here without Dask)")
@@ -92,7 +96,8 @@ def run(args: argparse.Namespace) -> int:
         grids, file_specs, options = read_grid_file(args.grid)
         specs = specs or file_specs
     if args.method:
-        grids.append(Grid(tuple(args.method), tuple(args.variant), _param_values(args.method, args.param)))
+        sets = tuple(args.param_set.split(",")) if args.param_set else (None,)
+        grids.append(Grid(tuple(args.method), tuple(args.variant), _param_values(args.method, args.param), sets))
     elif args.param or args.variant:
         raise ValueError("--param and --variant need --method (or put them in a --grid file).")
     if not grids:
