@@ -229,12 +229,9 @@ def resolve_recordings(specs: Iterable[str], *, progress: bool = False) -> list[
 
 
 def _suite_paths(name: str, *, progress: bool) -> list[str]:
-    from cvstereo import simulate
+    from cvstereo.simulate import suite_recordings
 
-    paths_of = getattr(simulate, "cached_suite", None)
-    if paths_of is None:
-        raise ValueError(f"suite '{name}': this version of the simulator has no suites.")
-    return [os.fspath(p) for p in paths_of(name, progress=progress)]
+    return [os.fspath(path) for _, path in suite_recordings(name, progress=progress)]
 
 
 def file_digest(path: str | os.PathLike) -> str:

@@ -200,3 +200,13 @@ def test_grid_runs_the_thesis_matchers_under_each_parameter_set():
     assert [(c.method, c.param_set) for c in cells] == [("event-time", "thesis"), ("event-time", "adaptive"),
                                                         ("sgbm", None)]
     assert "(thesis set)" in cells[0].label
+
+
+def test_suite_spec_resolves_to_the_suite_recordings(monkeypatch, tmp_path):
+    """``suite:NAME`` names every recording of a simulated suite, in its order (generation mocked out)."""
+    import cvstereo.simulate as simulate
+    from cvstereo.sweep import resolve_recordings
+
+    paths = [tmp_path / "a.npz", tmp_path / "b.npz"]
+    monkeypatch.setattr(simulate, "suite_recordings", lambda name, progress=False: [("a", paths[0]), ("b", paths[1])])
+    assert resolve_recordings(["suite:robustness"]) == [os.fspath(p) for p in paths]
