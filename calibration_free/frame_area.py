@@ -10,6 +10,12 @@ disparity map, overwriting, so that those pixels are not searched again.
 The SAD of every pixel and disparity comes from OpenCV kernels at once (a cost volume from ``cv2.absdiff``
 and an unnormalised ``cv2.boxFilter`` per disparity); only the scan, whose result depends on its order,
 remains a loop, and it visits only the above-threshold pixels.
+
+Relative thresholds (``threshold_mode="relative"``, :mod:`cvstereo.signal_level`): the search threshold (2 on
+the filtered frame, 4 unfiltered) becomes ``threshold_scale`` times the reference camera's signal level (the 0.9
+quantile of |frame value| at its pixels with events over the last second), since a frame's values grow with
+the events per pixel. The SAD needs no threshold of its own: candidates are compared with each other (least
+SAD wins); block size and disparity range are geometry.
 """
 
 from __future__ import annotations
@@ -21,6 +27,7 @@ import cv2
 import numba
 import numpy as np
 
+from calibration_free.frame_clusters import filtered_unit
 from cvstereo.frames import (
     FrameMatcher,
     Window,
@@ -31,14 +38,16 @@ from cvstereo.frames import (
     polarity_frames,
 )
 from cvstereo.matches import empty_matches, make_matches
+from cvstereo.signal_level import SignalLevel, SignalLevelParams
 
 
 @dataclass(frozen=True, kw_only=True)
-class FrameAreaParams(WindowFrameParams):
+class FrameAreaParams(SignalLevelParams, WindowFrameParams):
     """Parameters of the frame-area SAD matcher (thesis defaults; algorithms.md section 3).
 
     The window and Gaussian fields (window_us, gaussian, sigma, kernel_size) are those of
-    :class:`~cvstereo.frames.WindowFrameParams`.
+    :class:`~cvstereo.frames.WindowFrameParams`, the relative-threshold fields (threshold_mode,
+    threshold_scale, level_*) those of :class:`~cvstereo.signal_level.SignalLevelParams`.
 
     Attributes
     ----------
@@ -235,8 +244,18 @@ class FrameAreaMatcher(FrameMatcher):
     }
     method = "frame-area"
 
+    def __init__(self, params=None, *, resolution=(128, 128)):
+        super().__init__(params, resolution=resolution)
+        p = self.params
+        self._level = SignalLevel(p, absolute=p.threshold, unit=filtered_unit(p),
+                                  value_name="filtered value" if p.gaussian else "frame value")
+
     def anchor_cameras(self) -> tuple[int, ...]:
         return (self.params.reference_camera,)
+
+    def diagnostics(self) -> dict:
+        """The signal-level diagnostics of the run so far (:meth:`cvstereo.signal_level.SignalLevel.diagnostics`)."""
+        return self._level.diagnostics()
 
     def _frame(self, counts: np.ndarray) -> np.ndarray:
         (_, frame), = polarity_frames(counts, polarity="shared")
@@ -254,7 +273,8 @@ class FrameAreaMatcher(FrameMatcher):
         reference : (height, width) float32 ndarray
             The reference camera's (filtered) frame.
         """
-        return self._disparity_map(*self._counts(window))[:2]
+        threshold = self._level.thresholds(window.t_start // self.params.level_window_us)
+        return self._disparity_map(*self._counts(window), threshold[self.params.reference_camera])[:2]
 
     def _counts(self, window: Window) -> tuple[np.ndarray, np.ndarray]:
         """ON/OFF counts of the reference and the other camera."""
@@ -262,18 +282,30 @@ class FrameAreaMatcher(FrameMatcher):
             (window.left, window.right)
         return polarity_counts(ref_ev, resolution=self.resolution), polarity_counts(oth_ev, resolution=self.resolution)
 
-    def _disparity_map(self, ref_counts: np.ndarray, oth_counts: np.ndarray):
+    def _disparity_map(self, ref_counts: np.ndarray, oth_counts: np.ndarray, threshold: float):
         p = self.params
         ref, oth = self._frame(ref_counts), self._frame(oth_counts)
-        disp = scan_sad(ref, oth, threshold=p.threshold, max_disparity=p.max_disparity, block=p.block,
+        disp = scan_sad(ref, oth, threshold=threshold, max_disparity=p.max_disparity, block=p.block,
                         reference_camera=p.reference_camera)
-        return disp, ref
+        return disp, ref, oth
 
     def match_window(self, window: Window) -> np.ndarray:
         p = self.params
-        if not (window.right if p.reference_camera == 1 else window.left).size:
-            return empty_matches()  # no reference events: nothing above threshold, no pixel to report at
+        k = window.t_start // p.level_window_us
+        threshold = self._level.thresholds(k)[p.reference_camera]  # from the windows before this one
+        ref_cam = p.reference_camera
         ref_counts, oth_counts = self._counts(window)
-        disp, ref = self._disparity_map(ref_counts, oth_counts)
+        if not (window.right if ref_cam == 1 else window.left).size:
+            self._add_levels(k, None, self._frame(oth_counts), ref_counts, oth_counts)
+            return empty_matches()  # no reference events: nothing above threshold, no pixel to report at
+        disp, ref, oth = self._disparity_map(ref_counts, oth_counts, threshold)
+        self._add_levels(k, ref, oth, ref_counts, oth_counts)
         y, x = np.nonzero(event_mask(ref_counts) & ~np.isnan(disp))
         return make_matches(window.t_end, x, y, (ref[y, x] > 0).astype(np.int8), p.reference_camera, disp[y, x])
+
+    def _add_levels(self, k: int, ref, oth, ref_counts: np.ndarray, oth_counts: np.ndarray) -> None:
+        """Feed the signal level: |frame value| at each camera's pixels with events."""
+        ref_cam = self.params.reference_camera
+        if ref is not None:
+            self._level.add(k, ref_cam, ref[event_mask(ref_counts)])
+        self._level.add(k, 1 - ref_cam, oth[event_mask(oth_counts)])

@@ -13,6 +13,13 @@ runs one numba kernel per window over all its frames instead (:func:`_match_stac
 per-call overhead, not arithmetic, was the cost, and the separate ON/OFF variant, with twice the frames, fell
 short of 50x real time on a 2-core Xeon.
 
+Relative thresholds (``threshold_mode="relative"``, :mod:`cvstereo.signal_level`): the cluster threshold
+(1.2 on the filtered sum of signs) becomes ``threshold_scale`` times the signal level of each camera, the 0.9
+quantile of |filtered value| at its pixels with events over the last second, because the filtered value of an
+edge grows with its events per pixel. The other constants stay absolute: the 30 % width rule compares the two
+clusters' widths with each other and the disparity range is geometry; the Gaussian's sigma and size are
+pixels, not signal.
+
 >>> from cvstereo.events import make_events
 >>> ys, xs = np.mgrid[10:14, 40:46].reshape(2, -1).repeat(3, axis=1)   # 3 OFF events at each pixel of a patch
 >>> left = make_events(np.zeros(xs.size, int), xs, ys, 0)
@@ -36,10 +43,12 @@ from cvstereo.frames import (
     Polarity,
     Window,
     WindowFrameParams,
+    _channel_of,
     gaussian_filter,
     stacked_frames,
 )
 from cvstereo.matches import empty_matches, make_matches
+from cvstereo.signal_level import SignalLevel, SignalLevelParams
 
 # Comparisons of integer widths against a float fraction: tolerate the rounding of 0.3 * w, so that the
 # rule holds exactly at its edge (|10 - 7| <= 0.3 * 10 must pass although 0.3 * 10 may round below 3).
@@ -47,11 +56,12 @@ _EDGE_EPS = 1e-9
 
 
 @dataclass(frozen=True, kw_only=True)
-class FrameClusterParams(WindowFrameParams):
+class FrameClusterParams(SignalLevelParams, WindowFrameParams):
     """Parameters of the frame-based cluster matcher (thesis defaults; algorithms.md section 1).
 
     The window and Gaussian fields (window_us, gaussian, sigma, kernel_size) are those of
-    :class:`~cvstereo.frames.WindowFrameParams`.
+    :class:`~cvstereo.frames.WindowFrameParams`, the relative-threshold fields (threshold_mode,
+    threshold_scale, level_*) those of :class:`~cvstereo.signal_level.SignalLevelParams`.
 
     Attributes
     ----------
@@ -212,32 +222,80 @@ class FrameClusterMatcher(FrameMatcher):
     }
     method = "frame"
 
+    def __init__(self, params=None, *, resolution=(128, 128)):
+        super().__init__(params, resolution=resolution)
+        p = self.params
+        self._level = SignalLevel(p, absolute=p.threshold, unit=filtered_unit(p), value_name="filtered value")
+
     def anchor_cameras(self) -> tuple[int, ...]:
         return (self.params.anchor_camera,)
 
+    def diagnostics(self) -> dict:
+        """The signal-level diagnostics of the run so far (:meth:`cvstereo.signal_level.SignalLevel.diagnostics`)."""
+        return self._level.diagnostics()
+
     def match_window(self, window: Window) -> np.ndarray:
         p = self.params
+        k = window.t_start // p.level_window_us
+        threshold = self._level.thresholds(k)  # from the windows before this one
         if not (window.left.size and window.right.size):
+            self._add_levels(k, window, *self._stack(window))
             return empty_matches()  # a frame without events has no clusters, so no row can match
         height = self.resolution[1]
+        stack, seen, gap = self._stack(window)
+        n_frames = seen.shape[0] // height  # 2 for separate ON/OFF, else 1
+        x, y, sign, disparity = _match_stacked_rows(
+            stack, seen, n_frames, height, height + gap, np.float32(threshold[0]), np.float32(threshold[1]),
+            float(p.width_tolerance), float(p.max_disparity), int(p.anchor_camera))
+        self._add_levels(k, window, stack, seen, gap)
+        matches = make_matches(window.t_end, x, y, (sign > 0).view(np.int8), p.anchor_camera, disparity)
+        # One frame: the kernel already emits (y, x) order. Two (separate ON/OFF): a pixel may be in both.
+        return matches if n_frames == 1 else _pixel_order(matches)
+
+    def _stack(self, window: Window):
+        """The window's (filtered) frames stacked, the anchor camera's pixels with events, the gap rows."""
+        p = self.params
         # All frames of the window (cameras x frames) go through the filter as one stacked image, with zero rows
         # between them: the same as filtering each on its own with a zero border (see match_frame_pair).
         gap = p.kernel_size // 2 if p.gaussian else 0
         stack, seen = stacked_frames((window.left, window.right), polarity=p.polarity, resolution=self.resolution,
                                      gap=gap, seen_camera=p.anchor_camera)
-        n_frames = seen.shape[0] // height  # 2 for separate ON/OFF, else 1
         if p.gaussian:
             stack = gaussian_filter(stack, sigma=p.sigma, kernel_size=p.kernel_size)
-        x, y, sign, disparity = _match_stacked_rows(
-            stack, seen, n_frames, height, height + gap, np.float32(p.threshold), float(p.width_tolerance),
-            float(p.max_disparity), int(p.anchor_camera))
-        matches = make_matches(window.t_end, x, y, (sign > 0).view(np.int8), p.anchor_camera, disparity)
-        # One frame: the kernel already emits (y, x) order. Two (separate ON/OFF): a pixel may be in both.
-        return matches if n_frames == 1 else _pixel_order(matches)
+        return stack, seen, gap
+
+    def _add_levels(self, k: int, window: Window, stack: np.ndarray, seen: np.ndarray, gap: int) -> None:
+        """Feed the signal level: |filtered value| at each camera's pixels with events (of each frame)."""
+        height = self.resolution[1]
+        n_frames = seen.shape[0] // height
+        for cam, ev in enumerate((window.left, window.right)):
+            self._level.add(k, cam, active_values(stack, ev, polarity=self.params.polarity,
+                                                  first_row=cam * n_frames * (height + gap), pitch=height + gap))
+
+
+def filtered_unit(params) -> float:
+    """The filtered value of one isolated event: the Gaussian's centre weight, or 1 without the filter."""
+    if not params.gaussian:
+        return 1.0
+    one = np.zeros((params.kernel_size, params.kernel_size), np.float32)
+    one[params.kernel_size // 2, params.kernel_size // 2] = 1.0
+    return float(gaussian_filter(one, sigma=params.sigma, kernel_size=params.kernel_size).max())
+
+
+def active_values(stack: np.ndarray, events: np.ndarray, *, polarity: str, first_row: int, pitch: int) -> np.ndarray:
+    """The values of a camera's frames (in ``stack`` from ``first_row``, one every ``pitch`` rows, in the order of
+    :func:`~cvstereo.frames.polarity_frames`) at each distinct pixel where the camera has events of that frame."""
+    if events.size == 0:
+        return np.empty(0, np.float32)
+    channel = _channel_of(polarity)[events["p"].astype(np.int64)]
+    keep = channel >= 0
+    rows = first_row + channel[keep] * pitch + events["y"][keep].astype(np.int64)
+    flat = np.unique(rows * stack.shape[1] + events["x"][keep].astype(np.int64))
+    return stack.reshape(-1)[flat]
 
 
 def match_frame_pair(left: np.ndarray, right: np.ndarray, *, threshold: float = 1.2, width_tolerance: float = 0.3,
-                     max_disparity: float = 64, anchor_camera: int = 0) -> Pairs:
+                     max_disparity: float = 64, anchor_camera: int = 0, threshold_right: float | None = None) -> Pairs:
     """Match the clusters of one pair of (filtered) frames: steps 3-5 of algorithms.md section 1.
 
     The readable form of what :class:`FrameClusterMatcher` does for all frames of a window at once.
@@ -248,6 +306,8 @@ def match_frame_pair(left: np.ndarray, right: np.ndarray, *, threshold: float = 
         Filtered frames of the left and right camera.
     threshold, width_tolerance, max_disparity, anchor_camera : keyword-only
         See :class:`FrameClusterParams`.
+    threshold_right : float, optional, keyword-only
+        The right frame's threshold, where it differs from the left's (relative thresholds are per camera).
 
     Returns
     -------
@@ -261,8 +321,9 @@ def match_frame_pair(left: np.ndarray, right: np.ndarray, *, threshold: float = 
     >>> pairs.disparity.tolist(), pairs.sign.tolist()
     ([3.0, 3.0], [1, -1])
     """
+    right_threshold = threshold if threshold_right is None else threshold_right
     return match_runs(row_runs(cluster_signs(left, threshold=threshold)),
-                      row_runs(cluster_signs(right, threshold=threshold)), height=left.shape[0],
+                      row_runs(cluster_signs(right, threshold=right_threshold)), height=left.shape[0],
                       width_tolerance=width_tolerance, max_disparity=max_disparity, anchor_camera=anchor_camera)
 
 
@@ -296,14 +357,15 @@ def _row_clusters(stack, r, threshold, clusters, camera):  # pragma: no cover - 
 
 
 @numba.njit(cache=True, nogil=True)
-def _match_stacked_rows(stack, seen, n_channels, height, pitch, threshold, width_tolerance, max_disparity,
-                        anchor_camera):  # pragma: no cover - compiled
+def _match_stacked_rows(stack, seen, n_channels, height, pitch, threshold_left, threshold_right, width_tolerance,
+                        max_disparity, anchor_camera):  # pragma: no cover - compiled
     """Steps 3-6 of algorithms.md section 1 for every frame of a window, in one pass over the rows.
 
     ``stack`` holds the filtered frames one above the other, every ``pitch`` rows: the left camera's channels,
     then the right camera's. ``seen`` (channel * height + y, x) marks the anchor camera's pixels with events.
     Returns x, y, sign and disparity of every reported pixel, channel by channel, row by row, x ascending.
-    Same arithmetic as :func:`row_runs` + :func:`match_runs` (float32 threshold, float64 widths and centres).
+    Same arithmetic as :func:`row_runs` + :func:`match_runs` (float32 thresholds, one per camera; float64 widths
+    and centres).
     """
     width = stack.shape[1]
     capacity = n_channels * height * width
@@ -317,10 +379,10 @@ def _match_stacked_rows(stack, seen, n_channels, height, pitch, threshold, width
     n = 0
     for c in range(n_channels):
         for y in range(height):
-            n_l = _row_clusters(stack, c * pitch + y, threshold, clusters, 0)
+            n_l = _row_clusters(stack, c * pitch + y, threshold_left, clusters, 0)
             if n_l == 0:
                 continue
-            n_r = _row_clusters(stack, (n_channels + c) * pitch + y, threshold, clusters, 1)
+            n_r = _row_clusters(stack, (n_channels + c) * pitch + y, threshold_right, clusters, 1)
             if n_r != n_l:
                 continue  # unequal cluster counts: the row is not matched
             same_order = True

@@ -54,14 +54,24 @@ def matcher_class(method: str) -> type[StreamMatcher]:
     return getattr(importlib.import_module(module_name), cls_name)
 
 
-def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 128), **params) -> StreamMatcher:
-    """Build a matcher by name, variant and parameter overrides.
+def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 128), param_set: str = "adaptive",
+                   **params) -> StreamMatcher:
+    """Build a matcher by name, variant, parameter set and parameter overrides.
+
+    ``param_set`` (:mod:`cvstereo.param_sets`): ``adaptive`` (default, thresholds relative to the recording's
+    signal level, each method's best variant) or ``thesis`` (algorithms.md's constants and default variants).
+    An explicit ``variant`` wins over the set's default variant; ``params`` override the set's values.
 
     Examples
     --------
     >>> m = create_matcher("frame", "separate", width_tolerance=0.25)  # doctest: +SKIP
     """
-    return matcher_class(method).from_variant(variant, resolution=resolution, **params)
+    from cvstereo.param_sets import resolve
+
+    variant, set_params = resolve(method, variant, param_set)
+    matcher = matcher_class(method).from_variant(variant, resolution=resolution, **{**set_params, **params})
+    matcher.param_set = param_set
+    return matcher
 
 
 def parse_param_strings(params_cls: type, items: list[str]) -> dict:

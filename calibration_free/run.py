@@ -18,7 +18,7 @@ DEFAULT_PACKET_US = 40_000
 
 def match(recording, right=None, *, method: str = "frame", variant: str | None = None,
           packet_us: int = DEFAULT_PACKET_US, progress: bool = False, row_offset: float = 0,
-          time_offset_us: int = 0, **params) -> MatchResult:
+          time_offset_us: int = 0, param_set: str = "adaptive", **params) -> MatchResult:
     """Run one matcher over a recording, streaming it packet by packet.
 
     Parameters
@@ -30,7 +30,7 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
     method : str, keyword-only
         ``frame``, ``frame-area``, ``event-time``, ``event-area``, ``event-vector``, ``stereobm``, ``sgbm``.
     variant : str, optional
-        Variant name (formats.md); default: the method's first.
+        Variant name (formats.md); default: the parameter set's default variant (``thesis``: the method's first).
     packet_us : int
         Packet length for streaming.
     progress : bool
@@ -39,13 +39,18 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         The rig's offsets (:mod:`cvstereo.rigcorrect`): the right camera's rows are shifted by ``row_offset``
         and its times by ``-time_offset_us`` before matching, and right-anchored matches are mapped back;
         recorded in meta under ``rig_correction``. :func:`cvstereo.rigcheck.check_rig` estimates both.
+    param_set : {"adaptive", "thesis"}, keyword-only
+        :mod:`cvstereo.param_sets`; recorded in meta under ``param_set``.
     **params
-        Parameter overrides (field names of the method's parameter dataclass).
+        Parameter overrides (field names of the method's parameter dataclass), on top of the set's values.
 
     Returns
     -------
     MatchResult
-        Time-ordered matches and the meta of formats.md.
+        Time-ordered matches and the meta of formats.md. ``meta["diagnostics"]`` says how much of the
+        recording answered (:func:`cvstereo.signal_level.silence_warning` turns it into one line): windows with
+        events and with matches (40 ms, absolute clock), and for the thesis matchers windows seen, windows with
+        candidates, the highest value against its threshold and the threshold in force over time.
     """
     source = None
     if not isinstance(recording, Recording):
@@ -53,7 +58,7 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
 
         source = [os.fspath(recording)] + ([os.fspath(right)] if right is not None else [])
         recording = read_recording(recording, right)
-    matcher = create_matcher(method, variant, resolution=recording.resolution, **params)
+    matcher = create_matcher(method, variant, resolution=recording.resolution, param_set=param_set, **params)
     parts = []
     bar = _progress_bar(progress, recording, method)
     start = time.perf_counter()
@@ -81,12 +86,26 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         version=cvstereo.__version__,
         input=source if source is not None else recording.meta.get("source", "memory"),
     )
+    meta["param_set"] = param_set
     matches = concat_matches(parts)
     if correction is not None:
         matches = correction.restore(matches)
         meta["rig_correction"] = {**correction.describe(), "dropped_events": packets.dropped_rows +
                                   packets.dropped_times}
-    return MatchResult(sort_matches(matches), meta)
+    matches = sort_matches(matches)
+    meta["diagnostics"] = _diagnostics(matcher, recording, matches, meta)
+    return MatchResult(matches, meta)
+
+
+def _diagnostics(matcher, recording: Recording, matches, meta: dict) -> dict:
+    """How much of the recording answered: windows with events and with matches, and the matcher's own."""
+    from cvstereo.signal_level import coverage_of_windows
+
+    with_matches, with_events = coverage_of_windows(recording, matches, meta)
+    out = {"window_us": 40_000, "windows_with_events": with_events, "windows_with_matches": with_matches}
+    if hasattr(matcher, "diagnostics"):
+        out.update(matcher.diagnostics())
+    return out
 
 
 def _progress_bar(enabled: bool, recording: Recording, method: str):

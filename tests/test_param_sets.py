@@ -23,6 +23,7 @@ def clip():
 @pytest.mark.parametrize("key", sorted(HASHES))
 def test_thesis_set_reproduces_the_committed_matches(clip, key):
     method, variant = key.split("/")
-    result = match(clip, method=method, variant=variant)
+    result = match(clip, method=method, variant=variant, param_set="thesis")
+    assert result.meta["param_set"] == "thesis"
     assert len(result) == HASHES[key]["matches"]
     assert hashlib.sha256(result.matches.tobytes()).hexdigest() == HASHES[key]["sha256"]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from calibration_free.event_area import EventAreaParams
-from calibration_free.reference import merged_events
+from calibration_free.reference import LevelByWindow, merged_events
 from cvstereo.dynamic_frames import DynamicFrames
 from cvstereo.events import DEFAULT_RESOLUTION
 from cvstereo.matches import empty_matches, make_matches
@@ -30,17 +30,20 @@ def event_area_reference(left: np.ndarray, right: np.ndarray, params: EventAreaP
     width, height = resolution
     frames = [DynamicFrames(prm.frame_params(), resolution=resolution) for _ in range(2)]
     half = prm.block // 2
+    level = LevelByWindow(prm)
     rows = []
     for cam, _, e in merged_events(left, right):
         t, x, y, p = int(e["t"]), int(e["x"]), int(e["y"]), int(e["p"])
+        threshold = level.at(t)[cam]
         own, other = frames[cam], frames[1 - cam]
         slot = own.slot(p)
         if slot < 0:
             continue
         own.advance(t)
         other.advance(t)
+        level.seen(cam, own.value(slot, x, y))
         # Matching happens before the event updates its own frame.
-        if abs(own.value(slot, x, y)) >= prm.threshold and half <= x < width - half and half <= y < height - half:
+        if abs(own.value(slot, x, y)) >= threshold and half <= x < width - half and half <= y < height - half:
             minimum = prm.max_sad
             disparity = None
             for d in range(prm.max_disparity + 1):

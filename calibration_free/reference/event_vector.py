@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from calibration_free.event_vector import EventVectorParams
-from calibration_free.reference import merged_events, sign
+from calibration_free.reference import LevelByWindow, merged_events, sign
 from cvstereo.dynamic_frames import DynamicFrames
 from cvstereo.events import DEFAULT_RESOLUTION
 from cvstereo.matches import empty_matches, make_matches
@@ -55,9 +55,12 @@ def event_vector_reference(left: np.ndarray, right: np.ndarray, params: EventVec
     prm = params if params is not None else EventVectorParams()
     width = resolution[0]
     frames = [DynamicFrames(prm.frame_params(), resolution=resolution) for _ in range(2)]
+    level = LevelByWindow(prm)
     rows = []
     for cam, _, e in merged_events(left, right):
         t, x, y, p = int(e["t"]), int(e["x"]), int(e["y"]), int(e["p"])
+        thresholds = level.at(t)
+        own_threshold, other_threshold = thresholds[cam], thresholds[1 - cam]
         own, other = frames[cam], frames[1 - cam]
         slot = own.slot(p)
         if slot < 0:
@@ -66,8 +69,9 @@ def event_vector_reference(left: np.ndarray, right: np.ndarray, params: EventVec
         other.advance(t)
         # Everything is computed before the event updates its own frame.
         value = own.value(slot, x, y)
-        if abs(value) >= prm.threshold:
-            a1, b1 = accumulation_vector(own, slot, x, y, prm.threshold)
+        level.seen(cam, value)
+        if abs(value) >= own_threshold:
+            a1, b1 = accumulation_vector(own, slot, x, y, own_threshold)
             minimum = prm.max_cost
             disparity = None
             for d in range(prm.max_disparity + 1):
@@ -75,9 +79,9 @@ def event_vector_reference(left: np.ndarray, right: np.ndarray, params: EventVec
                 if x2 < 0 or x2 >= width:
                     break
                 v2 = other.value(slot, x2, y)
-                if prm.require_candidate_threshold and not (abs(v2) >= prm.threshold and sign(v2) == sign(value)):
+                if prm.require_candidate_threshold and not (abs(v2) >= other_threshold and sign(v2) == sign(value)):
                     continue
-                a2, b2 = accumulation_vector(other, slot, x2, y, prm.threshold)
+                a2, b2 = accumulation_vector(other, slot, x2, y, other_threshold)
                 cost = abs(a1 - a2) + abs(b1 - b2)
                 if cost < minimum:  # strict: ties keep the smaller disparity
                     minimum = cost

@@ -1,0 +1,245 @@
+"""The online signal level and the relative thresholds built on it: causal, cut-independent, fast == reference."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from _event_scenes import feed_cut, random_pair
+
+from calibration_free import create_matcher
+from calibration_free.event_area import EventAreaMatcher
+from calibration_free.event_time import EventTimeMatcher
+from calibration_free.event_vector import EventVectorMatcher
+from calibration_free.frame_area import FrameAreaMatcher, sad_volume, scan_disparity_map
+from calibration_free.frame_clusters import FrameClusterMatcher, match_frame_pair
+from calibration_free.reference.event_area import event_area_reference
+from calibration_free.reference.event_time import event_time_reference
+from calibration_free.reference.event_vector import event_vector_reference
+from cvstereo.events import make_events
+from cvstereo.frames import gaussian_filter, signed_frame
+from cvstereo.matches import concat_matches
+from cvstereo.signal_level import SignalLevel, SignalLevelParams, silence_warning
+
+REL = {"threshold_mode": "relative"}
+
+
+def level(**kw):
+    return SignalLevel(SignalLevelParams(**{**REL, **kw}), absolute=1.2, unit=0.1)
+
+
+def test_threshold_of_a_window_comes_from_earlier_windows_only():
+    lv = level(threshold_scale=0.5, level_warmup=3, level_floor=0)
+    assert lv.thresholds(0).tolist() == [1.2, 1.2]  # nothing seen: the absolute threshold
+    lv.add(0, 0, [1, 2, 3, 4, -5])  # |value| counts
+    lv.add(0, 1, [10, 10])  # two values: camera 1 still warms up
+    # 0.9 quantile of 1..5 by linear interpolation: 4 + 0.6 * 1 = 4.6
+    assert lv.thresholds(1).tolist() == pytest.approx([2.3, 1.2])
+    lv.add(1, 0, [100] * 5)  # window 1's own values do not move window 1's threshold
+    assert lv.thresholds(1).tolist() == pytest.approx([2.3, 1.2])
+    # window 2: sorted 1..5, 100 x 5; position 0.9 * 9 = 8.1 lies between two 100s
+    assert lv.thresholds(2)[0] == pytest.approx(50.0)
+    with pytest.raises(ValueError, match="window 0"):
+        lv.add(0, 0, [1.0])
+
+
+def test_history_keeps_the_last_windows_and_reaches_back_when_sparse():
+    lv = level(threshold_scale=1.0, level_windows=4, level_warmup=10, level_floor=0, level_quantile=1.0)
+    for k in range(8):  # window k holds 20 values k
+        lv.thresholds(k)
+        lv.add(k, 0, np.full(20, float(k)))
+    assert lv.thresholds(8)[0] == 7.0  # the maximum of windows 4..7
+    sparse = level(threshold_scale=1.0, level_windows=2, level_warmup=10, level_floor=0, level_quantile=0.01)
+    for k in range(5):  # 2 values a window: 5 windows before 10 values
+        assert sparse.thresholds(k)[0] == 1.2
+        sparse.add(k, 0, [k + 1.0, k + 1.0])
+    # 10 values from 5 windows though level_windows is 2: the minimum is window 0's
+    assert sparse.thresholds(5)[0] == 1.0
+
+
+def test_floor_and_absolute_mode():
+    lv = level(threshold_scale=0.5, level_warmup=1, level_floor=3.0)  # floor 3 x unit 0.1
+    lv.add(0, 0, [0.01])
+    assert lv.thresholds(1)[0] == pytest.approx(0.3)
+    absolute = SignalLevel(SignalLevelParams(), absolute=0.8, unit=0.1)
+    absolute.add(0, 0, np.full(500, 9.0))
+    assert absolute.thresholds(1).tolist() == [0.8, 0.8]
+
+
+def test_values_in_chunks_give_the_thresholds_of_the_values_at_once(rng):
+    whole, chunked = level(level_warmup=50), level(level_warmup=50)
+    for k in range(6):
+        v = rng.exponential(1.0, 300)
+        np.testing.assert_array_equal(whole.thresholds(k), chunked.thresholds(k))
+        whole.add(k, 1, v)
+        for part in np.array_split(v[rng.permutation(v.size)], 7):
+            chunked.add(k, 1, part)
+    np.testing.assert_array_equal(whole.thresholds(6), chunked.thresholds(6))
+
+
+def test_invalid_level_parameters_say_what_to_do():
+    with pytest.raises(ValueError, match="threshold_mode must be 'absolute' or 'relative'"):
+        SignalLevelParams(threshold_mode="auto")
+    with pytest.raises(ValueError, match="level_quantile must lie in"):
+        FrameClusterMatcher.make_params(level_quantile=1.5)
+
+
+# -- the matchers in relative mode ------------------------------------------------------------------------
+
+#: Short level windows and a small warm-up, so that a 60 ms random stream changes its thresholds often.
+FAST_LEVEL = {**REL, "level_window_us": 5_000, "level_warmup": 20, "level_windows": 3}
+
+
+@pytest.mark.parametrize(("cls", "reference", "extra"), [
+    (EventTimeMatcher, event_time_reference, {"threshold_scale": 0.5, "value_tolerance_scale": 0.4,
+                                              "time_window_us": 2000}),
+    (EventAreaMatcher, event_area_reference, {"threshold_scale": 0.8, "max_disparity": 20}),
+    (EventVectorMatcher, event_vector_reference, {"threshold_scale": 0.6, "max_disparity": 20}),
+])
+@pytest.mark.parametrize("seed", [1, 2])
+def test_event_matchers_fast_equals_reference_in_relative_mode(cls, reference, extra, seed):
+    left, right, resolution = random_pair(seed, n=1500, width=32, height=8)
+    params = cls.make_params(None, **FAST_LEVEL, **extra)
+    expected = reference(left, right, params, resolution=resolution)
+    cuts = np.random.default_rng(seed).choice(np.concatenate([left["t"], right["t"]]), 20)
+    got = feed_cut(cls(params, resolution=resolution), left, right, cuts)
+    assert expected.size > 0
+    np.testing.assert_array_equal(got, expected)
+    absolute = reference(left, right, cls.make_params(None, **extra), resolution=resolution)
+    assert not np.array_equal(absolute, expected)  # the relative thresholds did change the result
+
+
+def _frame_reference(left, right, params, frames_of, match_frames):
+    """Window by window with numpy frames and an estimator of its own, fed at each camera's pixels with events."""
+    lv = SignalLevel(params, absolute=params.threshold, unit=float(gaussian_filter(_one_pixel()).max()))
+    out = []
+    w = params.window_us
+    for k in sorted(set((left["t"] // w).tolist()) | set((right["t"] // w).tolist())):
+        evs = [e[(e["t"] >= k * w) & (e["t"] < (k + 1) * w)] for e in (left, right)]
+        thr = lv.thresholds(k)
+        frames = [frames_of(e) for e in evs]  # per camera: list of (signs, frame)
+        out.append(match_frames(k, evs, frames, thr))
+        for cam in (0, 1):
+            for signs, f in frames[cam]:
+                ev = evs[cam][np.isin(evs[cam]["p"] * 2 - 1, signs)]
+                seen = np.zeros(f.shape, bool)
+                seen[ev["y"], ev["x"]] = True
+                lv.add(k, cam, f[seen])
+    return concat_matches(out)
+
+
+def _one_pixel():
+    f = np.zeros((5, 5), np.float32)
+    f[2, 2] = 1
+    return f
+
+
+def _stream(rng, windows=12):
+    """Blobs shifted by 9 px whose event count per pixel changes from window to window, plus noise."""
+    parts = []
+    for k in range(windows):
+        reps = 1 + k % 4
+        for _ in range(10):
+            yy, xx = np.mgrid[0:3, 0:4]
+            x0, y0 = rng.integers(20, 110), rng.integers(3, 120)
+            x = np.repeat((xx + x0).ravel(), reps)
+            y = np.repeat((yy + y0).ravel(), reps)
+            t = rng.integers(k * 40_000, (k + 1) * 40_000, x.size)
+            parts.append((t, x, y, np.full(x.size, rng.integers(0, 2))))
+    t, x, y, p = (np.concatenate(a) for a in zip(*parts, strict=True))
+    o = np.argsort(t, kind="stable")
+    return make_events(t[o], x[o], y[o], p[o]), make_events(t[o], x[o] - 9, y[o], p[o])
+
+
+@pytest.mark.parametrize("polarity", ["shared", "separate"])
+def test_frame_matcher_equals_a_window_by_window_reference_in_relative_mode(rng, polarity):
+    left, right = _stream(rng)
+    params = FrameClusterMatcher.make_params(polarity, **REL, threshold_scale=0.6, level_warmup=50)
+    frame_signs = [(1, -1)] if polarity == "shared" else [(1,), (-1,)]
+
+    def frames_of(ev):
+        return [(s, gaussian_filter(signed_frame(ev, signs=s))) for s in frame_signs]
+
+    def match_frames(k, evs, frames, thr):
+        rows = []
+        for (s, fl), (_, fr) in zip(frames[0], frames[1], strict=True):
+            pairs = match_frame_pair(fl, fr, threshold=thr[0], threshold_right=thr[1])
+            seen = np.zeros((128, 128), bool)
+            ev = evs[0][np.isin(evs[0]["p"] * 2 - 1, s)]
+            seen[ev["y"], ev["x"]] = True
+            rows += [(y, x, int(sign > 0), d) for y, a, b, sign, d in zip(*pairs, strict=True)
+                     for x in range(a, b + 1) if seen[y, x]]
+        rows.sort()
+        out = np.zeros(len(rows), dtype=[("y", int), ("x", int), ("p", int), ("d", float), ("k", int)])
+        for i, r in enumerate(rows):
+            out[i] = (*r, k)
+        return out
+
+    expected = _frame_reference(left, right, params, frames_of, match_frames)
+    m = FrameClusterMatcher(params)
+    got = concat_matches([m.feed(left, right), m.flush()])
+    assert expected.size > 100
+    assert list(zip(got["y"].tolist(), got["x"].tolist(), got["p"].tolist(), got["disparity"].tolist(),
+                    (got["t"] // 40_000 - 1).tolist(), strict=True)) == expected.tolist()
+    absolute = concat_matches([FrameClusterMatcher.from_variant(polarity).feed(left, right)])
+    assert absolute.size != got.size
+
+
+def test_frame_area_equals_a_window_by_window_reference_in_relative_mode(rng):
+    left, right = _stream(rng)
+    params = FrameAreaMatcher.make_params("gaussian", **REL, threshold_scale=0.8, level_warmup=50,
+                                          max_disparity=20)
+
+    def frames_of(ev):
+        return [((1, -1), gaussian_filter(signed_frame(ev)))]
+
+    def match_frames(k, evs, frames, thr):
+        ref, oth = frames[1][0][1], frames[0][0][1]  # the right camera is the reference
+        disp = scan_disparity_map(ref, sad_volume(ref, oth, max_disparity=20), threshold=thr[1])
+        seen = np.zeros((128, 128), bool)
+        seen[evs[1]["y"], evs[1]["x"]] = True
+        y, x = np.nonzero(seen & ~np.isnan(disp))
+        out = np.zeros(y.size, dtype=[("y", int), ("x", int), ("d", float), ("k", int)])
+        out["y"], out["x"], out["d"], out["k"] = y, x, disp[y, x], k
+        return out
+
+    expected = _frame_reference(left, right, params, frames_of, match_frames)
+    m = FrameAreaMatcher(params)
+    got = concat_matches([m.feed(left, right), m.flush()])
+    assert expected.size > 100
+    assert list(zip(got["y"].tolist(), got["x"].tolist(), got["disparity"].tolist(),
+                    (got["t"] // 40_000 - 1).tolist(), strict=True)) == expected.tolist()
+
+
+@pytest.fixture(scope="module")
+def clip():
+    from pathlib import Path
+
+    from cvstereo.io.npz import read_recording_npz
+
+    return read_recording_npz(Path(__file__).resolve().parent / "data" / "thesis_clip.npz")
+
+
+@pytest.mark.parametrize("method", ["frame", "frame-area", "event-time", "event-area", "event-vector"])
+def test_adaptive_defaults_do_not_depend_on_the_packets(clip, method):
+    left, right = (e[e["t"] < 300_000] for e in (clip.left, clip.right))
+    m = create_matcher(method, level_warmup=100)
+    whole = concat_matches([m.feed(left, right), m.flush()])
+    cuts = np.random.default_rng(3).integers(0, 300_000, 25)
+    got = feed_cut(create_matcher(method, level_warmup=100), left, right, cuts)
+    assert whole.size > 0
+    np.testing.assert_array_equal(got, whole)
+    assert m.diagnostics()["threshold_mode"] == "relative"
+
+
+def test_silence_warning_says_why_and_what_to_try():
+    quiet = {"param_set": "thesis", "diagnostics": {
+        "windows_with_events": 245, "windows_with_matches": 0, "windows_with_candidates": 0,
+        "value_name": "filtered value", "highest_value": 1.1, "its_threshold": 1.2}}
+    text = silence_warning(quiet, n_matches=0)
+    assert text.startswith("no window reached the threshold: highest filtered value 1.1 < 1.2")
+    assert "--param-set adaptive" in text
+    few = {"param_set": "adaptive", "diagnostics": {"windows_with_events": 1000, "windows_with_matches": 9,
+                                                    "windows_with_candidates": 800}}
+    assert "matches in only 9 of 1000 windows" in silence_warning(few, n_matches=40)
+    enough = {"diagnostics": {"windows_with_events": 1000, "windows_with_matches": 10}}
+    assert silence_warning(enough, n_matches=40) is None
