@@ -78,13 +78,13 @@ ADAPTIVE: dict[str, AdaptiveDefaults] = {
         variant="gaussian",
         why="the 3x3 update spreads each event over its neighbours, so a 5x5 block holds a signal after a few "
             "events; single-pixel updates leave most blocks empty",
-        params={**_RELATIVE, "threshold_scale": 0.69},
+        params={**_RELATIVE, "threshold_scale": 0.69, "level_floor": 0.5},
         variant_params={"no-gaussian": {"threshold_scale": 4.4}},
     ),
     "event-vector": AdaptiveDefaults(
         variant="default",
         why="its only variant",
-        params={**_RELATIVE, "threshold_scale": 0.5},
+        params={**_RELATIVE, "threshold_scale": 0.5, "level_floor": 0.5},
     ),
 }
 

@@ -156,6 +156,7 @@ class SignalLevel:
         self._best_ratio = -1.0
         self._best = (math.nan, math.nan)  # (value, threshold in force) of the best ratio
         self._trace: list[tuple[int, list[float]]] = []
+        self._warm = (False,) * n_cameras  # which cameras had a level at the last trace entry
 
     # -- the level ---------------------------------------------------------------------------------------
 
@@ -214,8 +215,10 @@ class SignalLevel:
                 ratio = top / thr[cam] if thr[cam] > 0 else math.inf
                 if ratio > self._best_ratio:
                     self._best_ratio, self._best = ratio, (top, float(thr[cam]))
-            if self._seen % _TRACE_EVERY == 0:
+            warm = tuple(bool(x) for x in ~np.isnan(lv))
+            if self._seen % _TRACE_EVERY == 0 or warm != self._warm:
                 self._trace.append((j, [round(float(x), 6) for x in thr]))
+                self._warm = warm
             self._seen += 1
             self._with_candidates += reached
         for j in [w for w in self._levels if w < k]:
@@ -256,7 +259,7 @@ class SignalLevel:
             ``windows_seen`` (windows with values), ``windows_with_candidates`` (some value reached the
             threshold in force), ``value_name``, ``highest_value`` and ``its_threshold`` (the window whose highest
             value came nearest its threshold), ``threshold_mode``, ``threshold_trace``: [window end us,
-            [threshold per camera]] every 25 windows with values.
+            [threshold per camera]] every 25 windows with values and where a camera's warm-up ends.
         """
         self.finish()
         w = int(self.params.level_window_us)

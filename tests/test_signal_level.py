@@ -243,3 +243,49 @@ def test_silence_warning_says_why_and_what_to_try():
     assert "matches in only 9 of 1000 windows" in silence_warning(few, n_matches=40)
     enough = {"diagnostics": {"windows_with_events": 1000, "windows_with_matches": 10}}
     assert silence_warning(enough, n_matches=40) is None
+
+
+def _cells(matches, anchor):
+    """Per (window, camera, pixel) cell with matches: the median disparity."""
+    t = matches["t"].astype(np.int64) - (1 if anchor == "window" else 0)  # a window's stamp is its end
+    key = ((t // 40_000) * 2 + matches["camera"]) * 128 * 128 + matches["y"].astype(np.int64) * 128 + matches["x"]
+    order = np.argsort(key, kind="stable")
+    key, d = key[order], matches["disparity"][order]
+    u, start = np.unique(key, return_index=True)
+    return dict(zip(u.tolist(), (float(np.median(p)) for p in np.split(d, start[1:])), strict=True))
+
+
+def _event_cells(rec, cameras):
+    n = 0
+    for cam in cameras:
+        ev = (rec.left, rec.right)[cam]
+        n += np.unique(((ev["t"].astype(np.int64) // 40_000) * 128 + ev["y"]) * 128 + ev["x"]).size
+    return n
+
+
+#: (method, stream) pairs that do not reach the bar yet (measured on this clip; see issue 12's closing note).
+_SHORT = {("event-time", "twice"), ("event-area", "twice"), ("event-vector", "twice"),
+          ("frame-area", "every second"), ("event-time", "every second"), ("event-area", "every second"),
+          ("event-vector", "every second")}
+
+
+@pytest.mark.parametrize("stream", ["twice", "every second"])
+@pytest.mark.parametrize("method", ["frame", "frame-area", "event-time", "event-area", "event-vector"])
+def test_duplicated_or_thinned_events_give_the_same_disparities(clip, method, stream, request):
+    if (method, stream) in _SHORT:
+        request.applymarker(pytest.mark.xfail(strict=True, reason="below the 95 % / 20 % bar on this clip"))
+    from calibration_free import match
+    from cvstereo.recording import Recording
+
+    rec = clip.slice_time(0, 500_000)
+    change = (lambda e: np.repeat(e, 2)) if stream == "twice" else (lambda e: e[::2])
+    other = Recording(change(rec.left), change(rec.right), resolution=rec.resolution)
+    a, b = match(rec, method=method), match(other, method=method)
+    ca, cb = _cells(a.matches, a.meta["anchor"]), _cells(b.matches, b.meta["anchor"])
+    both = sorted(set(ca) & set(cb))
+    assert len(both) > 200
+    agree = np.mean([abs(ca[k] - cb[k]) <= 1 for k in both])
+    cameras = a.meta["anchor_cameras"]
+    coverage_a = len(ca) / _event_cells(rec, cameras)
+    coverage_b = len(cb) / _event_cells(other, cameras)
+    assert agree >= 0.95 and 0.8 <= coverage_b / coverage_a <= 1.2, (agree, coverage_b / coverage_a)
