@@ -280,7 +280,11 @@ def distance_table(combos: list[Combo], runs: dict, dists: dict[float, Recording
         if len(fit_z) < 2:
             out[c.label] = {"error": "too few matches at the fit distances"}
             continue
-        model = fit_depth_model(fit_z, [med[z] for z in fit_z])
+        try:
+            model = fit_depth_model(fit_z, [med[z] for z in fit_z])
+        except ValueError as exc:  # e.g. medians that do not shrink with distance: that combo's row says so
+            out[c.label] = {"error": str(exc)}
+            continue
         errors = {f"{round(z * 100)}cm": float((model.distance(med[z]) - z) * 100) if np.isfinite(med[z])
                   else float("nan") for z in TEST_DISTANCES}
         out[c.label] = {"a": model.a, "c": model.c, "error_cm": errors}

@@ -542,10 +542,13 @@ def test_cli_resolution_option_names_the_limit(tmp_path, capsys):
 
 
 def test_cli_info_matches_file_says_what_it_is(tmp_path, capsys, snapshot):
+    # `info` summarises a matches file as such (cvstereo/cli/info.py) rather than misreading it as a recording.
     path = _write_matches(tmp_path / "m.npz")
     snapshot(path)
-    code, err = _cli(["info", path], capsys)
-    _assert_one_line_error(code, err, "m.npz", "matches file")
+    assert main(["info", str(path)]) == 0
+    captured = capsys.readouterr()
+    assert captured.err == ""
+    assert captured.out.startswith(f"{path}: matches file") and "500 matches" in captured.out
 
 
 # ------------------------------------------------------------------------- file contents quoted in errors
