@@ -40,11 +40,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("-o", "--output", default="bench/results")
     parser.add_argument("--workers", type=int, default=None, help="local workers (default: one per core)")
+    parser.add_argument("--only", default=None, metavar="NAME,...", help="only these suite recordings")
     args = parser.parse_args()
     out = Path(args.output)
     from cvstereo.simulate import suite_recordings
 
-    suite = suite_recordings("robustness", progress=True)
+    suite = suite_recordings("robustness", progress=True, only=args.only.split(",") if args.only else None)
     recordings = resolve_recordings([os.fspath(p) for _, p in suite])
     name_of = {os.fspath(p): n for n, p in suite}
     installed = set(available_methods())

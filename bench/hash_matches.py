@@ -1,7 +1,8 @@
 """A sha256 of the matches of every method x variant on a short simulated clip: proof that a refactor kept them.
 
 Simulates the first 2 s of the ``2arms-50cm`` preset (seed 0), runs every installed matcher variant on it
-(the thesis' five, the OpenCV baselines, dv-processing where installed) and prints one line per variant:
+(the thesis' five, the OpenCV baselines, dv-processing where installed) under the ``thesis`` parameter set
+(the thesis' constants, which these hashes pin) and prints one line per variant:
 ``method/variant sha256``. Run it before and after a change and compare the outputs (``--check FILE``
 exits 1 when any hash differs).
 
@@ -25,7 +26,7 @@ def matches_hashes(seconds: float = 2.0, seed: int = 0) -> dict[str, str]:
     out = {}
     for method in available_methods():
         for variant in matcher_class(method).variants:
-            result = match(rec, method=method, variant=variant)
+            result = match(rec, method=method, variant=variant, param_set="thesis")
             out[f"{method}/{variant}"] = hashlib.sha256(result.matches.tobytes()).hexdigest()
     return out
 

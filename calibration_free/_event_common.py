@@ -6,6 +6,10 @@ at the event's time, so both cameras' events must be processed in one global ord
 Events at the current watermark are held back until the next packet (or flush), because the other camera
 may still deliver events with the same timestamp that come first in that order; this makes the result
 independent of how the stream was cut into packets.
+
+The kernels run once per absolute window of the signal level (:mod:`cvstereo.signal_level`) with the
+thresholds in force for that window, and return the |D| each event read at its own pixel before its update,
+which then feeds the level.
 """
 
 from __future__ import annotations
@@ -14,10 +18,11 @@ import abc
 
 import numpy as np
 
-from cvstereo.dynamic_frames import FrameBank, event_columns
+from cvstereo.dynamic_frames import FrameBank, dynamic_unit, event_columns
 from cvstereo.events import empty_events
 from cvstereo.matcher import StreamMatcher
-from cvstereo.matches import empty_matches
+from cvstereo.matches import concat_matches, empty_matches
+from cvstereo.signal_level import SignalLevel, window_index
 
 
 def matches_at(events: tuple[np.ndarray, np.ndarray], cam: np.ndarray, index: np.ndarray,
@@ -59,21 +64,46 @@ class MergedEventMatcher(StreamMatcher):
         super().__init__(params, resolution=resolution)
         self._bank = FrameBank(2, self.params.frame_params(), resolution=self.resolution)
         self._held = (empty_events(), empty_events())
+        self._level = SignalLevel(self.params, absolute=self.params.threshold, unit=dynamic_unit(self.params),
+                                  value_name="dynamic-frame value")
+
+    def diagnostics(self) -> dict:
+        """The signal-level diagnostics of the run so far (:meth:`cvstereo.signal_level.SignalLevel.diagnostics`)."""
+        return self._level.diagnostics()
 
     @abc.abstractmethod
-    def _run_kernel(self, columns: tuple, out_cam: np.ndarray, out_index: np.ndarray,
-                    out_disparity: np.ndarray) -> int:
-        """Run the merged events (``columns`` = t, x, y, p of left, then of right) through the numba kernel;
-        write one row per match into the outputs and return the number of matches."""
+    def _run_kernel(self, columns: tuple, thresholds: np.ndarray, out_cam: np.ndarray, out_index: np.ndarray,
+                    out_disparity: np.ndarray, out_values: tuple[np.ndarray, np.ndarray]) -> int:
+        """Run the merged events (``columns`` = t, x, y, p of left, then of right) through the numba kernel with
+        the thresholds of each camera; write one row per match into the outputs, each event's |D| before its
+        update into ``out_values`` (left, right; NaN where its polarity is dropped) and return the number of
+        matches."""
 
     def _process(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:
-        n = left.size + right.size
-        if n == 0:
+        if left.size + right.size == 0:
             return empty_matches()
+        w = self.params.level_window_us
+        ks = np.union1d(np.unique(window_index(left["t"], w)), np.unique(window_index(right["t"], w)))
+        bounds = ks * w
+        lo = [np.searchsorted(ev["t"], bounds, side="left") for ev in (left, right)]
+        hi = [np.searchsorted(ev["t"], bounds + w, side="left") for ev in (left, right)]
+        parts = []
+        for i, k in enumerate(ks.tolist()):
+            parts.append(self._process_window(k, left[lo[0][i]:hi[0][i]], right[lo[1][i]:hi[1][i]]))
+        return concat_matches(parts)
+
+    def _process_window(self, k: int, left: np.ndarray, right: np.ndarray) -> np.ndarray:
+        """The events of one level window: the thresholds in force for it, then the kernel, then the level."""
+        n = left.size + right.size
         out_cam = np.empty(n, dtype=np.int64)
         out_index = np.empty(n, dtype=np.int64)
         out_disparity = np.empty(n)
-        m = self._run_kernel((*event_columns(left), *event_columns(right)), out_cam, out_index, out_disparity)
+        values = (np.full(left.size, np.nan), np.full(right.size, np.nan))
+        thresholds = self._level.thresholds(k)
+        m = self._run_kernel((*event_columns(left), *event_columns(right)), thresholds, out_cam, out_index,
+                             out_disparity, values)
+        for cam in (0, 1):
+            self._level.add(k, cam, values[cam])
         return matches_at((left, right), out_cam[:m], out_index[:m], out_disparity[:m])
 
     def _feed(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:

@@ -14,6 +14,13 @@ with the threshold raised to 4.
 Both cameras' events are processed in one merged order (by time, left first at equal times), see
 :mod:`calibration_free.merge_order` and :mod:`calibration_free._event_common`. The reference implementation is
 :func:`calibration_free.reference.event_area.event_area_reference`.
+
+Relative thresholds (``threshold_mode="relative"``, :mod:`cvstereo.signal_level`): the event threshold (1.2;
+4 for single-pixel updates) becomes ``threshold_scale`` times the signal level of the event's camera (the 0.9
+quantile of the |D| its events read at their pixels over the last second), since D grows with the events per
+edge. The SAD needs no threshold: candidates are compared with each other (least SAD wins), and ``max_cost``
+(1000) is Algorithm 3's "no match yet" start value, which no 5x5 SAD reaches; block and disparity range are
+geometry; decay and its period are time.
 """
 
 from __future__ import annotations
@@ -31,7 +38,7 @@ from cvstereo.dynamic_frames import advance, splat
 
 @njit(cache=True)
 def _event_area_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, slot_of_p, kernel, decay, period,
-                       threshold, half, max_d, max_cost, out_cam, out_index, out_disparity):
+                       thresholds, half, max_d, max_cost, out_cam, out_index, out_disparity, values_l, values_r):
     """Process both cameras' events in merged order; one output row per matched event; returns the count."""
     height = stored.shape[2]
     width = stored.shape[3]
@@ -59,7 +66,11 @@ def _event_area_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, slo
         c1 = scale[cam]
         c2 = scale[other]
         value = stored[cam, slot, y, x] * c1
-        if abs(value) >= threshold and half <= x < width - half and half <= y < height - half:
+        if cam == 0:
+            values_l[i] = abs(value)
+        else:
+            values_r[i] = abs(value)
+        if abs(value) >= thresholds[cam] and half <= x < width - half and half <= y < height - half:
             # Values are products stored * scale, computed once per pixel: the same numbers as the reference.
             for jj in range(size):
                 for ii in range(size):
@@ -114,9 +125,9 @@ class EventAreaMatcher(MergedEventMatcher):
     anchor = "event"
     method = "event-area"
 
-    def _run_kernel(self, columns, out_cam, out_index, out_disparity) -> int:
+    def _run_kernel(self, columns, thresholds, out_cam, out_index, out_disparity, out_values) -> int:
         prm, bank = self.params, self._bank
         return int(_event_area_kernel(*columns, bank.stored, bank.scale, bank.clock, bank.slot_of_p, bank.kernel,
-                                      *bank.decay_args, float(prm.threshold), prm.block // 2,
+                                      *bank.decay_args, thresholds, prm.block // 2,
                                       int(prm.max_disparity), float(prm.max_cost), out_cam, out_index,
-                                      out_disparity))
+                                      out_disparity, *out_values))

@@ -14,6 +14,13 @@ Candidates up to ``time_window_us`` after e1 are waited for: a match is emitted 
 past ``t + time_window_us``, so the output lags the input by 300 us and stays time-ordered.
 
 The reference implementation is :func:`calibration_free.reference.event_time.event_time_reference`.
+
+Relative thresholds (``threshold_mode="relative"``, :mod:`cvstereo.signal_level`): the threshold (0.8) becomes
+``threshold_scale`` times each camera's signal level (the 0.9 quantile of the |D| its events read, as the test
+reads them: D1 before, D2 after the update, over the last second), and the value tolerance (0.3) becomes
+``value_tolerance_scale`` times the reference camera's level: D grows with the events per edge, and so does the
+difference of two Ds of one edge. The time window (300 us) and the row tolerance are time and geometry and
+stay absolute, as do the decay and its period.
 """
 
 from __future__ import annotations
@@ -24,16 +31,18 @@ import numpy as np
 from numba import njit
 
 from calibration_free.params import EventTimeParams
-from cvstereo.dynamic_frames import FrameBank, event_matrix
+from cvstereo.dynamic_frames import FrameBank, dynamic_unit, event_matrix
 from cvstereo.matcher import StreamMatcher
 from cvstereo.matches import empty_matches
+from cvstereo.signal_level import SignalLevel, window_segments
 
 
 @njit(cache=True)
 def _resolve(pt, px, py, pp, pv, n, ct, cx, cy, cp, cv, height, window, row_tol, value_tol, side, max_d, out):
     """Disparity of the first ``n`` pending reference events (-1: no candidate).
 
-    Pending events (pt, px, py, pp, pv: time, x, y, p, D1 before the update) and candidates (ct, ... cv:
+    Pending events (pt, px, py, pp, pv: time, x, y, p, D1 before the update; value_tol: each one's maximum
+    ``|D1 - D2|``) and candidates (ct, ... cv:
     the other camera's events that passed the threshold and sign tests, D2 just after their update) are
     both time-ordered. Candidates are bucketed by row (a stable counting sort keeps each row time-ordered),
     so each pending event scans only rows y - row_tol .. y + row_tol, from a per-row pointer that only moves
@@ -62,7 +71,7 @@ def _resolve(pt, px, py, pp, pv, n, ct, cx, cy, cp, cv, height, window, row_tol,
             while k < start[r + 1] and ct[order[k]] <= t + window:
                 j = order[k]
                 k += 1
-                if cp[j] == pp[i] and abs(pv[i] - cv[j]) <= value_tol:
+                if cp[j] == pp[i] and abs(pv[i] - cv[j]) <= value_tol[i]:
                     dx = cx[j] - px[i]
                     if not ((side > 0 and dx < 0) or (side < 0 and dx > 0)):
                         d = abs(dx)
@@ -105,36 +114,58 @@ class EventTimeMatcher(StreamMatcher):
         self._bank = FrameBank(2, self.params.frame_params(), resolution=self.resolution)
         # Plain columns rather than structured arrays: numpy is several times faster on them, and at 10 ms
         # packets the per-packet overhead is what limits the speed.
-        # Reference events that passed the threshold and await their candidate window: rows t, x, y, p; D1.
+        # Reference events that passed the threshold and await their candidate window: rows t, x, y, p; D1;
+        # the value tolerance in force for each.
         self._pending, self._pending_value = np.empty((4, 0), np.int64), np.empty(0)
+        self._pending_tol = np.empty(0)
         # Other-camera events that can be candidates (threshold and sign passed): rows t, x, y, p; D2.
         self._cands, self._cand_value = np.empty((4, 0), np.int64), np.empty(0)
+        self._level = SignalLevel(self.params, absolute=self.params.threshold, unit=dynamic_unit(self.params),
+                                  value_name="dynamic-frame value")
 
     def anchor_cameras(self) -> tuple[int, ...]:
         return (self.params.reference_camera,)
+
+    def diagnostics(self) -> dict:
+        """The signal-level diagnostics of the run so far (:meth:`cvstereo.signal_level.SignalLevel.diagnostics`)."""
+        return self._level.diagnostics()
 
     def _feed(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:
         prm = self.params
         ref = prm.reference_camera
         packets = (left, right)
-        # Each camera's frame depends on its own events only: no merged order is needed here.
-        if packets[ref].size:
-            cols = event_matrix(packets[ref])
-            v1 = self._bank.process_columns(ref, cols, read="before")
-            keep = np.abs(v1) >= prm.threshold  # NaN (dropped polarity) compares False
-            self._pending = np.concatenate([self._pending, cols[:, keep]], axis=1)
-            self._pending_value = np.concatenate([self._pending_value, v1[keep]])
-        if packets[1 - ref].size:
-            cols = event_matrix(packets[1 - ref])
-            v2 = self._bank.process_columns(1 - ref, cols, read="after")
-            keep = (np.abs(v2) >= prm.threshold) & (np.sign(v2) == 2 * cols[3] - 1)
-            self._cands = np.concatenate([self._cands, cols[:, keep]], axis=1)
-            self._cand_value = np.concatenate([self._cand_value, v2[keep]])
+        # Each camera's frame depends on its own events only: no merged order is needed here. The level
+        # windows are taken in time order, both cameras' part of a window before the next window's thresholds.
+        segments = {cam: window_segments(packets[cam]["t"], prm.level_window_us) for cam in (0, 1)}
+        for k in sorted({seg[0] for cam in (0, 1) for seg in segments[cam]}):
+            threshold = self._level.thresholds(k)
+            tolerance = self._level.relative(k, absolute=prm.value_tolerance, scale=prm.value_tolerance_scale)[ref]
+            for cam in (ref, 1 - ref):
+                for kk, a, b in segments[cam]:
+                    if kk == k:
+                        self._take(cam, packets[cam][a:b], k, threshold[cam], tolerance)
         if self.watermark is None:
             return empty_matches()
         # Every later event has t >= watermark: a pending event is final once watermark > t + window.
         n = int(np.searchsorted(self._pending[0], self.watermark - prm.time_window_us, side="left"))
         return self._resolve(n)
+
+    def _take(self, cam: int, events: np.ndarray, k: int, threshold: float, tolerance: float) -> None:
+        """Run one camera's events of level window ``k`` through its frame; keep the ones that pass."""
+        cols = event_matrix(events)
+        if cam == self.params.reference_camera:
+            v1 = self._bank.process_columns(cam, cols, read="before")
+            keep = np.abs(v1) >= threshold  # NaN (dropped polarity) compares False
+            self._pending = np.concatenate([self._pending, cols[:, keep]], axis=1)
+            self._pending_value = np.concatenate([self._pending_value, v1[keep]])
+            self._pending_tol = np.concatenate([self._pending_tol, np.full(int(keep.sum()), tolerance)])
+            self._level.add(k, cam, v1)
+        else:
+            v2 = self._bank.process_columns(cam, cols, read="after")
+            keep = (np.abs(v2) >= threshold) & (np.sign(v2) == 2 * cols[3] - 1)
+            self._cands = np.concatenate([self._cands, cols[:, keep]], axis=1)
+            self._cand_value = np.concatenate([self._cand_value, v2[keep]])
+            self._level.add(k, cam, v2)
 
     def _flush(self) -> np.ndarray:
         return self._resolve(self._pending.shape[1])
@@ -149,7 +180,7 @@ class EventTimeMatcher(StreamMatcher):
         pend, cands = self._pending, self._cands
         _resolve(pend[0], pend[1], pend[2], pend[3], self._pending_value, n, cands[0], cands[1], cands[2],
                  cands[3], self._cand_value, self.resolution[1], int(prm.time_window_us),
-                 int(prm.row_tolerance), float(prm.value_tolerance), side, int(prm.max_disparity), out)
+                 int(prm.row_tolerance), self._pending_tol, side, int(prm.max_disparity), out)
         found = np.flatnonzero(out >= 0)
         matches = empty_matches(found.size)
         for row, name in enumerate(("t", "x", "y", "p")):
@@ -157,6 +188,7 @@ class EventTimeMatcher(StreamMatcher):
         matches["camera"] = ref
         matches["disparity"] = out[found]
         self._pending, self._pending_value = pend[:, n:], self._pending_value[n:]
+        self._pending_tol = self._pending_tol[n:]
         # Candidates older than any future use: earlier than the next pending event (or the watermark)
         # minus the window.
         horizon = self.watermark if self.watermark is not None else 0

@@ -15,6 +15,13 @@ the threshold has an empty run of its own: its vector points to the nearest abov
 Both cameras' events are processed in one merged order (by time, left first at equal times), see
 :mod:`calibration_free.merge_order` and :mod:`calibration_free._event_common`. The reference implementation is
 :func:`calibration_free.reference.event_vector.event_vector_reference`.
+
+Relative thresholds (``threshold_mode="relative"``, :mod:`cvstereo.signal_level`): the threshold (0.8), which
+decides both which events are matched and which pixels form the accumulations, becomes ``threshold_scale``
+times each camera's signal level (the 0.9 quantile of the |D| its events read at their pixels over the last
+second): the event's own row uses its camera's, the candidate row the other camera's, since D grows with the
+events per edge. The cost is a distance in pixels and ``max_cost`` (1000) Algorithm 4's "no match yet" start
+value: both stay absolute, as do the disparity range (geometry) and the decay (time).
 """
 
 from __future__ import annotations
@@ -37,7 +44,7 @@ def _sign(v):
 
 @njit(cache=True)
 def _event_vector_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, slot_of_p, kernel, decay, period,
-                         threshold, require, max_d, max_cost, out_cam, out_index, out_disparity):
+                         thresholds, require, max_d, max_cost, out_cam, out_index, out_disparity, values_l, values_r):
     """Process both cameras' events in merged order; one output row per matched event; returns the count."""
     width = stored.shape[3]
     row = np.empty(width)
@@ -63,6 +70,11 @@ def _event_vector_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, s
         advance(stored, scale, clock, other, t, decay, period)
         c1 = scale[cam]
         value = stored[cam, slot, y, x] * c1
+        if cam == 0:
+            values_l[i] = abs(value)
+        else:
+            values_r[i] = abs(value)
+        threshold = thresholds[cam]
         if abs(value) >= threshold:
             # Own vector: walk out of x's run, then on to the next above-threshold pixel, on each side.
             k = x
@@ -85,6 +97,7 @@ def _event_vector_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, s
             c2 = scale[other]
             for xx in range(width):
                 row[xx] = stored[other, slot, y, xx] * c2
+            threshold = thresholds[other]  # the other camera's accumulations, by its own threshold
             prev = -1  # last above-threshold pixel before the current run
             last = -1  # last above-threshold pixel so far
             for xx in range(hi + 1):
@@ -146,9 +159,9 @@ class EventVectorMatcher(MergedEventMatcher):
     Params = EventVectorParams
     variants: ClassVar[dict[str, dict]] = {"default": {}}
 
-    def _run_kernel(self, columns, out_cam, out_index, out_disparity) -> int:
+    def _run_kernel(self, columns, thresholds, out_cam, out_index, out_disparity, out_values) -> int:
         prm, bank = self.params, self._bank
         return int(_event_vector_kernel(*columns, bank.stored, bank.scale, bank.clock, bank.slot_of_p, bank.kernel,
-                                        *bank.decay_args, float(prm.threshold),
+                                        *bank.decay_args, thresholds,
                                         bool(prm.require_candidate_threshold), int(prm.max_disparity),
-                                        float(prm.max_cost), out_cam, out_index, out_disparity))
+                                        float(prm.max_cost), out_cam, out_index, out_disparity, *out_values))

@@ -11,6 +11,12 @@ The scan is one numba kernel (:func:`scan_sad`) that computes the SAD only for t
 (each search fills a whole block of the disparity map, so most above-threshold pixels are never searched).
 Its readable twin, a full cost volume from OpenCV kernels (``cv2.absdiff`` and an unnormalised
 ``cv2.boxFilter`` per disparity) and the scan over it, is :mod:`calibration_free.reference.frame_area`.
+
+Relative thresholds (``threshold_mode="relative"``, :mod:`cvstereo.signal_level`): the search threshold (2 on
+the filtered frame, 4 unfiltered) becomes ``threshold_scale`` times the reference camera's signal level (the 0.9
+quantile of |frame value| at its pixels with events over the last second), since a frame's values grow with
+the events per pixel. The SAD needs no threshold of its own: candidates are compared with each other (least
+SAD wins); block size and disparity range are geometry.
 """
 
 from __future__ import annotations
@@ -21,8 +27,9 @@ import numba
 import numpy as np
 
 from calibration_free.params import FrameAreaParams
-from cvstereo.frames import event_mask, gaussian_filter, polarity_counts, polarity_frames
+from cvstereo.frames import event_mask, filtered_unit, gaussian_filter, polarity_counts, polarity_frames
 from cvstereo.matches import empty_matches, make_matches
+from cvstereo.signal_level import SignalLevel
 from cvstereo.windows import FrameMatcher, Window
 
 
@@ -106,8 +113,18 @@ class FrameAreaMatcher(FrameMatcher):
     }
     method = "frame-area"
 
+    def __init__(self, params=None, *, resolution=(128, 128)):
+        super().__init__(params, resolution=resolution)
+        prm = self.params
+        self._level = SignalLevel(prm, absolute=prm.threshold, unit=filtered_unit(prm),
+                                  value_name="filtered value" if prm.gaussian else "frame value")
+
     def anchor_cameras(self) -> tuple[int, ...]:
         return (self.params.reference_camera,)
+
+    def diagnostics(self) -> dict:
+        """The signal-level diagnostics of the run so far (:meth:`cvstereo.signal_level.SignalLevel.diagnostics`)."""
+        return self._level.diagnostics()
 
     def _frame(self, counts: np.ndarray) -> np.ndarray:
         (_, frame), = polarity_frames(counts, polarity="shared")
@@ -121,18 +138,30 @@ class FrameAreaMatcher(FrameMatcher):
             (window.left, window.right)
         return polarity_counts(ref_ev, resolution=self.resolution), polarity_counts(oth_ev, resolution=self.resolution)
 
-    def _disparity_map(self, ref_counts: np.ndarray, oth_counts: np.ndarray):
+    def _disparity_map(self, ref_counts: np.ndarray, oth_counts: np.ndarray, threshold: float):
         prm = self.params
         ref, oth = self._frame(ref_counts), self._frame(oth_counts)
-        disp = scan_sad(ref, oth, threshold=prm.threshold, max_disparity=prm.max_disparity, block=prm.block,
+        disp = scan_sad(ref, oth, threshold=threshold, max_disparity=prm.max_disparity, block=prm.block,
                         reference_camera=prm.reference_camera)
-        return disp, ref
+        return disp, ref, oth
 
     def match_window(self, window: Window) -> np.ndarray:
         prm = self.params
-        if not (window.right if prm.reference_camera == 1 else window.left).size:
-            return empty_matches()  # no reference events: nothing above threshold, no pixel to report at
+        k = window.t_start // prm.level_window_us
+        threshold = self._level.thresholds(k)[prm.reference_camera]  # from the windows before this one
+        ref_cam = prm.reference_camera
         ref_counts, oth_counts = self._counts(window)
-        disp, ref = self._disparity_map(ref_counts, oth_counts)
+        if not (window.right if ref_cam == 1 else window.left).size:
+            self._add_levels(k, None, self._frame(oth_counts), ref_counts, oth_counts)
+            return empty_matches()  # no reference events: nothing above threshold, no pixel to report at
+        disp, ref, oth = self._disparity_map(ref_counts, oth_counts, threshold)
+        self._add_levels(k, ref, oth, ref_counts, oth_counts)
         y, x = np.nonzero(event_mask(ref_counts) & ~np.isnan(disp))
         return make_matches(window.t_end, x, y, (ref[y, x] > 0).astype(np.int8), prm.reference_camera, disp[y, x])
+
+    def _add_levels(self, k: int, ref, oth, ref_counts: np.ndarray, oth_counts: np.ndarray) -> None:
+        """Feed the signal level: |frame value| at each camera's pixels with events."""
+        ref_cam = self.params.reference_camera
+        if ref is not None:
+            self._level.add(k, ref_cam, ref[event_mask(ref_counts)])
+        self._level.add(k, 1 - ref_cam, oth[event_mask(oth_counts)])

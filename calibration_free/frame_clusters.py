@@ -10,6 +10,13 @@ i if the widths differ by at most 30 %, and the disparity is the difference of t
 per window, numpy's per-call overhead, not arithmetic, is the cost. Its readable twin, vectorised with numpy
 over a whole frame, is :mod:`calibration_free.reference.frame_clusters`; the tests hold both equal.
 
+Relative thresholds (``threshold_mode="relative"``, :mod:`cvstereo.signal_level`): the cluster threshold
+(1.2 on the filtered sum of signs) becomes ``threshold_scale`` times the signal level of each camera, the 0.9
+quantile of |filtered value| at its pixels with events over the last second, because the filtered value of an
+edge grows with its events per pixel. The other constants stay absolute: the 30 % width rule compares the two
+clusters' widths with each other and the disparity range is geometry; the Gaussian's sigma and size are
+pixels, not signal.
+
 >>> from cvstereo.events import make_events
 >>> ys, xs = np.mgrid[10:14, 40:46].reshape(2, -1).repeat(3, axis=1)   # 3 OFF events at each pixel of a patch
 >>> left = make_events(np.zeros(xs.size, int), xs, ys, 0)
@@ -28,8 +35,10 @@ import numba
 import numpy as np
 
 from calibration_free.params import WIDTH_EPS, FrameClusterParams
-from cvstereo.frames import gaussian_filter, stacked_frames
+from cvstereo.frames import filtered_unit, gaussian_filter, stacked_frames
 from cvstereo.matches import empty_matches, make_matches
+from cvstereo.polarity import slot_of_p
+from cvstereo.signal_level import SignalLevel
 from cvstereo.windows import FrameMatcher, Window
 
 
@@ -55,28 +64,67 @@ class FrameClusterMatcher(FrameMatcher):
     }
     method = "frame"
 
+    def __init__(self, params=None, *, resolution=(128, 128)):
+        super().__init__(params, resolution=resolution)
+        prm = self.params
+        self._level = SignalLevel(prm, absolute=prm.threshold, unit=filtered_unit(prm), value_name="filtered value")
+
     def anchor_cameras(self) -> tuple[int, ...]:
         return (self.params.anchor_camera,)
 
+    def diagnostics(self) -> dict:
+        """The signal-level diagnostics of the run so far (:meth:`cvstereo.signal_level.SignalLevel.diagnostics`)."""
+        return self._level.diagnostics()
+
     def match_window(self, window: Window) -> np.ndarray:
         prm = self.params
+        k = window.t_start // prm.level_window_us
+        threshold = self._level.thresholds(k)  # from the windows before this one
         if not (window.left.size and window.right.size):
+            self._add_levels(k, window, *self._stack(window))
             return empty_matches()  # a frame without events has no clusters, so no row can match
         height = self.resolution[1]
+        stack, seen, gap = self._stack(window)
+        n_frames = seen.shape[0] // height  # 2 for separate ON/OFF, else 1
+        x, y, sign, disparity = _match_stacked_rows(
+            stack, seen, n_frames, height, height + gap, np.float32(threshold[0]), np.float32(threshold[1]),
+            float(prm.width_tolerance), float(prm.max_disparity), int(prm.anchor_camera))
+        self._add_levels(k, window, stack, seen, gap)
+        matches = make_matches(window.t_end, x, y, (sign > 0).view(np.int8), prm.anchor_camera, disparity)
+        # One frame: the kernel already emits (y, x) order. Two (separate ON/OFF): a pixel may be in both.
+        return matches if n_frames == 1 else _pixel_order(matches)
+
+    def _stack(self, window: Window):
+        """The window's (filtered) frames stacked, the anchor camera's pixels with events, the gap rows."""
+        prm = self.params
         # All frames of the window (cameras x frames) go through the filter as one stacked image, with zero rows
         # between them: the same as filtering each on its own with a zero border (as the reference does).
         gap = prm.kernel_size // 2 if prm.gaussian else 0
         stack, seen = stacked_frames((window.left, window.right), polarity=prm.polarity, resolution=self.resolution,
                                      gap=gap, seen_camera=prm.anchor_camera)
-        n_frames = seen.shape[0] // height  # 2 for separate ON/OFF, else 1
         if prm.gaussian:
             stack = gaussian_filter(stack, sigma=prm.kernel_sigma, kernel_size=prm.kernel_size)
-        x, y, sign, disparity = _match_stacked_rows(
-            stack, seen, n_frames, height, height + gap, np.float32(prm.threshold), float(prm.width_tolerance),
-            float(prm.max_disparity), int(prm.anchor_camera))
-        matches = make_matches(window.t_end, x, y, (sign > 0).view(np.int8), prm.anchor_camera, disparity)
-        # One frame: the kernel already emits (y, x) order. Two (separate ON/OFF): a pixel may be in both.
-        return matches if n_frames == 1 else _pixel_order(matches)
+        return stack, seen, gap
+
+    def _add_levels(self, k: int, window: Window, stack: np.ndarray, seen: np.ndarray, gap: int) -> None:
+        """Feed the signal level: |filtered value| at each camera's pixels with events (of each frame)."""
+        height = self.resolution[1]
+        n_frames = seen.shape[0] // height
+        for cam, ev in enumerate((window.left, window.right)):
+            self._level.add(k, cam, active_values(stack, ev, polarity=self.params.polarity,
+                                                  first_row=cam * n_frames * (height + gap), pitch=height + gap))
+
+
+def active_values(stack: np.ndarray, events: np.ndarray, *, polarity: str, first_row: int, pitch: int) -> np.ndarray:
+    """The values of a camera's frames (in ``stack`` from ``first_row``, one every ``pitch`` rows, in slot order,
+    :mod:`cvstereo.polarity`) at each distinct pixel where the camera has events of that frame."""
+    if events.size == 0:
+        return np.empty(0, np.float32)
+    slot = slot_of_p(polarity)[1][events["p"].astype(np.int64)]
+    keep = slot >= 0
+    rows = first_row + slot[keep] * pitch + events["y"][keep].astype(np.int64)
+    flat = np.unique(rows * stack.shape[1] + events["x"][keep].astype(np.int64))
+    return stack.reshape(-1)[flat]
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -109,14 +157,15 @@ def _row_clusters(stack, r, threshold, clusters, camera):  # pragma: no cover - 
 
 
 @numba.njit(cache=True, nogil=True)
-def _match_stacked_rows(stack, seen, n_channels, height, pitch, threshold, width_tolerance, max_disparity,
-                        anchor_camera):  # pragma: no cover - compiled
+def _match_stacked_rows(stack, seen, n_channels, height, pitch, threshold_left, threshold_right, width_tolerance,
+                        max_disparity, anchor_camera):  # pragma: no cover - compiled
     """Steps 3-6 of algorithms.md section 1 for every frame of a window, in one pass over the rows.
 
     ``stack`` holds the filtered frames one above the other, every ``pitch`` rows: the left camera's channels,
     then the right camera's. ``seen`` (channel * height + y, x) marks the anchor camera's pixels with events.
     Returns x, y, sign and disparity of every reported pixel, channel by channel, row by row, x ascending.
-    Same arithmetic as the reference ``row_runs`` + ``match_runs`` (float32 threshold, float64 widths and centres).
+    Same arithmetic as the reference ``row_runs`` + ``match_runs`` (float32 thresholds, one per camera; float64
+    widths and centres).
     """
     width = stack.shape[1]
     capacity = n_channels * height * width
@@ -130,10 +179,10 @@ def _match_stacked_rows(stack, seen, n_channels, height, pitch, threshold, width
     n = 0
     for c in range(n_channels):
         for y in range(height):
-            n_l = _row_clusters(stack, c * pitch + y, threshold, clusters, 0)
+            n_l = _row_clusters(stack, c * pitch + y, threshold_left, clusters, 0)
             if n_l == 0:
                 continue
-            n_r = _row_clusters(stack, (n_channels + c) * pitch + y, threshold, clusters, 1)
+            n_r = _row_clusters(stack, (n_channels + c) * pitch + y, threshold_right, clusters, 1)
             if n_r != n_l:
                 continue  # unequal cluster counts: the row is not matched
             same_order = True

@@ -12,6 +12,7 @@ from typing import ClassVar, Literal
 
 from cvstereo.dynamic_frames import DynamicFrameParams
 from cvstereo.polarity import Polarity, check_polarity
+from cvstereo.signal_level import SignalLevelParams
 from cvstereo.windows import WindowFrameParams
 
 #: Comparisons of integer widths against a float fraction (the frame matcher's width rule) tolerate the
@@ -21,11 +22,12 @@ WIDTH_EPS = 1e-9
 
 
 @dataclass(frozen=True, kw_only=True)
-class FrameClusterParams(WindowFrameParams):
+class FrameClusterParams(SignalLevelParams, WindowFrameParams):
     """Parameters of the frame-based cluster matcher (thesis defaults; algorithms.md section 1).
 
     The window and Gaussian fields (window_us, gaussian, kernel_sigma, kernel_size) are those of
-    :class:`~cvstereo.windows.WindowFrameParams`.
+    :class:`~cvstereo.windows.WindowFrameParams`, the relative-threshold fields (threshold_mode,
+    threshold_scale, level_*) those of :class:`~cvstereo.signal_level.SignalLevelParams`.
 
     Attributes
     ----------
@@ -63,11 +65,12 @@ class FrameClusterParams(WindowFrameParams):
 
 
 @dataclass(frozen=True, kw_only=True)
-class FrameAreaParams(WindowFrameParams):
+class FrameAreaParams(SignalLevelParams, WindowFrameParams):
     """Parameters of the frame-area SAD matcher (thesis defaults; algorithms.md section 3).
 
     The window and Gaussian fields (window_us, gaussian, kernel_sigma, kernel_size) are those of
-    :class:`~cvstereo.windows.WindowFrameParams`.
+    :class:`~cvstereo.windows.WindowFrameParams`, the relative-threshold fields (threshold_mode,
+    threshold_scale, level_*) those of :class:`~cvstereo.signal_level.SignalLevelParams`.
 
     Attributes
     ----------
@@ -103,8 +106,9 @@ class FrameAreaParams(WindowFrameParams):
 
 
 @dataclass(frozen=True, kw_only=True)
-class EventTimeParams(DynamicFrameParams):
-    """Parameters of the event-time matcher (thesis defaults), besides those of the dynamic frames.
+class EventTimeParams(SignalLevelParams, DynamicFrameParams):
+    """Parameters of the event-time matcher (thesis defaults), besides those of the dynamic frames and the
+    relative-threshold fields of :class:`~cvstereo.signal_level.SignalLevelParams`.
 
     Attributes
     ----------
@@ -112,6 +116,8 @@ class EventTimeParams(DynamicFrameParams):
         Minimum ``|D|`` at the event's pixel, in both frames.
     value_tolerance : float
         Maximum ``|D1 - D2|``.
+    value_tolerance_scale : float
+        In relative mode, the maximum ``|D1 - D2|`` as a multiple of the reference camera's signal level.
     time_window_us : int
         Maximum ``|t2 - t|``.
     row_tolerance : int
@@ -126,6 +132,7 @@ class EventTimeParams(DynamicFrameParams):
 
     threshold: float = 0.8
     value_tolerance: float = 0.3
+    value_tolerance_scale: float = 0.3
     time_window_us: int = 300
     row_tolerance: int = 1
     reference_camera: Literal[0, 1] = 1
@@ -136,14 +143,16 @@ class EventTimeParams(DynamicFrameParams):
         super().__post_init__()
         if self.reference_camera not in (0, 1):
             raise ValueError(f"reference_camera must be 0 (left) or 1 (right), got {self.reference_camera}.")
-        for name in ("threshold", "value_tolerance", "time_window_us", "row_tolerance", "max_disparity"):
+        for name in ("threshold", "value_tolerance", "value_tolerance_scale", "time_window_us", "row_tolerance",
+                     "max_disparity"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}.")
 
 
 @dataclass(frozen=True, kw_only=True)
-class EventAreaParams(DynamicFrameParams):
-    """Parameters of the event-area matcher (thesis defaults), besides those of the dynamic frames.
+class EventAreaParams(SignalLevelParams, DynamicFrameParams):
+    """Parameters of the event-area matcher (thesis defaults), besides those of the dynamic frames and the
+    relative-threshold fields of :class:`~cvstereo.signal_level.SignalLevelParams`.
 
     Attributes
     ----------
@@ -174,8 +183,9 @@ class EventAreaParams(DynamicFrameParams):
 
 
 @dataclass(frozen=True, kw_only=True)
-class EventVectorParams(DynamicFrameParams):
-    """Parameters of the event-vector matcher (thesis defaults), besides those of the dynamic frames.
+class EventVectorParams(SignalLevelParams, DynamicFrameParams):
+    """Parameters of the event-vector matcher (thesis defaults), besides those of the dynamic frames and the
+    relative-threshold fields of :class:`~cvstereo.signal_level.SignalLevelParams`.
 
     Attributes
     ----------

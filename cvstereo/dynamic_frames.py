@@ -113,6 +113,16 @@ def update_kernel(params: DynamicFrameParams) -> np.ndarray:
     return np.ascontiguousarray(params.gaussian_gain * (g @ g.T))
 
 
+def dynamic_unit(params) -> float:
+    """|D| at the pixel of one isolated event just after it: the update kernel's centre weight.
+
+    The unit of a relative threshold's floor (:mod:`cvstereo.signal_level`), the same for the fast matchers and
+    their references.
+    """
+    kernel = update_kernel(params.frame_params())
+    return float(kernel[kernel.shape[0] // 2, kernel.shape[1] // 2])
+
+
 # ----------------------------------------------------------------------------------------------------------
 # The same operations as the reference DynamicFrames, on state arrays of several cameras, in numba.
 # State of camera ``cam``: stored[cam] (n_frames, H, W), scale[cam], clock[cam] = (next_tick, touched).

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 from cvstereo.evaluate import evaluate, markdown_table
 from cvstereo.matches import MatchResult
+from cvstereo.param_sets import ADAPTIVE
 from cvstereo.pipeline import match
 from cvstereo.recording import Recording
 from cvstereo.registry import available_methods, matcher_class
@@ -19,17 +20,22 @@ from cvstereo.thesis import DISPARITY_TABLES
 
 @dataclass(frozen=True)
 class Combo:
-    """One matcher configuration: method, variant and parameter overrides."""
+    """One matcher configuration: method, variant, parameter set (:mod:`cvstereo.param_sets`) and overrides.
+
+    The thesis-reproduction tables use the ``thesis`` set (the default here); ``adaptive`` rows stand beside.
+    """
 
     method: str
     variant: str
     params: tuple[tuple[str, object], ...] = ()
+    param_set: str = "thesis"
 
     @property
     def label(self) -> str:
-        """``method/variant`` (plus overrides), as tables show it."""
+        """``method/variant`` (plus `` (adaptive)`` and overrides), as tables show it."""
         extra = ",".join(f"{k}={v}" for k, v in self.params)
-        return f"{self.method}/{self.variant}" + (f" [{extra}]" if extra else "")
+        tag = "" if self.param_set == "thesis" else f" ({self.param_set})"
+        return f"{self.method}/{self.variant}{tag}" + (f" [{extra}]" if extra else "")
 
 
 @dataclass
@@ -44,15 +50,23 @@ class ExperimentResult:
         self.meta.setdefault(combo, {})[recording] = meta
 
 
-def all_combos(methods: Iterable[str] | None = None) -> list[Combo]:
-    """Every variant of every importable method (or of ``methods``), in registry order."""
+def all_combos(methods: Iterable[str] | None = None, *, param_sets: Iterable[str] = ("thesis",)) -> list[Combo]:
+    """Every variant of every importable method (or of ``methods``), in registry order, under ``thesis``;
+    with ``"adaptive"`` in ``param_sets`` also each thesis method's ``adaptive`` default, right after its
+    thesis variants."""
     names = available_methods() if methods is None else list(methods)
-    return [Combo(m, v) for m in names for v in matcher_class(m).variants]
+    out = []
+    for m in names:
+        out += [Combo(m, v) for v in matcher_class(m).variants] if "thesis" in param_sets else []
+        if "adaptive" in param_sets and m in ADAPTIVE:
+            out.append(Combo(m, ADAPTIVE[m].variant, param_set="adaptive"))
+    return out
 
 
 def run_combo(recording: Recording, combo: Combo) -> MatchResult:
     """Run one combo over a recording (the default ``run`` of :func:`run_experiment`)."""
-    return match(recording, method=combo.method, variant=combo.variant, **dict(combo.params))
+    return match(recording, method=combo.method, variant=combo.variant, param_set=combo.param_set,
+                 **dict(combo.params))
 
 
 def score_result(name: str, recording: Recording, result: MatchResult) -> dict:
@@ -111,10 +125,14 @@ def run_experiment(recordings: Mapping[str, Recording], combos: Iterable[Combo],
 
 
 def experiment_markdown(result: ExperimentResult, *, columns=None) -> str:
-    """One thesis-style table per combo: rows are recordings, the thesis' mean/std beside ours."""
+    """One thesis-style table per combo: rows are recordings, the thesis' mean/std beside ours.
+
+    Each heading names the parameter set: the thesis reproduction is the ``thesis`` set's tables.
+    """
     parts = []
     for combo, rows in result.figures.items():
         thesis = DISPARITY_TABLES.get((combo.method, combo.variant))
         kwargs = {} if columns is None else {"columns": columns}
-        parts.append(f"### {combo.label}\n\n" + markdown_table(rows, thesis=thesis, **kwargs))
+        parts.append(f"### {combo.method}/{combo.variant} ({combo.param_set} set)\n\n"
+                     + markdown_table(rows, thesis=thesis, **kwargs))
     return "\n\n".join(parts)

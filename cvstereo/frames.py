@@ -225,6 +225,19 @@ def gaussian_filter(frame: np.ndarray, *, sigma: float = 1.0, kernel_size: int =
                             sigmaY=sigma, borderType=cv2.BORDER_CONSTANT)
 
 
+def filtered_unit(params) -> float:
+    """The (filtered) frame value of one isolated event: the Gaussian's centre weight, or 1 without the filter.
+
+    The unit of a relative threshold's floor (:mod:`cvstereo.signal_level`); ``params`` has the fields of
+    :class:`cvstereo.windows.WindowFrameParams` (gaussian, kernel_sigma, kernel_size).
+    """
+    if not params.gaussian:
+        return 1.0
+    one = np.zeros((params.kernel_size, params.kernel_size), np.float32)
+    one[params.kernel_size // 2, params.kernel_size // 2] = 1.0
+    return float(gaussian_filter(one, sigma=params.kernel_sigma, kernel_size=params.kernel_size).max())
+
+
 def check_filter_params(kernel_sigma: float, kernel_size: int, where: str) -> None:
     """Raise ValueError unless ``kernel_size`` is a positive odd int and ``kernel_sigma`` positive."""
     if kernel_size < 1 or kernel_size % 2 == 0:

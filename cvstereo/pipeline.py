@@ -6,11 +6,16 @@ import os
 import time
 from collections.abc import Iterator
 
+import numpy as np
+
 import cvstereo
 from cvstereo.events import StereoPacket
 from cvstereo.matches import MatchResult, concat_matches, sort_matches
 from cvstereo.recording import Recording
 from cvstereo.registry import create_matcher
+
+#: Windows of the diagnostics (:func:`cvstereo.signal_level.silence_warning`): 40 ms on the absolute clock.
+DIAGNOSTICS_WINDOW_US = 40_000
 
 #: Packet length used to stream a recording through a matcher. The result does not depend on it; the speed
 #: does: one frame window per packet saves the frame matchers from joining partial windows, and the event
@@ -26,6 +31,7 @@ class _Counted(Iterator[StereoPacket]):
         self.events = 0
         self.t_first: int | None = None
         self.t_last: int | None = None
+        self.windows: set[int] = set()  # absolute 40 ms windows that hold events (for the diagnostics)
 
     def __next__(self) -> StereoPacket:
         packet = next(self._packets)
@@ -34,6 +40,7 @@ class _Counted(Iterator[StereoPacket]):
                 first, last = int(ev["t"][0]), int(ev["t"][-1])
                 self.t_first = first if self.t_first is None else min(self.t_first, first)
                 self.t_last = last if self.t_last is None else max(self.t_last, last)
+                self.windows.update(np.unique(ev["t"].astype(np.int64) // DIAGNOSTICS_WINDOW_US).tolist())
         self.events += packet.left.size + packet.right.size
         return packet
 
@@ -44,8 +51,8 @@ class _Counted(Iterator[StereoPacket]):
 
 def match(recording, right=None, *, method: str = "frame", variant: str | None = None,
           packet_us: int = DEFAULT_PACKET_US, progress: bool = False, row_offset: float = 0,
-          time_offset_us: int = 0, rectification=None, columns: str | None = None, time_unit: str = "us",
-          resolution: tuple[int, int] | None = None, **params) -> MatchResult:
+          time_offset_us: int = 0, rectification=None, param_set: str = "adaptive", columns: str | None = None,
+          time_unit: str = "us", resolution: tuple[int, int] | None = None, **params) -> MatchResult:
     """Run one matcher over a recording, streaming it packet by packet.
 
     Parameters
@@ -59,7 +66,7 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         A registered method (:data:`cvstereo.registry.METHODS`): ``frame``, ``frame-area``, ``event-time``,
         ``event-area``, ``event-vector``, ``stereobm``, ``sgbm``, ...
     variant : str, optional
-        Variant name (formats.md); default: the method's first.
+        Variant name (formats.md); default: the parameter set's default variant (``thesis``: the method's first).
     packet_us : int
         Packet length for streaming.
     progress : bool
@@ -75,13 +82,19 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         Rectify the events with a calibration before matching (:mod:`cvstereo.rectify`); matches are mapped
         back to the recording's pixels, disparities are the rectified pair's; recorded in meta under
         ``rectification``. Not together with ``row_offset`` / ``time_offset_us``.
+    param_set : {"adaptive", "thesis"}, keyword-only
+        :mod:`cvstereo.param_sets`; recorded in meta under ``param_set``.
     **params
-        Parameter overrides (field names of the method's parameter dataclass, or their old names).
+        Parameter overrides (field names of the method's parameter dataclass, or their old names), on top of the
+        set's values.
 
     Returns
     -------
     MatchResult
-        Time-ordered matches and the meta of formats.md.
+        Time-ordered matches and the meta of formats.md. ``meta["diagnostics"]`` says how much of the
+        recording answered (:func:`cvstereo.signal_level.silence_warning` turns it into one line): windows with
+        events and with matches (40 ms, absolute clock), and for the thesis matchers windows seen, windows with
+        candidates, the highest value against its threshold and the threshold in force over time.
 
     Examples
     --------
@@ -100,7 +113,7 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
 
         source = [os.fspath(recording)] + ([os.fspath(right)] if right is not None else [])
         stream, total = open_recording(recording, right), None
-    matcher = create_matcher(method, variant, resolution=stream.resolution, **params)
+    matcher = create_matcher(method, variant, resolution=stream.resolution, param_set=param_set, **params)
     bar = _progress_bar(progress, total, method)
     start = time.perf_counter()
     packets = counted = _Counted(stream.packets(packet_us))
@@ -140,6 +153,7 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         version=cvstereo.__version__,
         input=source,
     )
+    meta["param_set"] = param_set
     matches = concat_matches(parts)
     if correction is not None:
         matches = correction.restore(matches)
@@ -147,7 +161,21 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
                                   packets.dropped_times}
     if rectified is not None:
         meta["rectification"] = {**rectification.describe(), "dropped_events": sum(rectified.dropped)}
-    return MatchResult(sort_matches(matches), meta)
+    matches = sort_matches(matches)
+    meta["diagnostics"] = _diagnostics(matcher, counted.windows, matches, meta)
+    return MatchResult(matches, meta)
+
+
+def _diagnostics(matcher, event_windows: set[int], matches, meta: dict) -> dict:
+    """How much of the recording answered: windows with events and with matches, and the matcher's own."""
+    from cvstereo.signal_level import coverage_of_windows
+
+    with_matches, with_events = coverage_of_windows(event_windows, matches, meta, DIAGNOSTICS_WINDOW_US)
+    out = {"window_us": DIAGNOSTICS_WINDOW_US, "windows_with_events": with_events,
+           "windows_with_matches": with_matches}
+    if hasattr(matcher, "diagnostics"):
+        out.update(matcher.diagnostics())
+    return out
 
 
 def _as_source(recording, right, method: str, *, columns, time_unit, resolution):

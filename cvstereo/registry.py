@@ -22,6 +22,7 @@ from collections.abc import Iterator, Mapping
 
 from cvstereo.errors import NoMatchersError
 from cvstereo.matcher import StreamMatcher, check_param_value
+from cvstereo.param_sets import resolve
 from cvstereo.params import aliases_of, canonical_params
 
 #: The entry-point group that lists the matchers: name (formats.md) -> "module:Class".
@@ -90,8 +91,13 @@ def matcher_class(method: str) -> type[StreamMatcher]:
     return _entry_points()[method].load()
 
 
-def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 128), **params) -> StreamMatcher:
-    """Build a matcher by name, variant and parameter overrides.
+def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 128), param_set: str = "adaptive",
+                   **params) -> StreamMatcher:
+    """Build a matcher by name, variant, parameter set and parameter overrides.
+
+    ``param_set`` (:mod:`cvstereo.param_sets`): ``adaptive`` (default, thresholds relative to the recording's
+    signal level, each method's best variant) or ``thesis`` (algorithms.md's constants and default variants).
+    An explicit ``variant`` wins over the set's default variant; ``params`` override the set's values.
 
     Examples
     --------
@@ -99,7 +105,10 @@ def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 
     >>> m.params.polarity, m.params.width_tolerance
     ('separate', 0.25)
     """
-    return matcher_class(method).from_variant(variant, resolution=resolution, **params)
+    variant, set_params = resolve(method, variant, param_set)
+    matcher = matcher_class(method).from_variant(variant, resolution=resolution, **{**set_params, **params})
+    matcher.param_set = param_set
+    return matcher
 
 
 def parse_param_strings(params_cls: type, items: list[str]) -> dict:

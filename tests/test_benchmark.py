@@ -51,21 +51,24 @@ def test_bench_runs_every_combo_on_every_recording_through_the_experiment_loop(m
         return Recording(left, right)
 
     sims = {"2arms-50cm": rec(6), "1arm-50cm": rec(4)}
-    dists = {z: rec(int(10 * z)) for z in (0.5, 1.5, 0.75, 1.0, 1.25)}
+    dists = {z: rec(round(10 / z)) for z in (0.5, 1.5, 0.75, 1.0, 1.25)}  # nearer, larger disparity
     monkeypatch.setattr(bench, "simulated_recordings", lambda config: sims)
     monkeypatch.setattr(bench, "real_recordings", lambda shared: {})
     monkeypatch.setattr(bench, "distance_recordings", lambda config: dists)
     results = bench.run_bench(bench.BenchConfig(quick=True, methods=("frame", "event-time")), progress=False,
                               log=lambda line: None)
-    assert list(results["runs"]) == ["frame/shared", "frame/separate", "frame/on", "frame/off", "event-time/shared",
-                                     "event-time/separate", "event-time/on", "event-time/off"]
+    # The thesis set's variants, then each method's adaptive default beside them.
+    assert list(results["runs"]) == ["frame/shared", "frame/separate", "frame/on", "frame/off",
+                                     "frame/separate (adaptive)", "event-time/shared", "event-time/separate",
+                                     "event-time/on", "event-time/off", "event-time/separate (adaptive)"]
     timed = {"elapsed_s", "events_per_s", "realtime_x", "peak_rss_mb", "rss_increase_mb"}
     for label, runs in results["runs"].items():
-        method, variant = label.split("/")
+        combo = results["combos"][label]
+        method, variant, param_set = combo["method"], combo["variant"], combo["param_set"]
         assert list(runs) == ["2arms-50cm", "1arm-50cm", "1arm-150cm", "1arm-75cm", "1arm-100cm", "1arm-125cm"]
         for name, figures in runs.items():
             recording = dists[0.5] if name == "1arm-50cm" else sims.get(name) or dists[int(name[5:-2]) / 100]
-            result = match(recording, method=method, variant=variant)
+            result = match(recording, method=method, variant=variant, param_set=param_set)
             expected = evaluate(recording, result)
             expected["median"] = float(np.median(result.disparity)) if len(result) else float("nan")
             for key, value in expected.items():

@@ -74,7 +74,10 @@ def test_list_methods(capsys):
     text = capsys.readouterr().out
     for name in METHODS:
         assert f"{name}:" in text
-    for expected in ("shared (default), separate, on, off", "gaussian (default), no-gaussian",
+    # adaptive (the default set) picks its own default variant, the thesis' default is marked beside it
+    for expected in ("shared (thesis default), separate (default), on, off", "gaussian (default), no-gaussian",
+                     "adaptive set (default): variant separate, because ON and OFF events in one frame cancel",
+                     "thesis set (--param-set thesis): variant shared",
                      "width_tolerance = 0.3", "threshold = 1.2", "reference_camera = 1", "max_disparity = 63",
                      "no-gaussian: gaussian=false, threshold=4.0"):
         assert expected in text

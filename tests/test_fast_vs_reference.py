@@ -3,7 +3,9 @@
 Each fast matcher (numba kernels, stacked frames) must give exactly the matches of its readable reference in
 :mod:`calibration_free.reference`, bit for bit and in the same order, however the stream is cut into packets.
 Beside the variant, the parameters that change the code path (anchor or reference camera, side restriction,
-polarity mode, candidate test, Gaussian) are drawn too.
+polarity mode, candidate test, Gaussian) are drawn too, and both threshold modes: ``absolute`` (the thesis'
+constants) and ``relative`` (thresholds that follow the signal level, :mod:`cvstereo.signal_level`, with short
+level windows and a small warm-up so that the thresholds change often within a short stream).
 """
 
 from __future__ import annotations
@@ -40,6 +42,23 @@ CASES = {
 }
 
 COMBOS = [(m, v) for m in CASES for v in matcher_class(m).variants]
+
+#: Threshold modes: the overrides of each (relative: drawn scales beside short level windows).
+MODES = {
+    "absolute": {},
+    "relative": {"threshold_mode": "relative", "level_window_us": 5_000, "level_warmup": 20, "level_windows": 3},
+}
+#: Relative mode: the scales drawn (event-time also scales its value tolerance).
+SCALES = {"threshold_scale": [0.5, 0.8]}
+EVENT_TIME_SCALES = {"value_tolerance_scale": [0.3, 0.4]}
+
+
+def mode_params(method: str, mode: str, draw) -> dict:
+    """The threshold-mode overrides of one case; ``draw(name, values)`` picks one of ``values``."""
+    if mode == "absolute":
+        return {}
+    scales = {**SCALES, **(EVENT_TIME_SCALES if method == "event-time" else {})}
+    return {**MODES[mode], **{name: draw(name, values) for name, values in scales.items()}}
 
 
 def test_every_registered_thesis_variant_is_covered():
@@ -84,16 +103,18 @@ def scene(method: str, seed: int):
     return random_pair(seed, n=1000, width=32, height=8)
 
 
+@pytest.mark.parametrize("mode", list(MODES))
 @pytest.mark.parametrize(("method", "variant"), COMBOS)
 @settings(max_examples=8, deadline=None)
 @given(data=st.data(), seed=st.integers(0, 2**32 - 1), n_cuts=st.integers(0, 30))
-def test_fast_equals_reference_across_packet_cuts(method, variant, data, seed, n_cuts):
+def test_fast_equals_reference_across_packet_cuts(method, variant, mode, data, seed, n_cuts):
     reference, axes, per_variant = CASES[method]
     cls = matcher_class(method)
     drawn = {}
     for name, values in axes.items():
         value = data.draw(st.sampled_from(values), label=name)
         drawn.update(value if isinstance(value, dict) else {name: value})
+    drawn.update(mode_params(method, mode, lambda name, values: data.draw(st.sampled_from(values), label=name)))
     params = cls.make_params(variant, **{**drawn, **per_variant.get(variant, {})})
     left, right, resolution = scene(method, seed)
     expected = reference(left, right, params, resolution=resolution)
@@ -105,14 +126,19 @@ def test_fast_equals_reference_across_packet_cuts(method, variant, data, seed, n
     validate_matches(got)
 
 
+@pytest.mark.parametrize("mode", list(MODES))
 @pytest.mark.parametrize(("method", "variant"), COMBOS)
-def test_fast_equals_reference_on_a_simulated_clip(method, variant):
+def test_fast_equals_reference_on_a_simulated_clip(method, variant, mode):
     reference = CASES[method][0]
     cls = matcher_class(method)
     left, right, resolution = simulated_clip(100_000)
-    params = cls.make_params(variant)
+    params = cls.make_params(variant, **mode_params(method, mode, lambda name, values: values[0]))
     expected = reference(left, right, params, resolution=resolution)
     got = feed_cut(cls(params, resolution=resolution), left, right, range(0, 100_000, 3_333))
     # The single-pixel event-area variant needs four events at one pixel within a few ms (README: known limits).
     assert expected.size > 0 or (method, variant) == ("event-area", "no-gaussian")
     np.testing.assert_array_equal(got, expected)
+    if mode == "relative" and expected.size:
+        # The relative thresholds did change the result (else this case would test the absolute path twice).
+        absolute = feed_cut(cls(cls.make_params(variant), resolution=resolution), left, right, [])
+        assert not np.array_equal(absolute, expected)

@@ -155,7 +155,7 @@ def test_result_does_not_depend_on_the_packets(seed, cuts):
     parts = [stereo_blobs(rng, int(rng.integers(0, 20)), t0=k * W, n=5) for k in range(3)]
     left = np.concatenate([p[0] for p in parts])
     right = np.concatenate([p[1] for p in parts])
-    whole = match(Recording(left, right), method="frame-area").matches
+    whole = match(Recording(left, right), method="frame-area", param_set="thesis").matches
     np.testing.assert_array_equal(feed_slices(FrameAreaMatcher(), left, right, cuts), whole)
 
 

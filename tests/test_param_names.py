@@ -27,7 +27,8 @@ def test_old_names_are_accepted_everywhere(method, old, old_value, new, new_valu
     expected = cls.make_params(**{new: new_value})
     assert getattr(expected, new) == new_value and getattr(cls.Params(), new) != new_value
     assert cls.Params(**{old: old_value}) == cls.Params(**{new: new_value})  # Python keyword
-    assert create_matcher(method, **{old: old_value}).params == expected  # through the registry
+    assert create_matcher(method, param_set="thesis", **{old: old_value}).params == expected  # through the registry
+    assert create_matcher(method, **{old: old_value}).params == create_matcher(method, **{new: new_value}).params
     assert cls.make_params(**parse_param_strings(cls.Params, [f"{old}={old_value}"])) == expected  # --param
     assert params_from_meta({"method": method, "params": {old: old_value}}) == expected  # stored meta
     described = create_matcher(method, **{old: old_value}).describe()["params"]

@@ -6,7 +6,10 @@ One module per matcher (:mod:`.frame_clusters`, :mod:`.frame_area`, :mod:`.event
 time-ordered matches array. They are slow (use them on short inputs) and exist so that tests can hold the fast
 matchers to them: same anchors, same disparities, bit for bit. They share the parameter classes
 (:mod:`calibration_free.params`) and the merge order of the two cameras (:mod:`calibration_free.merge_order`)
-with the fast matchers, and import none of their kernels.
+with the fast matchers, and import none of their kernels. In relative threshold mode they feed the same
+signal-level estimator (:class:`cvstereo.signal_level.SignalLevel`) with the values they compute, window by
+window (the event references one event at a time, through
+:class:`~calibration_free.reference.dynamic_frames.LevelByWindow`).
 """
 
 from __future__ import annotations

@@ -17,10 +17,11 @@ from collections.abc import Callable
 import numpy as np
 
 from calibration_free.merge_order import merged_events
-from cvstereo.dynamic_frames import FORGET_TICKS, RENORM, DynamicFrameParams, update_kernel
+from cvstereo.dynamic_frames import FORGET_TICKS, RENORM, DynamicFrameParams, dynamic_unit, update_kernel
 from cvstereo.events import DEFAULT_RESOLUTION
 from cvstereo.matches import empty_matches, make_matches
 from cvstereo.polarity import ON, slot_of_p
+from cvstereo.signal_level import SignalLevel
 
 
 class DynamicFrames:
@@ -122,9 +123,46 @@ class DynamicFrames:
         return self.stored * self.scale
 
 
-#: ``match_event(own, other, slot, cam, x, y) -> disparity or None``: one event's search, on its own camera's
-#: frames and the other camera's, as they stand at its time before it updates its own.
-EventSearch = Callable[["DynamicFrames", "DynamicFrames", int, int, int, int], "int | None"]
+class LevelByWindow:
+    """The thresholds of a :class:`~cvstereo.signal_level.SignalLevel` for events met one at a time, in time order.
+
+    :meth:`at` returns the thresholds in force for the event's absolute window; :meth:`seen` records the value the
+    event read (per camera), handed to the estimator when its window is complete.
+    """
+
+    def __init__(self, params, *, value_name: str = "dynamic-frame value"):
+        self.level = SignalLevel(params, absolute=params.threshold, unit=dynamic_unit(params), value_name=value_name)
+        self.window_us = int(params.level_window_us)
+        self.current: int | None = None
+        self.values: tuple[list[float], list[float]] = ([], [])
+        self.thresholds = None
+
+    def at(self, t: int) -> np.ndarray:
+        """The (2,) thresholds in force at time ``t``."""
+        k = int(t) // self.window_us
+        if k != self.current:
+            self.close()
+            self.current = k
+            self.thresholds = self.level.thresholds(k)
+        return self.thresholds
+
+    def seen(self, cam: int, value: float) -> None:
+        """Record the value an event of camera ``cam`` read (for the windows after this one)."""
+        self.values[cam].append(abs(value))
+
+    def close(self) -> None:
+        """Hand the current window's values to the estimator."""
+        if self.current is not None:
+            for cam in (0, 1):
+                self.level.add(self.current, cam, np.array(self.values[cam]))
+        self.values = ([], [])
+
+
+#: ``match_event(own, other, slot, cam, x, y, thresholds) -> disparity or None``: one event's search, on its own
+#: camera's frames and the other camera's, as they stand at its time before it updates its own; ``thresholds``
+#: (per camera) are those in force for the event's window (:class:`LevelByWindow`; the absolute ``threshold``
+#: unless ``threshold_mode="relative"``).
+EventSearch = Callable[["DynamicFrames", "DynamicFrames", int, int, int, int, np.ndarray], "int | None"]
 
 
 def match_merged(left: np.ndarray, right: np.ndarray, params: DynamicFrameParams, match_event: EventSearch, *,
@@ -132,6 +170,7 @@ def match_merged(left: np.ndarray, right: np.ndarray, params: DynamicFrameParams
     """Both cameras' events one at a time in the merged order, each searched, then added to its own frame.
 
     The frame of each camera is decayed to the event's time first; events of a dropped polarity are skipped.
+    The value each event reads at its own pixel before its update feeds the signal level (:class:`LevelByWindow`).
 
     Returns
     -------
@@ -139,16 +178,19 @@ def match_merged(left: np.ndarray, right: np.ndarray, params: DynamicFrameParams
         One row per event ``match_event`` found a disparity for, in processing order (time-ordered).
     """
     frames = [DynamicFrames(params.frame_params(), resolution=resolution) for _ in range(2)]
+    level = LevelByWindow(params)
     rows = []
     for cam, _, e in merged_events(left, right):
         t, x, y, p = int(e["t"]), int(e["x"]), int(e["y"]), int(e["p"])
+        thresholds = level.at(t)
         own, other = frames[cam], frames[1 - cam]
         slot = own.slot(p)
         if slot < 0:
             continue
         own.advance(t)
         other.advance(t)
-        disparity = match_event(own, other, slot, cam, x, y)
+        level.seen(cam, own.value(slot, x, y))
+        disparity = match_event(own, other, slot, cam, x, y, thresholds)
         if disparity is not None:
             rows.append((t, x, y, p, cam, float(disparity)))
         own.add(slot, x, y, 1.0 if p else -1.0)

@@ -29,8 +29,9 @@ def event_area_reference(left: np.ndarray, right: np.ndarray, params: EventAreaP
     width, height = resolution
     half = prm.block // 2
 
-    def search(own: DynamicFrames, other: DynamicFrames, slot: int, cam: int, x: int, y: int) -> int | None:
-        if not (abs(own.value(slot, x, y)) >= prm.threshold and half <= x < width - half and
+    def search(own: DynamicFrames, other: DynamicFrames, slot: int, cam: int, x: int, y: int,
+               thresholds: np.ndarray) -> int | None:
+        if not (abs(own.value(slot, x, y)) >= thresholds[cam] and half <= x < width - half and
                 half <= y < height - half):
             return None
         minimum = prm.max_cost

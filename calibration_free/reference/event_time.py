@@ -7,8 +7,29 @@ import numpy as np
 from calibration_free.params import EventTimeParams
 from calibration_free.reference import sign
 from calibration_free.reference.dynamic_frames import DynamicFrames
+from cvstereo.dynamic_frames import dynamic_unit
 from cvstereo.events import DEFAULT_RESOLUTION
 from cvstereo.matches import empty_matches, make_matches
+from cvstereo.signal_level import SignalLevel
+
+
+def _thresholds_by_window(prm: EventTimeParams, events, values) -> tuple[dict, dict]:
+    """Window -> thresholds (per camera) and value tolerance in force, from the values of the windows before.
+
+    ``events`` and ``values`` are the reference camera's first, the other's second (D1 before, D2 after).
+    """
+    w = prm.level_window_us
+    ref = prm.reference_camera
+    level = SignalLevel(prm, absolute=prm.threshold, unit=dynamic_unit(prm))
+    windows = sorted({int(t) // w for ev in events for t in ev["t"]})
+    threshold, tolerance = {}, {}
+    for k in windows:
+        threshold[k] = level.thresholds(k)
+        tolerance[k] = level.relative(k, absolute=prm.value_tolerance, scale=prm.value_tolerance_scale)[ref]
+        for cam, ev, vals in ((ref, events[0], values[0]), (1 - ref, events[1], values[1])):
+            level.add(k, cam, np.array([np.nan if v is None else v for v, t in zip(vals, ev["t"], strict=True)
+                                        if int(t) // w == k]))
+    return threshold, tolerance
 
 
 def event_time_reference(left: np.ndarray, right: np.ndarray, params: EventTimeParams | None = None, *,
@@ -34,12 +55,14 @@ def event_time_reference(left: np.ndarray, right: np.ndarray, params: EventTimeP
     # D1 is read before e1 updates its frame; D2 as the frame stood just after e2's own update.
     d1 = DynamicFrames(fp, resolution=resolution).process(ev1, after=False)
     d2 = DynamicFrames(fp, resolution=resolution).process(ev2, after=True)
+    threshold, tolerance = _thresholds_by_window(prm, (ev1, ev2), (d1, d2))
     t2_all = ev2["t"]
     rows = []
     for i, e1 in enumerate(ev1):
         t, x, y = int(e1["t"]), int(e1["x"]), int(e1["y"])
         s = 1 if e1["p"] else -1
-        if d1[i] is None or not abs(d1[i]) >= prm.threshold:
+        k = t // prm.level_window_us
+        if d1[i] is None or not abs(d1[i]) >= threshold[k][ref]:
             continue
         minimum = None
         lo = int(np.searchsorted(t2_all, t - prm.time_window_us, side="left"))
@@ -50,7 +73,9 @@ def event_time_reference(left: np.ndarray, right: np.ndarray, params: EventTimeP
             s2 = 1 if e2["p"] else -1
             if v2 is None:
                 continue
-            if not (abs(v2) >= prm.threshold and sign(v2) == s and s2 == s and abs(d1[i] - v2) <= prm.value_tolerance):
+            k2 = int(e2["t"]) // prm.level_window_us
+            if not (abs(v2) >= threshold[k2][1 - ref] and sign(v2) == s and s2 == s
+                    and abs(d1[i] - v2) <= tolerance[k]):
                 continue
             x2, y2 = int(e2["x"]), int(e2["y"])
             if abs(y2 - y) > prm.row_tolerance:

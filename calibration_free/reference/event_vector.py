@@ -55,11 +55,14 @@ def event_vector_reference(left: np.ndarray, right: np.ndarray, params: EventVec
     prm = params if params is not None else EventVectorParams()
     width = resolution[0]
 
-    def search(own: DynamicFrames, other: DynamicFrames, slot: int, cam: int, x: int, y: int) -> int | None:
+    def search(own: DynamicFrames, other: DynamicFrames, slot: int, cam: int, x: int, y: int,
+               thresholds: np.ndarray) -> int | None:
+        # The event's own row by its camera's threshold, the candidate row by the other camera's.
+        own_threshold, other_threshold = thresholds[cam], thresholds[1 - cam]
         value = own.value(slot, x, y)
-        if not abs(value) >= prm.threshold:
+        if not abs(value) >= own_threshold:
             return None
-        a1, b1 = accumulation_vector(own, slot, x, y, prm.threshold)
+        a1, b1 = accumulation_vector(own, slot, x, y, own_threshold)
         minimum = prm.max_cost
         disparity = None
         for d in range(prm.max_disparity + 1):
@@ -67,9 +70,9 @@ def event_vector_reference(left: np.ndarray, right: np.ndarray, params: EventVec
             if x2 < 0 or x2 >= width:
                 break
             v2 = other.value(slot, x2, y)
-            if prm.require_candidate_threshold and not (abs(v2) >= prm.threshold and sign(v2) == sign(value)):
+            if prm.require_candidate_threshold and not (abs(v2) >= other_threshold and sign(v2) == sign(value)):
                 continue
-            a2, b2 = accumulation_vector(other, slot, x2, y, prm.threshold)
+            a2, b2 = accumulation_vector(other, slot, x2, y, other_threshold)
             cost = abs(a1 - a2) + abs(b1 - b2)
             if cost < minimum:  # strict: ties keep the smaller disparity
                 minimum = cost

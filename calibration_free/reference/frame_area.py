@@ -11,10 +11,11 @@ import cv2
 import numpy as np
 
 from calibration_free.params import FrameAreaParams
-from calibration_free.reference.windows import window_events
+from calibration_free.reference.windows import values_at_events, window_events
 from cvstereo.events import DEFAULT_RESOLUTION
-from cvstereo.frames import gaussian_filter, signed_frame
+from cvstereo.frames import filtered_unit, gaussian_filter, signed_frame
 from cvstereo.matches import empty_matches, make_matches
+from cvstereo.signal_level import SignalLevel
 
 
 def sad_volume(reference: np.ndarray, other: np.ndarray, *, max_disparity: int, block: int = 5,
@@ -116,15 +117,24 @@ def frame_area_reference(left: np.ndarray, right: np.ndarray, params: FrameAreaP
         row-major; ``p`` = 1 where the reference frame is > 0.
     """
     prm = params if params is not None else FrameAreaParams()
+    level = SignalLevel(prm, absolute=prm.threshold, unit=filtered_unit(prm),
+                        value_name="filtered value" if prm.gaussian else "frame value")
     parts = []
-    for t_end, ev_l, ev_r in window_events(left, right, prm.window_us):
+    for t_end, ev_l, ev_r in window_events(left, right, prm.window_us, every=True):
+        k = (t_end - prm.window_us) // prm.level_window_us
+        threshold = level.thresholds(k)[prm.reference_camera]
         ref_ev, oth_ev = (ev_r, ev_l) if prm.reference_camera == 1 else (ev_l, ev_r)
         ref, oth = (signed_frame(ev, resolution=resolution) for ev in (ref_ev, oth_ev))
         if prm.gaussian:
             ref, oth = (gaussian_filter(f, sigma=prm.kernel_sigma, kernel_size=prm.kernel_size) for f in (ref, oth))
+        # The signal level sees each camera's values at its pixels with events.
+        level.add(k, prm.reference_camera, values_at_events(ref, ref_ev))
+        level.add(k, 1 - prm.reference_camera, values_at_events(oth, oth_ev))
+        if not (ev_l.size and ev_r.size):
+            continue
         volume = sad_volume(ref, oth, max_disparity=prm.max_disparity, block=prm.block,
                             reference_camera=prm.reference_camera)
-        disp = scan_disparity_map(ref, volume, threshold=prm.threshold, block=prm.block)
+        disp = scan_disparity_map(ref, volume, threshold=threshold, block=prm.block)
         seen = np.zeros(ref.shape, bool)
         seen[ref_ev["y"], ref_ev["x"]] = True
         y, x = np.nonzero(seen & ~np.isnan(disp))

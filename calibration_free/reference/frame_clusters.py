@@ -15,11 +15,12 @@ from typing import NamedTuple
 import numpy as np
 
 from calibration_free.params import WIDTH_EPS, FrameClusterParams
-from calibration_free.reference.windows import window_events
+from calibration_free.reference.windows import values_at_events, window_events
 from cvstereo.events import DEFAULT_RESOLUTION
-from cvstereo.frames import gaussian_filter, signed_frame
+from cvstereo.frames import filtered_unit, gaussian_filter, signed_frame
 from cvstereo.matches import empty_matches, make_matches
 from cvstereo.polarity import frame_signs
+from cvstereo.signal_level import SignalLevel
 
 
 class Runs(NamedTuple):
@@ -124,7 +125,7 @@ def cluster_signs(frame: np.ndarray, *, threshold: float) -> np.ndarray:
 
 
 def match_frame_pair(left: np.ndarray, right: np.ndarray, *, threshold: float = 1.2, width_tolerance: float = 0.3,
-                     max_disparity: float = 64, anchor_camera: int = 0) -> Pairs:
+                     max_disparity: float = 64, anchor_camera: int = 0, threshold_right: float | None = None) -> Pairs:
     """Match the clusters of one pair of (filtered) frames: steps 3-5 of algorithms.md section 1.
 
     The readable form of what :class:`FrameClusterMatcher` does for all frames of a window at once.
@@ -135,6 +136,8 @@ def match_frame_pair(left: np.ndarray, right: np.ndarray, *, threshold: float = 
         Filtered frames of the left and right camera.
     threshold, width_tolerance, max_disparity, anchor_camera : keyword-only
         See :class:`FrameClusterParams`.
+    threshold_right : float, optional, keyword-only
+        The right frame's threshold, where it differs from the left's (relative thresholds are per camera).
 
     Returns
     -------
@@ -148,8 +151,9 @@ def match_frame_pair(left: np.ndarray, right: np.ndarray, *, threshold: float = 
     >>> pairs.disparity.tolist(), pairs.sign.tolist()
     ([3.0, 3.0], [1, -1])
     """
+    right_threshold = threshold if threshold_right is None else threshold_right
     return match_runs(row_runs(cluster_signs(left, threshold=threshold)),
-                      row_runs(cluster_signs(right, threshold=threshold)), height=left.shape[0],
+                      row_runs(cluster_signs(right, threshold=right_threshold)), height=left.shape[0],
                       width_tolerance=width_tolerance, max_disparity=max_disparity, anchor_camera=anchor_camera)
 
 
@@ -171,16 +175,26 @@ def frame_clusters_reference(left: np.ndarray, right: np.ndarray, params: FrameC
     """
     prm = params if params is not None else FrameClusterParams()
     width, height = resolution
+    level = SignalLevel(prm, absolute=prm.threshold, unit=filtered_unit(prm), value_name="filtered value")
     parts = []
-    for t_end, ev_l, ev_r in window_events(left, right, prm.window_us):
+    for t_end, ev_l, ev_r in window_events(left, right, prm.window_us, every=True):
+        k = (t_end - prm.window_us) // prm.level_window_us
+        # The fast kernel compares float32 values with float32 thresholds: the same numbers here.
+        thr_l, thr_r = (float(np.float32(v)) for v in level.thresholds(k))
         anchor = (ev_l, ev_r)[prm.anchor_camera]
         rows = []
         for signs in frame_signs(prm.polarity):
             fl, fr = (signed_frame(ev, resolution=resolution, signs=signs) for ev in (ev_l, ev_r))
             if prm.gaussian:
                 fl, fr = (gaussian_filter(f, sigma=prm.kernel_sigma, kernel_size=prm.kernel_size) for f in (fl, fr))
-            pairs = match_frame_pair(fl, fr, threshold=prm.threshold, width_tolerance=prm.width_tolerance,
-                                     max_disparity=prm.max_disparity, anchor_camera=prm.anchor_camera)
+            # The signal level sees each camera's values at its pixels with events of this frame.
+            for cam, (f, ev) in enumerate(((fl, ev_l), (fr, ev_r))):
+                level.add(k, cam, values_at_events(f, ev[np.isin(ev["p"].astype(int) * 2 - 1, signs)]))
+            if not (ev_l.size and ev_r.size):
+                continue  # a frame without events has no clusters, so no row can match
+            pairs = match_frame_pair(fl, fr, threshold=thr_l, threshold_right=thr_r,
+                                     width_tolerance=prm.width_tolerance, max_disparity=prm.max_disparity,
+                                     anchor_camera=prm.anchor_camera)
             # Pixels with events of this frame's polarities (ON and OFF events at one pixel may cancel).
             seen = np.zeros((height, width), bool)
             ev = anchor[np.isin(anchor["p"].astype(int) * 2 - 1, signs)]
