@@ -1,0 +1,224 @@
+"""The fused matcher beside dv-semidense and SGBM: accuracy at equal coverage, false rate, ablation, speed.
+
+Recordings: 2 s clips of four presets, the motorcycle scene, one arm at 1 m with both sensors' thresholds
+scaled by k (event density), and the real file Fan_disp8.dat (share within 1 px of 8). All matchers run
+through the same streaming path (40 ms packets) on the same events; fused's matches are also scored after
+keeping only its most certain ones, as many as each peer's coverage allows (issue 17). Speed: one core,
+2arms-50cm, and a 346x260 recording at about 1 M events/s; the load average is printed beside each figure.
+Writes ``bench/results/fused.md``.
+
+Run::
+
+    .venv/bin/python bench/bench_fused.py             # everything (about 10 minutes on a shared machine)
+    .venv/bin/python bench/bench_fused.py --quick     # fewer recordings, no ablation
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+os.environ["NUMBA_NUM_THREADS"] = "1"
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import dataclasses  # noqa: E402
+import time  # noqa: E402
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+
+from calibration_free.fused import FusedMatcher  # noqa: E402
+from cvstereo.evaluate import evaluate, match_truth  # noqa: E402
+from cvstereo.matches import concat_matches  # noqa: E402
+from cvstereo.pipeline import match  # noqa: E402
+from cvstereo.registry import available_methods  # noqa: E402
+
+OUT = Path(__file__).resolve().parent / "results" / "fused.md"
+SECONDS = 2.0
+PRESETS = ("1arm-50cm", "1arm-100cm", "2arms-100cm", "2arms-150cm")
+DENSITY_K = (0.5, 1.0, 2.0, 3.0)
+PACKET_US = 40_000
+#: Ablation rows: name -> parameter overrides of fused.
+ABLATION = {
+    "full": {},
+    "no temporal coherence": {"temporal_weight": 0.0},
+    "no left-right check": {"lr_tolerance": -1},
+    "no sub-pixel": {"subpixel": False},
+    "no noise filter": {"min_neighbours": 1},
+    "SGM rows only (2 paths)": {"sgm_paths": 2},
+    "no SGM (winner of pixel cost)": {"sgm_paths": 0},
+    "no support square": {"support_radius": 0},
+}
+
+
+def _sim(name, make):
+    from cvstereo.io.npz import read_recording_npz, write_recording_npz
+    from cvstereo.simulate.presets import default_cache_dir
+
+    path = default_cache_dir() / f"fused-{name}.npz"
+    if not path.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_recording_npz(path, make())
+    return read_recording_npz(path)
+
+
+def recordings(quick: bool) -> dict:
+    """Name -> Recording of every simulated clip (cached)."""
+    from cvstereo.io.npz import read_recording_npz
+    from cvstereo.simulate import ArmsScene, MotorcycleScene, simulate
+    from cvstereo.simulate.presets import cached_preset
+    from cvstereo.simulate.rig import Rig
+
+    recs = {n: read_recording_npz(cached_preset(n, seconds=SECONDS)) for n in (PRESETS[:2] if quick else PRESETS)}
+    recs["motorcycle"] = _sim(f"motorcycle-{SECONDS}s", lambda: simulate(MotorcycleScene(), seconds=SECONDS, seed=0))
+    for k in (DENSITY_K[::3] if quick else DENSITY_K):
+        if k == 1.0:
+            continue
+        base = Rig()
+        rig = dataclasses.replace(base, **{
+            side: dataclasses.replace(getattr(base, side), on_threshold=getattr(base, side).on_threshold * k,
+                                      off_threshold=getattr(base, side).off_threshold * k)
+            for side in ("left", "right")})
+        recs[f"1arm-100cm thr x{k}"] = _sim(f"1arm-100cm-thr{k}-{SECONDS}s", lambda rig=rig: simulate(
+            ArmsScene(arms=1, distance_m=1.0), rig=rig, seconds=SECONDS, seed=0))
+    return recs
+
+
+def run_fused(rec, **params):
+    """Fused over a recording through feed/flush (40 ms packets): (matches, uncertainty, meta, elapsed s)."""
+    m = FusedMatcher(FusedMatcher.make_params(**params), resolution=rec.resolution)
+    start = time.perf_counter()
+    parts = [m.feed(p.left, p.right, until=p.until) for p in rec.packets(PACKET_US)]
+    parts.append(m.flush())
+    elapsed = time.perf_counter() - start
+    return concat_matches(parts), m.take_uncertainty(), m.describe(), elapsed
+
+
+def most_certain(matches, uncertainty, rec, meta, coverage: float):
+    """Fused's most certain matches whose coverage is at most ``coverage`` (keeping the order)."""
+    order = np.argsort(uncertainty, kind="stable")
+    has = np.isfinite(match_truth(rec, matches, anchor="window", window_us=meta["window_us"])[order])
+    full = evaluate(rec, matches, meta)
+    if not full["coverage"] or coverage >= full["coverage"]:
+        return matches
+    # Anchors are distinct (pixel, window) cells: coverage grows by one cell per match with truth.
+    n_truth_needed = int(np.floor(coverage / full["coverage"] * np.count_nonzero(has)))
+    keep_n = int(np.searchsorted(np.cumsum(has), n_truth_needed, side="right"))
+    keep = np.sort(order[:keep_n])
+    return matches[keep]
+
+
+def load_avg() -> str:
+    return f"{os.getloadavg()[0]:.2f}"
+
+
+def peers() -> list[str]:
+    return [m for m in ("sgbm", "dv-semidense") if m in available_methods()]
+
+
+def accuracy_section(recs) -> tuple[str, dict]:
+    lines = ["## Accuracy (2 s clips; window anchors at the left camera's event pixels)", "",
+             "bad2 = share of matches with error > 2 px; `fused @ peer` keeps fused's most certain matches down "
+             "to the peer's coverage.", "",
+             "| recording | method | coverage | bad2 | false | matches | fused bad2 @ its coverage | "
+             "load |", "|---|---|---:|---:|---:|---:|---:|---:|"]
+    summary = {}
+    for name, rec in recs.items():
+        fm, unc, meta, _ = run_fused(rec)
+        f_full = evaluate(rec, fm, meta)
+        rows = {"fused": f_full}
+        lines.append(f"| {name} | fused | {f_full['coverage']:.1%} | {f_full['bad2']:.1%} | "
+                     f"{f_full['false_rate']:.1%} | {f_full['matches']} | - | {load_avg()} |")
+        for peer in peers():
+            res = match(rec, method=peer, packet_us=PACKET_US)
+            pf = evaluate(rec, res)
+            cut = most_certain(fm, unc, rec, meta, pf["coverage"])
+            ff = evaluate(rec, cut, meta)
+            rows[peer] = pf
+            rows[f"fused@{peer}"] = ff
+            lines.append(f"| {name} | {peer} | {pf['coverage']:.1%} | {pf['bad2']:.1%} | {pf['false_rate']:.1%} | "
+                         f"{pf['matches']} | {ff['bad2']:.1%} at {ff['coverage']:.1%} | {load_avg()} |")
+        summary[name] = rows
+        print(lines[-1], flush=True)
+    return "\n".join(lines), summary
+
+
+def ablation_section(recs) -> str:
+    names = list(recs)
+    head = "| variant | " + " | ".join(f"{n} bad2 / cov / false" for n in names) + " |"
+    lines = ["## Ablation (fused with one part off; bad2 / coverage / false rate)", "", head,
+             "|---|" + "---:|" * len(names)]
+    for label, over in ABLATION.items():
+        cells = []
+        for rec in recs.values():
+            fm, _, meta, _ = run_fused(rec, **over)
+            f = evaluate(rec, fm, meta)
+            cells.append(f"{f['bad2']:.1%} / {f['coverage']:.1%} / {f['false_rate']:.1%}")
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+        print(lines[-1], flush=True)
+    return "\n".join(lines)
+
+
+def fan_section() -> str:
+    from cvstereo.io import read_recording
+
+    path = Path(os.environ.get("CVSTEREO_SHARED", "/work/shared")) / "data" / "tum-stereo" / "Fan_disp8.dat"
+    if not path.exists():
+        return "## Fan_disp8\n\n(file not found)"
+    rec = read_recording(path)
+    lines = ["## Fan_disp8.dat (real; nominal disparity 8 px)", "",
+             "| method | estimates | within 1 px of 8 |", "|---|---:|---:|"]
+    fm, _, _, _ = run_fused(rec)
+    results = {"fused": fm}
+    for peer in peers():
+        results[peer] = match(rec, method=peer, packet_us=PACKET_US).matches
+    for name, m in results.items():
+        within = float(np.mean(np.abs(m["disparity"] - 8.0) <= 1.0)) if m.size else float("nan")
+        lines.append(f"| {name} | {m.size} | {within:.1%} |")
+    return "\n".join(lines)
+
+
+def speed_section(quick: bool) -> str:
+    from cvstereo.io.npz import read_recording_npz
+    from cvstereo.simulate import ArmsScene, simulate
+    from cvstereo.simulate.presets import cached_preset
+    from cvstereo.simulate.rig import Rig
+
+    lines = ["## Speed (one core, best of 2; load average of the machine's 2 cores beside)", "",
+             "| recording | events/s of the recording | x real time | load |", "|---|---:|---:|---:|"]
+    rec = read_recording_npz(cached_preset("2arms-50cm", seconds=SECONDS))
+    big = _sim(f"arms-346x260-{SECONDS}s", lambda: simulate(
+        ArmsScene(arms=2, distance_m=0.5), rig=Rig(resolution=(346, 260), focal_px=446.0), seconds=SECONDS, seed=0))
+    for name, r in (("2arms-50cm", rec), ("2 arms 346x260", big)):
+        best = min(run_fused(r)[3] for _ in range(1 if quick else 2))
+        rate = (r.left.size + r.right.size) / r.duration_s
+        lines.append(f"| {name} | {rate:,.0f} | {r.duration_s / best:.1f}x | {load_avg()} |")
+        print(lines[-1], flush=True)
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true")
+    args = ap.parse_args(argv)
+    cv2.setNumThreads(1)
+    recs = recordings(args.quick)
+    parts = ["# fused beside SGBM and dv-semidense", "",
+             f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; peers: {', '.join(peers())}.", ""]
+    text, _ = accuracy_section(recs)
+    parts += [text, ""]
+    parts += [fan_section(), ""]
+    if not args.quick:
+        parts += [ablation_section(recs), ""]
+    parts += [speed_section(args.quick), ""]
+    OUT.write_text("\n".join(parts))
+    print(f"wrote {OUT}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
