@@ -208,25 +208,25 @@ def match_features(fl, fr, counts, recent, prior, max_d, row_tol, p1, p2, paths,
             for d in range(nd):
                 if abs(d - best) > 1 and s[d] < second:
                     second = s[d]
-            u = 1.0 if second == 0.0 else s[best] / second
-            if u > max_uncertainty:
-                continue
+            ratio = 1.0 if second == 0.0 else s[best] / second
+            consistent = True
             if lr_tol >= 0:
                 xr = xx - best
-                if xr < 0:
-                    continue
                 best_r = -1
-                best_rv = np.inf
-                for d in range(nd):
-                    xl = xr + d
-                    if xl >= w:
-                        break
-                    q = index[yy, xl]
-                    if q >= 0 and total[q, d] < best_rv:
-                        best_rv = total[q, d]
-                        best_r = d
-                if abs(best_r - best) > lr_tol:
-                    continue
+                if xr >= 0:
+                    best_rv = np.inf
+                    for d in range(nd):
+                        xl = xr + d
+                        if xl >= w:
+                            break
+                        q = index[yy, xl]
+                        if q >= 0 and total[q, d] < best_rv:
+                            best_rv = total[q, d]
+                            best_r = d
+                consistent = best_r >= 0 and abs(best_r - best) <= lr_tol
+            u = 0.5 * ratio if consistent else 0.5 * ratio + 0.5
+            if u > max_uncertainty:
+                continue
             disp = float(best)
             if subpixel and 0 < best < nd - 1:
                 a, b, c = s[best - 1], s[best], s[best + 1]

@@ -29,10 +29,12 @@ Design, part by part, with the reason for each (bench/results/fused.md measures 
    columns of *active* pixels only (the support of recent events): event images are sparse, so paths end
    where nothing happened instead of carrying the cost of empty background as SGBM does, which is where
    SGBM's matches at noise and background come from. Costs live in a compact (pixels x disparities) array.
-7. **Winner, uniqueness and uncertainty**: the disparity of least aggregated cost; its *uncertainty* is the
-   ratio of that cost to the best cost more than 1 px away (0: unambiguous, 1: a tie), the uniqueness
-   ratio of block matching as a number users can threshold (``max_uncertainty``; :meth:`FusedMatcher.
-   take_uncertainty` gives it per match).
+7. **Winner, uniqueness and uncertainty**: the disparity of least aggregated cost. Its *uncertainty* is half
+   the ratio of that cost to the best cost more than 1 px away (0: unambiguous, 0.5: a tie; the uniqueness
+   ratio of block matching as a number), plus 0.5 where the left-right check fails, so that every
+   inconsistent match ranks behind every consistent one. Users threshold it (``max_uncertainty``, default
+   0.5: the consistent matches) or keep the most certain ones (:meth:`FusedMatcher.take_uncertainty`
+   gives it per match).
 8. **Left-right consistency** (``lr_tolerance``): the right pixel the winner points to must choose the same
    disparity (within 1 px) from the same aggregated volume; occlusions and half-matched edges fail it.
 9. **Sub-pixel refinement** (``subpixel``): a parabola through the aggregated costs at ``d - 1, d, d + 1``.

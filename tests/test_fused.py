@@ -49,7 +49,7 @@ def textured_pair(seed: int, *, windows: int = 4, shift: int = 5, size: tuple[in
 
 PARAM_AXES = {
     "sgm_paths": [0, 2, 4], "lr_tolerance": [-1, 0, 1], "subpixel": [True, False], "temporal_weight": [0.0, 0.3],
-    "support_radius": [0, 1, 2], "row_tolerance": [0, 1], "min_neighbours": [1, 3], "max_uncertainty": [1.0, 0.8],
+    "support_radius": [0, 1, 2], "row_tolerance": [0, 1], "min_neighbours": [1, 3], "max_uncertainty": [1.0, 0.5, 0.3],
     "max_disparity": [12, 20],
 }
 
@@ -84,17 +84,31 @@ def test_moving_edges_are_matched_at_their_disparity():
     assert np.median(np.abs(got["disparity"] - 6.0)) <= 0.5
 
 
-def test_uncertainty_orders_errors_and_threshold_drops_matches():
+def test_uncertainty_threshold_keeps_exactly_the_matches_below_it():
     left, right, resolution = textured_pair(3, windows=6)
-    full = FusedMatcher(resolution=resolution)
+    full = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0), resolution=resolution)
     m_all = feed_cut(full, left, right, [])
     u = full.take_uncertainty()
     assert u.shape == m_all.shape and u.dtype == np.float32 and ((u >= 0) & (u <= 1)).all()
     assert full.take_uncertainty().size == 0  # taken once
-    strict = FusedMatcher(FusedParams(max_uncertainty=0.5), resolution=resolution)
-    m_strict = feed_cut(strict, left, right, [])
-    # The threshold keeps exactly the matches whose uncertainty is at most 0.5.
-    np.testing.assert_array_equal(m_strict, m_all[u <= 0.5])
+    for limit in (0.5, 0.3):
+        strict = FusedMatcher(FusedParams(max_uncertainty=limit, temporal_weight=0.0), resolution=resolution)
+        np.testing.assert_array_equal(feed_cut(strict, left, right, []), m_all[u <= np.float32(limit)])
+
+
+def test_left_right_failures_rank_behind_consistent_matches():
+    left, right, resolution = textured_pair(4, windows=6)
+    runs = {}
+    for tol in (-1, 1):
+        m = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0, lr_tolerance=tol),
+                         resolution=resolution)
+        runs[tol] = (feed_cut(m, left, right, []), m.take_uncertainty())
+    # Same winners; the check only adds 0.5 to the uncertainty of the inconsistent ones, and some fail it.
+    np.testing.assert_array_equal(runs[1][0], runs[-1][0])
+    added = runs[1][1].astype(np.float64) - runs[-1][1]
+    assert np.all(np.isclose(added, 0.0) | np.isclose(added, 0.5))
+    assert 0 < np.count_nonzero(np.isclose(added, 0.5)) < added.size
+    assert (runs[-1][1] <= 0.5).all()
 
 
 def test_isolated_noise_gets_no_answer():

@@ -121,19 +121,21 @@ def choose(total, active, counts, recent, prm: FusedParams):
         best = int(np.argmin(s))
         far = np.abs(np.arange(nd) - best) > 1
         second = s[far].min() if far.any() else np.inf
-        u = 1.0 if second == 0.0 else s[best] / second
-        if u > prm.max_uncertainty:
-            continue
+        ratio = 1.0 if second == 0.0 else s[best] / second
+        consistent = True
         if prm.lr_tolerance >= 0:
             xr = x - best
-            if xr < 0:
-                continue
-            ds = np.arange(nd)
-            ds = ds[xr + ds < w]
-            cand = np.where(active[y, xr + ds], total[y, xr + ds, ds], np.inf)
-            best_r = int(np.argmin(cand)) if np.isfinite(cand).any() else -1
-            if abs(best_r - best) > prm.lr_tolerance:
-                continue
+            best_r = -1
+            if xr >= 0:
+                ds = np.arange(nd)
+                ds = ds[xr + ds < w]
+                cand = np.where(active[y, xr + ds], total[y, xr + ds, ds], np.inf)
+                best_r = int(np.argmin(cand)) if np.isfinite(cand).any() else -1
+            consistent = best_r >= 0 and abs(best_r - best) <= prm.lr_tolerance
+        # Inconsistent winners rank behind every consistent one (design part 7).
+        u = 0.5 * ratio if consistent else 0.5 * ratio + 0.5
+        if u > prm.max_uncertainty:
+            continue
         disp = float(best)
         if prm.subpixel and 0 < best < nd - 1:
             a, b, c = s[best - 1], s[best], s[best + 1]
