@@ -48,16 +48,22 @@ def surface_features(t, x, y, p, last, t_end, tau, radius):
                     ts[c, yy, xx] = 1.0 - float(age) / float(tau)
     if radius == 0:
         return ts
+    # Separable: sums along the row first, then of those along the column (the reference's order).
+    rows = np.zeros((2, h, w))
+    for c in range(2):
+        for yy in range(h):
+            for xx in range(w):
+                acc = 0.0
+                for x2 in range(max(xx - radius, 0), min(xx + radius + 1, w)):
+                    acc += ts[c, yy, x2]
+                rows[c, yy, xx] = acc
     out = np.zeros((2, h, w))
     for c in range(2):
         for yy in range(h):
             for xx in range(w):
                 acc = 0.0
-                for dy in range(-radius, radius + 1):
-                    for dx in range(-radius, radius + 1):
-                        y2, x2 = yy + dy, xx + dx
-                        if 0 <= y2 < h and 0 <= x2 < w:
-                            acc += ts[c, y2, x2]
+                for y2 in range(max(yy - radius, 0), min(yy + radius + 1, h)):
+                    acc += rows[c, y2, xx]
                 out[c, yy, xx] = acc
     return out
 
@@ -82,7 +88,7 @@ def _path_step(cost, prev, out, p1, p2):
 
 
 @njit(cache=True, nogil=True)
-def match_features(fl, fr, counts, recent, prior, max_d, row_tol, p1, p2, paths, temporal_weight, lr_tol,
+def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2, paths, temporal_weight, lr_tol,
                    subpixel, min_neighbours, max_uncertainty):
     """Match one window's normalised features; return the answers at the left camera's event pixels.
 
@@ -92,6 +98,8 @@ def match_features(fl, fr, counts, recent, prior, max_d, row_tol, p1, p2, paths,
         Normalised features of the left and right camera.
     counts : (2, H, W) int ndarray
         The left camera's event counts of the window per polarity (anchors: pixels with events).
+    active : (H, W) bool ndarray
+        The left pixels the semi-global paths run through (anchors must be among them).
     recent : (H, W) bool ndarray
         Left pixels with an event in the last two windows (the noise filter's neighbours).
     prior : (H, W) float64 ndarray
@@ -106,12 +114,12 @@ def match_features(fl, fr, counts, recent, prior, max_d, row_tol, p1, p2, paths,
     """
     _, h, w = fl.shape
     nd = max_d + 1
-    # Active pixels: the left support of some recent event. Compact storage, raster order.
+    # Compact storage of the active pixels, raster order.
     index = np.full((h, w), -1, np.int64)
     n = 0
     for yy in range(h):
         for xx in range(w):
-            if fl[0, yy, xx] + fl[1, yy, xx] > 0.0:
+            if active[yy, xx]:
                 index[yy, xx] = n
                 n += 1
     ay = np.empty(n, np.int64)

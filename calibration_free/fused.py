@@ -50,6 +50,7 @@ from __future__ import annotations
 
 from typing import ClassVar
 
+import cv2
 import numpy as np
 
 from calibration_free._fused_kernel import NEVER, match_features, surface_features
@@ -138,9 +139,11 @@ class FusedMatcher(FrameMatcher):
                                  prm.tau_us, prm.support_radius)
             features.append(signal_level(f))
         counts = left_counts(window.left, self.resolution)
+        side = 2 * prm.path_radius + 1
+        active = cv2.dilate((counts.sum(axis=0) > 0).astype(np.uint8), np.ones((side, side), np.uint8)) > 0
         recent = (state.last[0] >= window.t_end - 2 * prm.window_us).any(axis=0)
         x, y, pol, disp, unc = match_features(
-            features[0], features[1], counts, recent, state.prior_for(window.t_end, prm.window_us),
+            features[0], features[1], counts, active, recent, state.prior_for(window.t_end, prm.window_us),
             prm.max_disparity, prm.row_tolerance, prm.p1, prm.p2, prm.sgm_paths, prm.temporal_weight, prm.lr_tolerance,
             prm.subpixel, prm.min_neighbours, prm.max_uncertainty)
         state.remember(window.t_end, x, y, disp)

@@ -27,6 +27,9 @@ class FusedParams:
     p1, p2 : float
         Semi-global penalties for a disparity step of 1 px and of more, in units of the normalised feature
         (tuned on 2 s clips of the presets, bench/results/fused.md).
+    path_radius : int
+        The semi-global paths run through the left pixels within this many px (Chebyshev) of an event of the
+        window: wide enough to carry support between the window's edges, narrow enough to stay fast.
     sgm_paths : {0, 2, 4}
         Scanline directions aggregated: 0 none (winner-takes-all on the pixel cost), 2 along rows, 4 rows and
         columns.
@@ -52,8 +55,9 @@ class FusedParams:
     support_radius: int = 2
     max_disparity: int = 47
     row_tolerance: int = 1
-    p1: float = 0.5
-    p2: float = 3.0
+    p1: float = 1.0
+    p2: float = 4.0
+    path_radius: int = 1
     sgm_paths: int = 4
     temporal_weight: float = 0.1
     lr_tolerance: int = 1
@@ -75,7 +79,9 @@ class FusedParams:
         if not 0 <= self.row_tolerance <= 3:
             raise ValueError(f"{where}: row_tolerance must be in 0..3 (e.g. 1), got {self.row_tolerance}.")
         if not (self.p1 >= 0 and self.p2 >= self.p1):
-            raise ValueError(f"{where}: need 0 <= p1 <= p2 (e.g. p1=0.5, p2=3), got p1={self.p1}, p2={self.p2}.")
+            raise ValueError(f"{where}: need 0 <= p1 <= p2 (e.g. p1=1, p2=4), got p1={self.p1}, p2={self.p2}.")
+        if not 0 <= self.path_radius <= 5:
+            raise ValueError(f"{where}: path_radius must be in 0..5 (e.g. 1), got {self.path_radius}.")
         if self.sgm_paths not in (0, 2, 4):
             raise ValueError(f"{where}: sgm_paths must be 0, 2 or 4, got {self.sgm_paths}.")
         if not self.temporal_weight >= 0:

@@ -49,7 +49,8 @@ def textured_pair(seed: int, *, windows: int = 4, shift: int = 5, size: tuple[in
 
 PARAM_AXES = {
     "sgm_paths": [0, 2, 4], "lr_tolerance": [-1, 0, 1], "subpixel": [True, False], "temporal_weight": [0.0, 0.3],
-    "support_radius": [0, 1, 2], "row_tolerance": [0, 1], "min_neighbours": [1, 3], "max_uncertainty": [1.0, 0.5, 0.3],
+    "support_radius": [0, 1, 2],
+    "path_radius": [0, 1, 3], "row_tolerance": [0, 1], "min_neighbours": [1, 3], "max_uncertainty": [1.0, 0.5, 0.3],
     "max_disparity": [12, 20],
 }
 

@@ -34,16 +34,20 @@ def time_surfaces(last: np.ndarray, t_end: int, tau: int) -> np.ndarray:
 
 
 def support_sum(ts: np.ndarray, radius: int) -> np.ndarray:
-    """Sum of each pixel's ``(2r+1)^2`` square (zero outside the sensor), shifts added in raster order."""
+    """Sum of each pixel's ``(2r+1)^2`` square (zero outside the sensor): along rows, then along columns."""
     if radius == 0:
         return ts
     _, h, w = ts.shape
-    padded = np.zeros((2, h + 2 * radius, w + 2 * radius))
-    padded[:, radius:radius + h, radius:radius + w] = ts
+    padded = np.zeros((2, h, w + 2 * radius))
+    padded[:, :, radius:radius + w] = ts
+    rows = np.zeros(ts.shape)
+    for dx in range(2 * radius + 1):
+        rows = rows + padded[:, :, dx:dx + w]
+    padded = np.zeros((2, h + 2 * radius, w))
+    padded[:, radius:radius + h] = rows
     out = np.zeros(ts.shape)
-    for dy in range(-radius, radius + 1):
-        for dx in range(-radius, radius + 1):
-            out = out + padded[:, radius + dy:radius + dy + h, radius + dx:radius + dx + w]
+    for dy in range(2 * radius + 1):
+        out = out + padded[:, dy:dy + h]
     return out
 
 
@@ -176,7 +180,15 @@ def fused_reference(left: np.ndarray, right: np.ndarray, params: FusedParams | N
         counts = np.zeros((2, h, w), dtype=np.int64)
         np.add.at(counts, (wl["p"].astype(np.intp), wl["y"].astype(np.intp), wl["x"].astype(np.intp)), 1)
         recent = (last[0] >= t_end - 2 * prm.window_us).any(axis=0)
-        active = feats[0][0] + feats[0][1] > 0.0
+        # Active: within path_radius (Chebyshev) of a left event of the window.
+        anchors = counts.sum(axis=0) > 0
+        r = prm.path_radius
+        padded = np.zeros((h + 2 * r, w + 2 * r), bool)
+        padded[r:r + h, r:r + w] = anchors
+        active = np.zeros((h, w), bool)
+        for dy in range(2 * r + 1):
+            for dx in range(2 * r + 1):
+                active |= padded[dy:dy + h, dx:dx + w]
         use_prior = prior if prior_end == t_end - prm.window_us else np.full((h, w), np.nan)
         total = aggregate(cost_volume(feats[0], feats[1], use_prior, prm), active, prm)
         found = choose(total, active, counts, recent, prm)
