@@ -68,28 +68,31 @@ def surface_features(t, x, y, p, last, t_end, tau, radius):
     return out
 
 
-@njit(cache=True, nogil=True)
-def _path_step(cost, prev, out, p1, p2):
-    """One semi-global step: ``out[d] = cost[d] + min(prev[d], prev[d+-1] + p1, min(prev) + p2) - min(prev)``."""
-    nd = cost.size
-    mn = prev[0]
+@njit(cache=True, nogil=True, inline="always")
+def _path_step(cost, k, prev, q, out, p1, p2):
+    """One semi-global step from pixel q to pixel k along a path (rows of the compact arrays):
+    ``out[k, d] = cost[k, d] + min(prev[q, d], prev[q, d+-1] + p1, min(prev[q]) + p2) - min(prev[q])``.
+
+    Branch-free in the inner loop (the minima are exact in any order, so this equals the reference)."""
+    nd = cost.shape[1]
+    mn = prev[q, 0]
     for d in range(1, nd):
-        if prev[d] < mn:
-            mn = prev[d]
-    for d in range(nd):
-        m = prev[d]
-        if d > 0 and prev[d - 1] + p1 < m:
-            m = prev[d - 1] + p1
-        if d < nd - 1 and prev[d + 1] + p1 < m:
-            m = prev[d + 1] + p1
-        if mn + p2 < m:
-            m = mn + p2
-        out[d] = cost[d] + (m - mn)
+        mn = min(mn, prev[q, d])
+    jump = mn + p2
+    if nd == 1:
+        out[k, 0] = cost[k, 0] + (min(prev[q, 0], jump) - mn)
+        return
+    out[k, 0] = cost[k, 0] + (min(min(prev[q, 0], prev[q, 1] + p1), jump) - mn)
+    for d in range(1, nd - 1):
+        m = min(min(prev[q, d], jump), min(prev[q, d - 1], prev[q, d + 1]) + p1)
+        out[k, d] = cost[k, d] + (m - mn)
+    last = nd - 1
+    out[k, last] = cost[k, last] + (min(min(prev[q, last], prev[q, last - 1] + p1), jump) - mn)
 
 
 @njit(cache=True, nogil=True)
 def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2, paths, temporal_weight, lr_tol,
-                   subpixel, min_neighbours, max_uncertainty):
+                   subpixel, min_neighbours, max_uncertainty, work):
     """Match one window's normalised features; return the answers at the left camera's event pixels.
 
     Parameters
@@ -106,6 +109,9 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
         Disparity of the previous window per pixel, NaN where none (temporal coherence).
     max_d, row_tol, p1, p2, paths, temporal_weight, lr_tol, subpixel, min_neighbours, max_uncertainty
         :class:`~calibration_free.fused_params.FusedParams` fields.
+    work : (5, n, max_d + 1) float64 ndarray
+        Scratch space for at least the n active pixels (kept by the caller: fresh pages cost more than the
+        arithmetic).
 
     Returns
     -------
@@ -124,7 +130,7 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
                 n += 1
     ay = np.empty(n, np.int64)
     ax = np.empty(n, np.int64)
-    cost = np.empty((n, nd))
+    cost = work[0, :n]
     for yy in range(h):
         for xx in range(w):
             k = index[yy, xx]
@@ -149,37 +155,37 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
         total = cost
     else:
         # Forward raster pass: paths from the left (and from above); backward pass: from the right (and below).
-        total = np.empty((n, nd))
-        l_a = np.empty((n, nd))
-        l_b = np.empty((n, nd))
-        tmp_v = np.empty((n, nd)) if paths == 4 else np.empty((0, nd))
-        tmp_w = np.empty((n, nd)) if paths == 4 else np.empty((0, nd))
+        l_a = work[1, :n]
+        l_b = work[2, :n]
+        tmp_v = work[3, :n]
+        tmp_w = work[4, :n]
         for k in range(n):
             yy, xx = ay[k], ax[k]
             q = index[yy, xx - 1] if xx > 0 else -1
             if q >= 0:
-                _path_step(cost[k], l_a[q], l_a[k], p1, p2)
+                _path_step(cost, k, l_a, q, l_a, p1, p2)
             else:
                 l_a[k, :] = cost[k]
             if paths == 4:
                 q = index[yy - 1, xx] if yy > 0 else -1
                 if q >= 0:
-                    _path_step(cost[k], tmp_v[q], tmp_v[k], p1, p2)
+                    _path_step(cost, k, tmp_v, q, tmp_v, p1, p2)
                 else:
                     tmp_v[k, :] = cost[k]
         for k in range(n - 1, -1, -1):
             yy, xx = ay[k], ax[k]
             q = index[yy, xx + 1] if xx < w - 1 else -1
             if q >= 0:
-                _path_step(cost[k], l_b[q], l_b[k], p1, p2)
+                _path_step(cost, k, l_b, q, l_b, p1, p2)
             else:
                 l_b[k, :] = cost[k]
             if paths == 4:
                 q = index[yy + 1, xx] if yy < h - 1 else -1
                 if q >= 0:
-                    _path_step(cost[k], tmp_w[q], tmp_w[k], p1, p2)
+                    _path_step(cost, k, tmp_w, q, tmp_w, p1, p2)
                 else:
                     tmp_w[k, :] = cost[k]
+        total = l_a  # summed in place: the forward paths are no longer needed
         for k in range(n):
             for d in range(nd):
                 s = l_a[k, d] + l_b[k, d]

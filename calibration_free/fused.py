@@ -115,6 +115,7 @@ class FusedMatcher(FrameMatcher):
         super().__init__(params, resolution=resolution)
         self._state = WindowState(self.resolution)
         self._uncertainty: list[np.ndarray] = []
+        self._work = np.empty((5, 0, self.params.max_disparity + 1))
 
     def anchor_cameras(self) -> tuple[int, ...]:
         return (0,)
@@ -141,11 +142,14 @@ class FusedMatcher(FrameMatcher):
         counts = left_counts(window.left, self.resolution)
         side = 2 * prm.path_radius + 1
         active = cv2.dilate((counts.sum(axis=0) > 0).astype(np.uint8), np.ones((side, side), np.uint8)) > 0
+        n_active = int(np.count_nonzero(active))
+        if n_active > self._work.shape[1]:
+            self._work = np.empty((5, max(n_active, 2 * self._work.shape[1]), prm.max_disparity + 1))
         recent = (state.last[0] >= window.t_end - 2 * prm.window_us).any(axis=0)
         x, y, pol, disp, unc = match_features(
             features[0], features[1], counts, active, recent, state.prior_for(window.t_end, prm.window_us),
             prm.max_disparity, prm.row_tolerance, prm.p1, prm.p2, prm.sgm_paths, prm.temporal_weight, prm.lr_tolerance,
-            prm.subpixel, prm.min_neighbours, prm.max_uncertainty)
+            prm.subpixel, prm.min_neighbours, prm.max_uncertainty, self._work)
         state.remember(window.t_end, x, y, disp)
         self._uncertainty.append(unc)
         if x.size == 0:

@@ -55,11 +55,11 @@ class FusedParams:
     support_radius: int = 2
     max_disparity: int = 47
     row_tolerance: int = 1
-    p1: float = 1.0
-    p2: float = 4.0
-    path_radius: int = 1
+    p1: float = 3.0
+    p2: float = 12.0
+    path_radius: int = 3
     sgm_paths: int = 4
-    temporal_weight: float = 0.1
+    temporal_weight: float = 0.5
     lr_tolerance: int = 1
     subpixel: bool = True
     min_neighbours: int = 2
@@ -79,9 +79,9 @@ class FusedParams:
         if not 0 <= self.row_tolerance <= 3:
             raise ValueError(f"{where}: row_tolerance must be in 0..3 (e.g. 1), got {self.row_tolerance}.")
         if not (self.p1 >= 0 and self.p2 >= self.p1):
-            raise ValueError(f"{where}: need 0 <= p1 <= p2 (e.g. p1=1, p2=4), got p1={self.p1}, p2={self.p2}.")
+            raise ValueError(f"{where}: need 0 <= p1 <= p2 (e.g. p1=3, p2=12), got p1={self.p1}, p2={self.p2}.")
         if not 0 <= self.path_radius <= 5:
-            raise ValueError(f"{where}: path_radius must be in 0..5 (e.g. 1), got {self.path_radius}.")
+            raise ValueError(f"{where}: path_radius must be in 0..5 (e.g. 3), got {self.path_radius}.")
         if self.sgm_paths not in (0, 2, 4):
             raise ValueError(f"{where}: sgm_paths must be 0, 2 or 4, got {self.sgm_paths}.")
         if not self.temporal_weight >= 0:
