@@ -92,7 +92,7 @@ def _path_step(cost, k, prev, q, out, p1, p2):
 
 @njit(cache=True, nogil=True)
 def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2, paths, temporal_weight, lr_tol,
-                   subpixel, min_neighbours, max_uncertainty, work):
+                   subpixel, min_neighbours, max_uncertainty, fill_radius, work):
     """Match one window's normalised features; return the answers at the left camera's event pixels.
 
     Parameters
@@ -107,7 +107,7 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
         Left pixels with an event in the last two windows (the noise filter's neighbours).
     prior : (H, W) float64 ndarray
         Disparity of the previous window per pixel, NaN where none (temporal coherence).
-    max_d, row_tol, p1, p2, paths, temporal_weight, lr_tol, subpixel, min_neighbours, max_uncertainty
+    max_d, row_tol, p1, p2, paths, temporal_weight, lr_tol, subpixel, min_neighbours, max_uncertainty, fill_radius
         :class:`~calibration_free.fused_params.FusedParams` fields.
     work : (5, n, max_d + 1) float64 ndarray
         Scratch space for at least the n active pixels (kept by the caller: fresh pages cost more than the
@@ -198,6 +198,8 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
     out_p = np.empty(n, np.int64)
     out_d = np.empty(n)
     out_u = np.empty(n)
+    out_ok = np.empty(n, np.bool_)
+    consistent_d = np.full((h, w), np.nan)
     m = 0
     for yy in range(h):
         for xx in range(w):
@@ -239,8 +241,6 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
                             best_r = d
                 consistent = best_r >= 0 and abs(best_r - best) <= lr_tol
             u = 0.5 * ratio if consistent else 0.5 * ratio + 0.5
-            if u > max_uncertainty:
-                continue
             disp = float(best)
             if subpixel and 0 < best < nd - 1:
                 a, b, c = s[best - 1], s[best], s[best + 1]
@@ -253,5 +253,24 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
             out_p[m] = 1 if counts[1, yy, xx] >= counts[0, yy, xx] else 0
             out_d[m] = disp
             out_u[m] = u
+            out_ok[m] = consistent
+            if consistent:
+                consistent_d[yy, xx] = disp
             m += 1
-    return out_x[:m], out_y[:m], out_p[:m], out_d[:m], out_u[:m]
+    # Inconsistent winners take the median of the consistent answers around them (when there are any).
+    keep = np.zeros(m, np.bool_)
+    vals = np.empty((2 * fill_radius + 1) ** 2)
+    for i in range(m):
+        if not out_ok[i] and fill_radius > 0:
+            c = 0
+            for y2 in range(max(out_y[i] - fill_radius, 0), min(out_y[i] + fill_radius + 1, h)):
+                for x2 in range(max(out_x[i] - fill_radius, 0), min(out_x[i] + fill_radius + 1, w)):
+                    v = consistent_d[y2, x2]
+                    if not np.isnan(v):
+                        vals[c] = v
+                        c += 1
+            if c > 0:
+                srt = np.sort(vals[:c])
+                out_d[i] = srt[c // 2] if c % 2 else (srt[c // 2 - 1] + srt[c // 2]) / 2.0
+        keep[i] = out_u[i] <= max_uncertainty
+    return out_x[:m][keep], out_y[:m][keep], out_p[:m][keep], out_d[:m][keep], out_u[:m][keep]

@@ -39,6 +39,9 @@ class FusedParams:
     lr_tolerance : int
         Left-right consistency: the right pixel's own winner must lie within this many px, else the match's
         uncertainty gets 0.5 added (and the default ``max_uncertainty`` drops it); -1 disables the check.
+    fill_radius : int
+        A match that fails the left-right check takes the median disparity of the consistent matches within
+        this many px (Chebyshev) of it, where there are any; 0 disables.
     subpixel : bool
         Parabola fit of the aggregated cost around the winner.
     min_neighbours : int
@@ -61,6 +64,7 @@ class FusedParams:
     sgm_paths: int = 4
     temporal_weight: float = 0.5
     lr_tolerance: int = 1
+    fill_radius: int = 2
     subpixel: bool = True
     min_neighbours: int = 2
     max_uncertainty: float = 0.5
@@ -89,6 +93,8 @@ class FusedParams:
         if int(self.lr_tolerance) != self.lr_tolerance or self.lr_tolerance < -1:
             raise ValueError(f"{where}: lr_tolerance must be a whole number >= -1 (-1: off), "
                              f"got {self.lr_tolerance}.")
+        if not 0 <= self.fill_radius <= 5:
+            raise ValueError(f"{where}: fill_radius must be in 0..5 (0: off), got {self.fill_radius}.")
         if not 1 <= self.min_neighbours <= 9:
             raise ValueError(f"{where}: min_neighbours must be in 1..9 (1: off), got {self.min_neighbours}.")
         if not 0 < self.max_uncertainty <= 1:

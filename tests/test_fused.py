@@ -49,8 +49,8 @@ def textured_pair(seed: int, *, windows: int = 4, shift: int = 5, size: tuple[in
 
 PARAM_AXES = {
     "sgm_paths": [0, 2, 4], "lr_tolerance": [-1, 0, 1], "subpixel": [True, False], "temporal_weight": [0.0, 0.3],
-    "support_radius": [0, 1, 2],
-    "path_radius": [0, 1, 3], "row_tolerance": [0, 1], "min_neighbours": [1, 3], "max_uncertainty": [1.0, 0.5, 0.3],
+    "support_radius": [0, 1, 2], "path_radius": [0, 1, 3], "fill_radius": [0, 2], "row_tolerance": [0, 1],
+    "min_neighbours": [1, 3], "max_uncertainty": [1.0, 0.5, 0.3],
     "max_disparity": [12, 20],
 }
 
@@ -101,7 +101,7 @@ def test_left_right_failures_rank_behind_consistent_matches():
     left, right, resolution = textured_pair(4, windows=6)
     runs = {}
     for tol in (-1, 1):
-        m = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0, lr_tolerance=tol),
+        m = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0, lr_tolerance=tol, fill_radius=0),
                          resolution=resolution)
         runs[tol] = (feed_cut(m, left, right, []), m.take_uncertainty())
     # Same winners; the check only adds 0.5 to the uncertainty of the inconsistent ones, and some fail it.
@@ -110,6 +110,22 @@ def test_left_right_failures_rank_behind_consistent_matches():
     assert np.all(np.isclose(added, 0.0) | np.isclose(added, 0.5))
     assert 0 < np.count_nonzero(np.isclose(added, 0.5)) < added.size
     assert (runs[-1][1] <= 0.5).all()
+
+
+def test_inconsistent_matches_take_the_median_of_consistent_neighbours():
+    left, right, resolution = textured_pair(4, windows=6)
+    m = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0, fill_radius=2), resolution=resolution)
+    got = feed_cut(m, left, right, [])
+    u = m.take_uncertainty()
+    ok = u <= 0.5
+    filled = 0
+    for i in np.flatnonzero(~ok):
+        near = ok & (got["t"] == got["t"][i]) & (np.abs(got["x"].astype(int) - got["x"][i]) <= 2) & \
+            (np.abs(got["y"].astype(int) - got["y"][i]) <= 2)
+        if near.any():
+            assert got["disparity"][i] == pytest.approx(np.median(got["disparity"][near]), abs=1e-5)
+            filled += 1
+    assert filled > 0
 
 
 def test_isolated_noise_gets_no_answer():

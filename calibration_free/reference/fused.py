@@ -114,7 +114,7 @@ def aggregate(cost: np.ndarray, active: np.ndarray, prm: FusedParams) -> np.ndar
 
 def choose(total, active, counts, recent, prm: FusedParams):
     """Winner, uncertainty, noise filter, left-right check and sub-pixel at every left event pixel."""
-    _, w, nd = total.shape
+    h, w, nd = total.shape
     out = []
     for y, x in zip(*np.nonzero(counts.sum(axis=0)), strict=True):
         if not active[y, x]:
@@ -138,16 +138,29 @@ def choose(total, active, counts, recent, prm: FusedParams):
             consistent = best_r >= 0 and abs(best_r - best) <= prm.lr_tolerance
         # Inconsistent winners rank behind every consistent one (design part 7).
         u = 0.5 * ratio if consistent else 0.5 * ratio + 0.5
-        if u > prm.max_uncertainty:
-            continue
         disp = float(best)
         if prm.subpixel and 0 < best < nd - 1:
             a, b, c = s[best - 1], s[best], s[best + 1]
             den = (a - 2.0 * b) + c
             if den > 0.0:
                 disp = disp + min(max((a - c) / (2.0 * den), -0.5), 0.5)
-        out.append((x, y, 1 if counts[1, y, x] >= counts[0, y, x] else 0, disp, u))
-    return out
+        out.append([x, y, 1 if counts[1, y, x] >= counts[0, y, x] else 0, disp, u, consistent])
+    # Inconsistent winners: the median of the consistent answers within fill_radius, where there are any.
+    consistent_d = np.full((h, w), np.nan)
+    for x, y, _, disp, _, ok in out:
+        if ok:
+            consistent_d[y, x] = disp
+    r = prm.fill_radius
+    for row in out:
+        x, y, ok = row[0], row[1], row[5]
+        if ok or r == 0:
+            continue
+        near = consistent_d[max(y - r, 0):y + r + 1, max(x - r, 0):x + r + 1]
+        vals = np.sort(near[~np.isnan(near)])
+        c = vals.size
+        if c:
+            row[3] = float(vals[c // 2]) if c % 2 else (float(vals[c // 2 - 1]) + float(vals[c // 2])) / 2.0
+    return [tuple(row[:5]) for row in out if row[4] <= prm.max_uncertainty]
 
 
 def fused_reference(left: np.ndarray, right: np.ndarray, params: FusedParams | None = None, *,
