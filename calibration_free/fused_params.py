@@ -64,7 +64,7 @@ class FusedParams:
     sgm_paths: int = 4
     temporal_weight: float = 0.5
     lr_tolerance: int = 1
-    fill_radius: int = 2
+    fill_radius: int = 4
     subpixel: bool = True
     min_neighbours: int = 2
     max_uncertainty: float = 0.5
