@@ -13,10 +13,8 @@ from __future__ import annotations
 import abc
 
 import numpy as np
-from numba import njit
 
-from calibration_free.merge_order import left_is_next_jit
-from cvstereo.dynamic_frames import FrameBank, advance, event_columns, splat
+from cvstereo.dynamic_frames import FrameBank, event_columns
 from cvstereo.events import empty_events
 from cvstereo.matcher import StreamMatcher
 from cvstereo.matches import empty_matches
@@ -48,51 +46,6 @@ def matches_at(events: tuple[np.ndarray, np.ndarray], cam: np.ndarray, index: np
     out["camera"] = cam
     out["disparity"] = disparity
     return out
-
-
-# The parts every merged-order kernel shares, inlined into each (a numba call with array arguments costs atomic
-# reference counting on every array). A kernel's loop reads:
-#     while il < nl or ir < nr:
-#         cam, i, t, x, y, p, il, ir = next_event(il, ir, tl, xl, yl, pl, tr, xr, yr, pr)
-#         slot = start_event(stored, scale, clock, slot_of_p, cam, t, p, decay, period)
-#         if slot < 0: continue
-#         ... match, finding ``best`` (-1: no match) ...
-#         n = end_event(stored, scale, clock, kernel, cam, slot, i, x, y, p, best, out_cam, out_index,
-#                       out_disparity, n)
-
-
-@njit(cache=True, inline="always")
-def next_event(il, ir, tl, xl, yl, pl, tr, xr, yr, pr):  # pragma: no cover - compiled
-    """The next event in the merged order: camera, index, t, x, y, p, and the advanced indices il, ir."""
-    if left_is_next_jit(il, tl.shape[0], ir, tr.shape[0], tl, tr):
-        return 0, il, tl[il], xl[il], yl[il], pl[il], il + 1, ir
-    return 1, ir, tr[ir], xr[ir], yr[ir], pr[ir], il, ir + 1
-
-
-@njit(cache=True, inline="always")
-def start_event(stored, scale, clock, slot_of_p, cam, t, p, decay, period):  # pragma: no cover - compiled
-    """The event's frame slot (-1: its polarity is dropped); otherwise both cameras' frames decayed to t."""
-    slot = slot_of_p[1 if p > 0 else 0]
-    if slot >= 0:
-        advance(stored, scale, clock, cam, t, decay, period)
-        advance(stored, scale, clock, 1 - cam, t, decay, period)
-    return slot
-
-
-@njit(cache=True, inline="always")
-def end_event(stored, scale, clock, kernel, cam, slot, i, x, y, p, best, out_cam, out_index, out_disparity,
-              n):  # pragma: no cover - compiled
-    """Record the event's match (``best`` >= 0) as output row n, then add the event to its own frame.
-
-    Returns the number of output rows.
-    """
-    if best >= 0:
-        out_cam[n] = cam
-        out_index[n] = i
-        out_disparity[n] = best
-        n += 1
-    splat(stored, scale, clock, cam, slot, x, y, 1.0 if p > 0 else -1.0, kernel)
-    return n
 
 
 class MergedEventMatcher(StreamMatcher):

@@ -23,8 +23,10 @@ from typing import ClassVar
 import numpy as np
 from numba import njit
 
-from calibration_free._event_common import MergedEventMatcher, end_event, next_event, start_event
+from calibration_free._event_common import MergedEventMatcher
+from calibration_free.merge_order import left_is_next_jit
 from calibration_free.params import EventAreaParams
+from cvstereo.dynamic_frames import advance, splat
 
 
 @njit(cache=True)
@@ -42,15 +44,21 @@ def _event_area_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, slo
     ir = 0
     n = 0
     while il < nl or ir < nr:
-        cam, i, t, x, y, p, il, ir = next_event(il, ir, tl, xl, yl, pl, tr, xr, yr, pr)
-        slot = start_event(stored, scale, clock, slot_of_p, cam, t, p, decay, period)
+        if left_is_next_jit(il, nl, ir, nr, tl, tr):
+            cam, i, t, x, y, p = 0, il, tl[il], xl[il], yl[il], pl[il]
+            il += 1
+        else:
+            cam, i, t, x, y, p = 1, ir, tr[ir], xr[ir], yr[ir], pr[ir]
+            ir += 1
+        slot = slot_of_p[1 if p > 0 else 0]
         if slot < 0:
             continue
         other = 1 - cam
+        advance(stored, scale, clock, cam, t, decay, period)
+        advance(stored, scale, clock, other, t, decay, period)
         c1 = scale[cam]
         c2 = scale[other]
         value = stored[cam, slot, y, x] * c1
-        best = -1  # the disparity found, -1: none
         if abs(value) >= threshold and half <= x < width - half and half <= y < height - half:
             # Values are products stored * scale, computed once per pixel: the same numbers as the reference.
             for jj in range(size):
@@ -59,6 +67,7 @@ def _event_area_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, slo
                 for xx in range(width):
                     band[jj, xx] = stored[other, slot, y - half + jj, xx] * c2
             step = 1 if cam == 1 else -1  # right-camera events look towards larger x, left towards smaller
+            best = -1
             best_sad = max_cost
             for d in range(max_d + 1):
                 x2 = x + step * d
@@ -75,7 +84,12 @@ def _event_area_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, slo
                 if sad < best_sad:
                     best_sad = sad
                     best = d
-        n = end_event(stored, scale, clock, kernel, cam, slot, i, x, y, p, best, out_cam, out_index, out_disparity, n)
+            if best >= 0:
+                out_cam[n] = cam
+                out_index[n] = i
+                out_disparity[n] = best
+                n += 1
+        splat(stored, scale, clock, cam, slot, x, y, 1.0 if p > 0 else -1.0, kernel)
     return n
 
 

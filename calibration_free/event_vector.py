@@ -24,8 +24,10 @@ from typing import ClassVar
 import numpy as np
 from numba import njit
 
-from calibration_free._event_common import MergedEventMatcher, end_event, next_event, start_event
+from calibration_free._event_common import MergedEventMatcher
+from calibration_free.merge_order import left_is_next_jit
 from calibration_free.params import EventVectorParams
+from cvstereo.dynamic_frames import advance, splat
 
 
 @njit(cache=True, inline="always")
@@ -47,14 +49,20 @@ def _event_vector_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, s
     ir = 0
     n = 0
     while il < nl or ir < nr:
-        cam, i, t, x, y, p, il, ir = next_event(il, ir, tl, xl, yl, pl, tr, xr, yr, pr)
-        slot = start_event(stored, scale, clock, slot_of_p, cam, t, p, decay, period)
+        if left_is_next_jit(il, nl, ir, nr, tl, tr):
+            cam, i, t, x, y, p = 0, il, tl[il], xl[il], yl[il], pl[il]
+            il += 1
+        else:
+            cam, i, t, x, y, p = 1, ir, tr[ir], xr[ir], yr[ir], pr[ir]
+            ir += 1
+        slot = slot_of_p[1 if p > 0 else 0]
         if slot < 0:
             continue
         other = 1 - cam
+        advance(stored, scale, clock, cam, t, decay, period)
+        advance(stored, scale, clock, other, t, decay, period)
         c1 = scale[cam]
         value = stored[cam, slot, y, x] * c1
-        best = -1  # the disparity found, -1: none
         if abs(value) >= threshold:
             # Own vector: walk out of x's run, then on to the next above-threshold pixel, on each side.
             k = x
@@ -98,6 +106,7 @@ def _event_vector_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, s
                 else:
                     vec_b[xx] = _sign(row[last]) * (last - xx) if last < width else 0
             s1 = _sign(value)
+            best = -1
             best_cost = max_cost
             for d in range(max_d + 1):
                 x2 = x + step * d
@@ -109,7 +118,12 @@ def _event_vector_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, s
                 if cost < best_cost:
                     best_cost = cost
                     best = d
-        n = end_event(stored, scale, clock, kernel, cam, slot, i, x, y, p, best, out_cam, out_index, out_disparity, n)
+            if best >= 0:
+                out_cam[n] = cam
+                out_index[n] = i
+                out_disparity[n] = best
+                n += 1
+        splat(stored, scale, clock, cam, slot, x, y, 1.0 if p > 0 else -1.0, kernel)
     return n
 
 
