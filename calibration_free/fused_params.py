@@ -55,7 +55,7 @@ class FusedParams:
 
     window_us: int = 40_000
     tau_us: int = 80_000
-    support_radius: int = 2
+    support_radius: int = 1
     max_disparity: int = 47
     row_tolerance: int = 1
     p1: float = 3.0
@@ -76,7 +76,7 @@ class FusedParams:
             raise ValueError(f"{where}: tau_us must be a positive whole number of microseconds (e.g. 80000), "
                              f"got {self.tau_us}.")
         if not 0 <= self.support_radius <= 5:
-            raise ValueError(f"{where}: support_radius must be in 0..5 (e.g. 2), got {self.support_radius}.")
+            raise ValueError(f"{where}: support_radius must be in 0..5 (e.g. 1), got {self.support_radius}.")
         if int(self.max_disparity) != self.max_disparity or not 1 <= self.max_disparity <= 255:
             raise ValueError(f"{where}: max_disparity must be a whole number in 1..255 (e.g. 47), "
                              f"got {self.max_disparity}.")
