@@ -26,9 +26,11 @@ Design, part by part, with the reason for each (bench/results/fused.md measures 
    pixel's disparity in the previous window; objects move little in 40 ms, and the prior resolves
    repetitive texture that one window leaves ambiguous (the thesis' event-by-event continuity).
 6. **Semi-global aggregation** (Hirschmüller 2008; ``sgm_paths`` 2 or 4, ``p1``, ``p2``) along the rows and
-   columns of *active* pixels only (the support of recent events): event images are sparse, so paths end
-   where nothing happened instead of carrying the cost of empty background as SGBM does, which is where
-   SGBM's matches at noise and background come from. Costs live in a compact (pixels x disparities) array.
+   columns of *active* pixels only: the left pixels within ``path_radius`` px of an event of the window.
+   Event images are sparse, so paths end where nothing happened instead of carrying the cost of empty
+   background as SGBM does, which is where SGBM's matches at noise and background come from; and the work
+   is proportional to the active pixels, not the sensor. Costs live in a compact (pixels x disparities)
+   array.
 7. **Winner, uniqueness and uncertainty**: the disparity of least aggregated cost. Its *uncertainty* is half
    the ratio of that cost to the best cost more than 1 px away (0: unambiguous, 0.5: a tie; the uniqueness
    ratio of block matching as a number), plus 0.5 where the left-right check fails, so that every
