@@ -1,0 +1,276 @@
+"""The fused matcher beside dv-semidense and SGBM: accuracy at equal coverage, false rate, ablation, speed.
+
+Recordings: 2 s clips of four presets, the motorcycle scene, one arm at 1 m with both sensors' thresholds
+scaled by k (event density), and the real file Fan_disp8.dat (share within 1 px of 8). All matchers run
+through the same streaming path (40 ms packets) on the same events; fused's matches are also scored after
+keeping only its most certain ones, as many as each peer's coverage allows (issue 17). Speed: one core,
+2arms-50cm, and a 346x260 recording at about 1 M events/s; the load average is printed beside each figure.
+Writes ``bench/results/fused.md``.
+
+Run::
+
+    .venv/bin/python bench/bench_fused.py             # everything (about 10 minutes on a shared machine)
+    .venv/bin/python bench/bench_fused.py --quick     # fewer recordings, no ablation
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+os.environ["NUMBA_NUM_THREADS"] = "1"
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import dataclasses  # noqa: E402
+import time  # noqa: E402
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+
+from calibration_free.fused import FusedMatcher  # noqa: E402
+from cvstereo.evaluate import evaluate, match_truth  # noqa: E402
+from cvstereo.matches import concat_matches  # noqa: E402
+from cvstereo.pipeline import match  # noqa: E402
+from cvstereo.registry import available_methods  # noqa: E402
+
+OUT = Path(__file__).resolve().parent / "results" / "fused.md"
+SECONDS = 2.0
+PRESETS = ("1arm-50cm", "1arm-100cm", "2arms-100cm", "2arms-150cm")
+DENSITY_K = (0.5, 1.0, 2.0, 3.0)
+PACKET_US = 40_000
+#: The recordings of the ablation table (a subset, to keep the run short).
+ABLATION_RECORDINGS = ("1arm-50cm", "2arms-150cm", "motorcycle", "1arm-100cm thr x3.0")
+#: Ablation rows: name -> parameter overrides of fused.
+ABLATION = {
+    "full": {},
+    "no temporal coherence": {"temporal_weight": 0.0},
+    "no left-right check": {"lr_tolerance": -1},
+    "no filling of left-right failures": {"fill_radius": 0},
+    "no row tolerance": {"row_tolerance": 0},
+    "no sub-pixel": {"subpixel": False},
+    "no noise filter": {"min_neighbours": 1},
+    "SGM rows only (2 paths)": {"sgm_paths": 2},
+    "no SGM (winner of pixel cost)": {"sgm_paths": 0},
+    "no support square": {"support_radius": 0},
+}
+
+
+def _sim(name, make):
+    from cvstereo.io.npz import read_recording_npz, write_recording_npz
+    from cvstereo.simulate.presets import default_cache_dir
+
+    path = default_cache_dir() / f"fused-{name}.npz"
+    if not path.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_recording_npz(path, make())
+    return read_recording_npz(path)
+
+
+def dense_rig(rig, k: float):
+    """``rig`` with both sensors' ON and OFF thresholds times ``k`` (and the threshold floor with them)."""
+    def scaled(sensor):
+        return dataclasses.replace(sensor, on_threshold=sensor.on_threshold * k, off_threshold=sensor.off_threshold * k,
+                                   min_threshold=min(sensor.min_threshold, sensor.min_threshold * k))
+    return dataclasses.replace(rig, left=scaled(rig.left), right=scaled(rig.right))
+
+
+def recordings(quick: bool) -> dict:
+    """Name -> Recording of every simulated clip (cached)."""
+    from cvstereo.io.npz import read_recording_npz
+    from cvstereo.simulate import ArmsScene, MotorcycleScene, simulate
+    from cvstereo.simulate.presets import cached_preset
+    from cvstereo.simulate.rig import Rig
+
+    recs = {n: read_recording_npz(cached_preset(n, seconds=SECONDS)) for n in (PRESETS[:2] if quick else PRESETS)}
+    recs["motorcycle"] = _sim(f"motorcycle-{SECONDS}s", lambda: simulate(MotorcycleScene(), seconds=SECONDS, seed=0))
+    for k in (DENSITY_K[::3] if quick else DENSITY_K):
+        if k == 1.0:
+            continue
+        rig = dense_rig(Rig(), k)
+        recs[f"1arm-100cm thr x{k}"] = _sim(f"1arm-100cm-thr{k}-{SECONDS}s", lambda rig=rig: simulate(
+            ArmsScene(arms=1, distance_m=1.0), rig=rig, seconds=SECONDS, seed=0))
+    return recs
+
+
+def run_fused(rec, **params):
+    """Fused over a recording through feed/flush (40 ms packets): (matches, uncertainty, meta, (wall s, CPU s)).
+
+    The CPU time of this process is the fairer speed figure on a shared machine (the wall time counts the
+    time other processes held the core)."""
+    m = FusedMatcher(FusedMatcher.make_params(**params), resolution=rec.resolution)
+    start, cpu = time.perf_counter(), time.process_time()
+    parts = [m.feed(p.left, p.right, until=p.until) for p in rec.packets(PACKET_US)]
+    parts.append(m.flush())
+    elapsed = (time.perf_counter() - start, time.process_time() - cpu)
+    return concat_matches(parts), m.take_uncertainty(), m.describe(), elapsed
+
+
+def most_certain(matches, uncertainty, rec, meta, coverage: float):
+    """Fused's most certain matches whose coverage is at most ``coverage`` (keeping the order)."""
+    order = np.argsort(uncertainty, kind="stable")
+    has = np.isfinite(match_truth(rec, matches, anchor="window", window_us=meta["window_us"])[order])
+    full = evaluate(rec, matches, meta)
+    if not full["coverage"] or coverage >= full["coverage"]:
+        return matches
+    # Anchors are distinct (pixel, window) cells: coverage grows by one cell per match with truth.
+    n_truth_needed = int(np.floor(coverage / full["coverage"] * np.count_nonzero(has)))
+    keep_n = int(np.searchsorted(np.cumsum(has), n_truth_needed, side="right"))
+    keep = np.sort(order[:keep_n])
+    return matches[keep]
+
+
+def load_avg() -> str:
+    return f"{os.getloadavg()[0]:.2f}"
+
+
+def peers() -> list[str]:
+    return [m for m in ("sgbm", "dv-semidense") if m in available_methods()]
+
+
+def accuracy_section(recs) -> tuple[str, dict]:
+    lines = ["## Accuracy (2 s clips; window anchors at the left camera's event pixels)", "",
+             "bad2 = share of matches with error > 2 px, false = share of matches on noise or background "
+             "(evaluation.md). `fused @ peer coverage`: fused run with `max_uncertainty=1` (every winner, the "
+             "left-right inconsistent ones ranked last), keeping its most certain matches down to the peer's "
+             "coverage (all of them when the peer covers more).", "",
+             "| recording | method | coverage | bad2 | false | matches | fused bad2 @ peer coverage | load |",
+             "|---|---|---:|---:|---:|---:|---:|---:|"]
+    summary = {}
+    for name, rec in recs.items():
+        fm, _, meta, _ = run_fused(rec)
+        ranked, unc, _, _ = run_fused(rec, max_uncertainty=1.0)
+        f_full = evaluate(rec, fm, meta)
+        rows = {"fused": f_full}
+        lines.append(f"| {name} | fused | {f_full['coverage']:.1%} | {f_full['bad2']:.1%} | "
+                     f"{f_full['false_rate']:.1%} | {f_full['matches']} | - | {load_avg()} |")
+        for peer in peers():
+            pf = evaluate(rec, match(rec, method=peer, packet_us=PACKET_US))
+            ff = evaluate(rec, most_certain(ranked, unc, rec, meta, pf["coverage"]), meta)
+            rows[peer] = pf
+            rows[f"fused@{peer}"] = ff
+            lines.append(f"| {name} | {peer} | {pf['coverage']:.1%} | {pf['bad2']:.1%} | {pf['false_rate']:.1%} | "
+                         f"{pf['matches']} | {ff['bad2']:.1%} at {ff['coverage']:.1%} | {load_avg()} |")
+        summary[name] = rows
+        print("\n".join(lines[-3:]), flush=True)
+    return "\n".join(lines), summary
+
+
+def verdict_section(summary: dict) -> str:
+    """Issue 17's "done when" on these recordings: fused against the better peer, at fused's own coverage and
+    at the peer's."""
+    lines = ["## Against the targets (issue 17)", "",
+             "| recording | fused bad2 (own cov.) | better peer bad2 | fused bad2 @ SGBM cov. | SGBM bad2 | "
+             "fused bad2 @ dv cov. | dv bad2 | fused false | lower peer false |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    wins = 0
+    for name, rows in summary.items():
+        ps = [p for p in peers() if p in rows]
+        best_peer = min(rows[p]["bad2"] for p in ps)
+        low_false = min(rows[p]["false_rate"] for p in ps)
+        cells = [f"{rows['fused']['bad2']:.1%}", f"{best_peer:.1%}"]
+        beat = True
+        for p in ("sgbm", "dv-semidense"):
+            if p in rows:
+                cells += [f"{rows[f'fused@{p}']['bad2']:.1%}", f"{rows[p]['bad2']:.1%}"]
+                beat &= rows[f"fused@{p}"]["bad2"] < rows[p]["bad2"]
+            else:
+                cells += ["-", "-"]
+        cells += [f"{rows['fused']['false_rate']:.1%}", f"{low_false:.1%}"]
+        wins += beat
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    lines += ["", f"fused beats both peers at their coverages on {wins} of {len(summary)} recordings."]
+    return "\n".join(lines)
+
+
+def ablation_section(recs, summary) -> str:
+    recs = {n: r for n, r in recs.items() if n in ABLATION_RECORDINGS}
+    names = list(recs)
+    head = "| variant | " + " | ".join(f"{n}" for n in names) + " |"
+    lines = ["## Ablation (fused with one part off)", "",
+             "Each cell: bad2 / coverage / false rate of the default output, then bad2 at SGBM's coverage (the "
+             "ranking run, `max_uncertainty=1`). Without the left-right check every winner is output; the "
+             "filling only changes left-right failures, so it shows at SGBM's coverage only.", "", head,
+             "|---|" + "---:|" * len(names)]
+    for label, over in ABLATION.items():
+        cells = []
+        for name, rec in recs.items():
+            fm, _, meta, _ = run_fused(rec, **over)
+            f = evaluate(rec, fm, meta)
+            cell = f"{f['bad2']:.1%} / {f['coverage']:.1%} / {f['false_rate']:.1%}"
+            if "sgbm" in summary.get(name, {}):
+                ranked, unc, _, _ = run_fused(rec, **{**over, "max_uncertainty": 1.0})
+                at = evaluate(rec, most_certain(ranked, unc, rec, meta, summary[name]["sgbm"]["coverage"]), meta)
+                cell += f"; {at['bad2']:.1%}"
+            cells.append(cell)
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+        print(lines[-1], flush=True)
+    return "\n".join(lines)
+
+
+def fan_section() -> str:
+    from cvstereo.io import read_recording
+
+    path = Path(os.environ.get("CVSTEREO_SHARED", "/work/shared")) / "data" / "tum-stereo" / "Fan_disp8.dat"
+    if not path.exists():
+        return "## Fan_disp8\n\n(file not found)"
+    rec = read_recording(path)
+    lines = ["## Fan_disp8.dat (real; nominal disparity 8 px)", "",
+             "| method | estimates | within 1 px of 8 |", "|---|---:|---:|"]
+    results = {"fused": run_fused(rec)[0], "fused, max_uncertainty=1": run_fused(rec, max_uncertainty=1.0)[0]}
+    for peer in peers():
+        results[peer] = match(rec, method=peer, packet_us=PACKET_US).matches
+    for name, m in results.items():
+        within = float(np.mean(np.abs(m["disparity"] - 8.0) <= 1.0)) if m.size else float("nan")
+        lines.append(f"| {name} | {m.size} | {within:.1%} |")
+    return "\n".join(lines)
+
+
+def speed_section(quick: bool) -> str:
+    from cvstereo.io.npz import read_recording_npz
+    from cvstereo.simulate import ArmsScene, simulate
+    from cvstereo.simulate.presets import cached_preset
+    from cvstereo.simulate.rig import Rig
+
+    lines = ["## Speed (one core, best of 2; load average of the machine's 2 cores beside; the 346x260 "
+             "recording: two arms at 50 cm, thresholds x 0.07)", "",
+             "| recording | events/s of the recording | x real time on CPU time (wall) | load |",
+             "|---|---:|---:|---:|"]
+    rec = read_recording_npz(cached_preset("2arms-50cm", seconds=SECONDS))
+    big = _sim(f"arms-346x260-dense-{SECONDS}s", lambda: simulate(
+        ArmsScene(arms=2, distance_m=0.5), rig=dense_rig(Rig(resolution=(346, 260), focal_px=446.0), 0.07),
+        seconds=SECONDS, seed=0))
+    for name, r in (("2arms-50cm", rec), ("2 arms 346x260", big)):
+        runs = [run_fused(r)[3] for _ in range(1 if quick else 2)]
+        wall, cpu = min(w for w, _ in runs), min(c for _, c in runs)
+        rate = (r.left.size + r.right.size) / r.duration_s
+        lines.append(f"| {name} {r.resolution[0]}x{r.resolution[1]} | {rate:,.0f} | {r.duration_s / cpu:.1f}x "
+                     f"(wall {r.duration_s / wall:.1f}x) | {load_avg()} |")
+        print(lines[-1], flush=True)
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true")
+    args = ap.parse_args(argv)
+    cv2.setNumThreads(1)
+    recs = recordings(args.quick)
+    parts = ["# fused beside SGBM and dv-semidense", "",
+             f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; peers: {', '.join(peers())}.", ""]
+    text, summary = accuracy_section(recs)
+    parts += [text, "", verdict_section(summary), ""]
+    parts += [fan_section(), ""]
+    if not args.quick:
+        parts += [ablation_section(recs, summary), ""]
+    parts += [speed_section(args.quick), ""]
+    OUT.write_text("\n".join(parts))
+    print(f"wrote {OUT}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,162 @@
+"""The fused matcher (method ``fused``): the thesis' event cues in a semi-global matcher, with an uncertainty.
+
+Design, part by part, with the reason for each (bench/results/fused.md measures each part's contribution):
+
+1. **Windows on the absolute clock** (``window_us``, 40 ms) anchored at the left camera's pixels that saw
+   events, stamped with the window's end: the same cells as the OpenCV baselines and dv-processing
+   (:mod:`cvstereo.baseline`), so that coverage, bad2 and false rate compare on equal terms; and a window
+   is matched once from all its events, which makes the result independent of the packet cuts.
+2. **Features: two time surfaces per camera**, one per polarity, ``max(0, 1 - (t_end - t_last) / tau)``
+   (Lagorce et al. 2017's surfaces with a linear decay; Ieng et al. 2018 and Zhou et al. 2018 match
+   event stereo on them). They carry the thesis' cues: *event-time* (corresponding pixels fire at the same
+   time in both cameras, so their surfaces agree; an edge seen earlier has decayed further) and *polarity*
+   (ON and OFF never match each other, thesis 3.4's separate handling). Unlike a count frame, a surface
+   keeps the *order* of events within and across windows, which is what tells two nearby edges apart.
+   Each surface is summed over a ``(2r+1)^2`` support square (``support_radius``): the frame matchers'
+   Gaussian (thesis eq. 3.6) in its cheapest form, done once per image rather than once per disparity.
+3. **Signal level** (:func:`calibration_free.fused_signal.signal_level`): each camera's features are
+   divided by a robust level of the window (the 90th percentile of its non-zero values), so that costs and
+   penalties mean the same at any event density and for two sensors of different sensitivity. One function,
+   to be swapped for the project's adaptive signal level (issue 12) when it lands.
+4. **Cost**: the L1 distance of the two cameras' feature vectors at ``(x, y)`` and ``(x - d, y + dy)``, the
+   least over ``|dy| <= row_tolerance``: the thesis' event-time matcher's row tolerance, because real rigs
+   are off by about a row (thesis 3.2; the simulator's rig by one); :mod:`cvstereo.rigcorrect` corrects
+   larger offsets before matching.
+5. **Temporal coherence** (``temporal_weight``): the cost grows with the distance (capped at 2 px) from the
+   pixel's disparity in the previous window; objects move little in 40 ms, and the prior resolves
+   repetitive texture that one window leaves ambiguous (the thesis' event-by-event continuity).
+6. **Semi-global aggregation** (Hirschmüller 2008; ``sgm_paths`` 2 or 4, ``p1``, ``p2``) along the rows and
+   columns of *active* pixels only: the left pixels within ``path_radius`` px of an event of the window.
+   Event images are sparse, so paths end where nothing happened instead of carrying the cost of empty
+   background as SGBM does, which is where SGBM's matches at noise and background come from; and the work
+   is proportional to the active pixels, not the sensor. Costs live in a compact (pixels x disparities)
+   array.
+7. **Winner, uniqueness and uncertainty**: the disparity of least aggregated cost. Its *uncertainty* is half
+   the ratio of that cost to the best cost more than 1 px away (0: unambiguous, 0.5: a tie; the uniqueness
+   ratio of block matching as a number), plus 0.5 where the left-right check fails, so that every
+   inconsistent match ranks behind every consistent one. Users threshold it (``max_uncertainty``, default
+   0.5: the consistent matches) or keep the most certain ones (:meth:`FusedMatcher.take_uncertainty`
+   gives it per match).
+8. **Left-right consistency** (``lr_tolerance``): the right pixel the winner points to must choose the same
+   disparity (within 1 px) from the same aggregated volume; occlusions and half-matched edges fail it.
+   A winner that fails it takes the median of the consistent answers within ``fill_radius`` px (when there
+   are any), the usual filling of SGM's invalidated pixels (Hirschmüller 2008, section 3.4) restricted to
+   the event pixels; it keeps its high uncertainty, so it only counts when a user asks for high coverage.
+9. **Sub-pixel refinement** (``subpixel``): a parabola through the aggregated costs at ``d - 1, d, d + 1``.
+10. **Noise filter** (``min_neighbours``): a pixel answers only if another pixel of its 3x3 neighbourhood saw
+    an event in the last two windows. Isolated events are mostly noise; the thesis' event matchers owe
+    their low false rate to the same kind of local support.
+
+The numba kernels are in :mod:`calibration_free._fused_kernel`; the plain reference in
+:mod:`calibration_free.reference.fused` gives identical matches (tests/test_fused.py).
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import cv2
+import numpy as np
+
+from calibration_free._fused_kernel import NEVER, match_features, surface_features
+from calibration_free.fused_params import FusedParams
+from calibration_free.fused_signal import signal_level
+from cvstereo.matches import empty_matches, make_matches
+from cvstereo.windows import FrameMatcher, Window
+
+
+class WindowState:
+    """What the fused matcher carries from window to window: last event times and the previous disparities.
+
+    Parameters
+    ----------
+    resolution : (width, height)
+    """
+
+    def __init__(self, resolution: tuple[int, int]):
+        w, h = resolution
+        self.last = np.full((2, 2, h, w), NEVER, dtype=np.int64)  # camera, polarity, row, column
+        self.prior = np.full((h, w), np.nan)
+        self.prior_end: int | None = None
+
+    def prior_for(self, t_end: int, window_us: int) -> np.ndarray:
+        """The previous window's disparities if it is the window just before ``t_end``, else all NaN."""
+        if self.prior_end == t_end - window_us:
+            return self.prior
+        return np.full_like(self.prior, np.nan)
+
+    def remember(self, t_end: int, x: np.ndarray, y: np.ndarray, disparity: np.ndarray) -> None:
+        """Keep this window's answers as the next window's prior."""
+        self.prior = np.full_like(self.prior, np.nan)
+        self.prior[y, x] = disparity
+        self.prior_end = t_end
+
+
+def left_counts(events: np.ndarray, resolution: tuple[int, int]) -> np.ndarray:
+    """(2, H, W) int64 event counts per polarity of one camera's window events."""
+    w, h = resolution
+    counts = np.zeros((2, h, w), dtype=np.int64)
+    np.add.at(counts, (events["p"].astype(np.intp), events["y"].astype(np.intp), events["x"].astype(np.intp)), 1)
+    return counts
+
+
+class FusedMatcher(FrameMatcher):
+    """Time-surface semi-global matcher with left-right check, temporal prior and uncertainty (``fused``).
+
+    The module docstring gives the design. Matches are anchored at the left camera's event pixels of each
+    window (``anchor = "window"``), like the OpenCV baselines.
+
+    Parameters
+    ----------
+    params : FusedParams, optional
+    resolution : (width, height), keyword-only
+    """
+
+    Params = FusedParams
+    variants: ClassVar[dict[str, dict]] = {"default": {}}
+    method = "fused"
+
+    def __init__(self, params=None, *, resolution=(128, 128)):
+        super().__init__(params, resolution=resolution)
+        self._state = WindowState(self.resolution)
+        self._uncertainty: list[np.ndarray] = []
+        self._work = np.empty((5, 0, self.params.max_disparity + 1))
+
+    def anchor_cameras(self) -> tuple[int, ...]:
+        return (0,)
+
+    def take_uncertainty(self) -> np.ndarray:
+        """Uncertainty (0..1, lower is more certain) of every match returned since the last call, in order.
+
+        Returns
+        -------
+        (M,) float32 ndarray
+            One value per match that :meth:`feed` and :meth:`flush` returned since the last call (formats.md's
+            optional per-match array ``uncertainty``).
+        """
+        parts, self._uncertainty = self._uncertainty, []
+        return np.concatenate(parts).astype(np.float32) if parts else np.zeros(0, np.float32)
+
+    def match_window(self, window: Window) -> np.ndarray:
+        prm, state = self.params, self._state
+        features = []
+        for cam, ev in enumerate((window.left, window.right)):
+            f = surface_features(ev["t"], ev["x"], ev["y"], ev["p"], state.last[cam], window.t_end,
+                                 prm.tau_us, prm.support_radius)
+            features.append(signal_level(f))
+        counts = left_counts(window.left, self.resolution)
+        side = 2 * prm.path_radius + 1
+        active = cv2.dilate((counts.sum(axis=0) > 0).astype(np.uint8), np.ones((side, side), np.uint8)) > 0
+        n_active = int(np.count_nonzero(active))
+        if n_active > self._work.shape[1]:
+            self._work = np.empty((5, max(n_active, 2 * self._work.shape[1]), prm.max_disparity + 1))
+        recent = (state.last[0] >= window.t_end - 2 * prm.window_us).any(axis=0)
+        x, y, pol, disp, unc = match_features(
+            features[0], features[1], counts, active, recent, state.prior_for(window.t_end, prm.window_us),
+            prm.max_disparity, prm.row_tolerance, prm.p1, prm.p2, prm.sgm_paths, prm.temporal_weight, prm.lr_tolerance,
+            prm.subpixel, prm.min_neighbours, prm.max_uncertainty, prm.fill_radius, self._work)
+        state.remember(window.t_end, x, y, disp)
+        self._uncertainty.append(unc)
+        if x.size == 0:
+            return empty_matches()
+        return make_matches(window.t_end, x, y, pol, 0, disp.astype(np.float32))

@@ -1,0 +1,153 @@
+"""The fused matcher: fast == reference on random streams and packet cuts, and what each part promises."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from _event_scenes import feed_cut, moving_edges
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from calibration_free.fused import FusedMatcher
+from calibration_free.fused_params import FusedParams
+from calibration_free.reference.fused import fused_reference
+from cvstereo.events import make_events
+from cvstereo.matches import validate_matches
+from cvstereo.registry import create_matcher
+
+
+def textured_pair(seed: int, *, windows: int = 4, shift: int = 5, size: tuple[int, int] = (40, 16), noise: int = 40):
+    """Random vertical-ish texture sliding right, seen by the right camera ``shift`` px further left, with noise.
+
+    Returns left, right and the resolution.
+    """
+    rng = np.random.default_rng(seed)
+    w, h = size
+    edges = rng.integers(shift + 2, w - 6, 6)
+    pols = rng.integers(0, 2, 6)
+    cams = [[], []]
+    for k in range(windows * 8):  # 5 ms steps: each edge moves 1 px per step
+        t0 = k * 5_000
+        for e, p in zip(edges, pols, strict=True):
+            x = int(e + k // 4) % (w - 1)
+            ys = np.flatnonzero(rng.random(h) < 0.7)
+            t = t0 + rng.integers(0, 5_000, ys.size)
+            cams[0].append((t, np.full(ys.size, x), ys, np.full(ys.size, p)))
+            xr = x - shift
+            if xr >= 0:
+                cams[1].append((t + rng.integers(0, 300, ys.size), np.full(ys.size, xr), ys, np.full(ys.size, p)))
+    for cam in cams:
+        cam.append((rng.integers(0, windows * 40_000, noise), rng.integers(0, w, noise), rng.integers(0, h, noise),
+                    rng.integers(0, 2, noise)))
+    out = []
+    for cam in cams:
+        t, x, y, p = (np.concatenate(c) for c in zip(*cam, strict=True))
+        order = np.argsort(t, kind="stable")
+        out.append(make_events(t[order], x[order], y[order], p[order]))
+    return out[0], out[1], size
+
+
+PARAM_AXES = {
+    "sgm_paths": [0, 2, 4], "lr_tolerance": [-1, 0, 1], "subpixel": [True, False], "temporal_weight": [0.0, 0.3],
+    "support_radius": [0, 1, 2], "path_radius": [0, 1, 3], "fill_radius": [0, 2], "row_tolerance": [0, 1],
+    "min_neighbours": [1, 3], "max_uncertainty": [1.0, 0.5, 0.3],
+    "max_disparity": [12, 20],
+}
+
+
+@settings(max_examples=12, deadline=None)
+@given(data=st.data(), seed=st.integers(0, 2**32 - 1), n_cuts=st.integers(0, 25))
+def test_fast_equals_reference_across_packet_cuts(data, seed, n_cuts):
+    params = FusedParams(**{k: data.draw(st.sampled_from(v), label=k) for k, v in PARAM_AXES.items()})
+    left, right, resolution = textured_pair(seed)
+    expected, unc_expected = fused_reference(left, right, params, resolution=resolution, with_uncertainty=True)
+    cuts = np.random.default_rng(seed).choice(np.concatenate([left["t"], right["t"]]), n_cuts)
+    matcher = FusedMatcher(params, resolution=resolution)
+    got = feed_cut(matcher, left, right, cuts)
+    assert expected.size > 0
+    np.testing.assert_array_equal(got, expected)
+    np.testing.assert_array_equal(matcher.take_uncertainty(), unc_expected)
+    validate_matches(got)
+
+
+def test_finds_the_shift_of_a_textured_pair():
+    left, right, resolution = textured_pair(1, windows=6, noise=0)
+    got = feed_cut(FusedMatcher(resolution=resolution), left, right, [])
+    # Edges near the left border have no partner in the right camera; the rest must be found at 5 px.
+    assert got.size > 100
+    assert np.mean(np.abs(got["disparity"] - 5.0) <= 1.0) > 0.9
+
+
+def test_moving_edges_are_matched_at_their_disparity():
+    left, right = moving_edges(shift=6)
+    got = feed_cut(FusedMatcher(resolution=(128, 128)), left, right, [])
+    assert got.size > 0
+    assert np.median(np.abs(got["disparity"] - 6.0)) <= 0.5
+
+
+def test_uncertainty_threshold_keeps_exactly_the_matches_below_it():
+    left, right, resolution = textured_pair(3, windows=6)
+    full = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0), resolution=resolution)
+    m_all = feed_cut(full, left, right, [])
+    u = full.take_uncertainty()
+    assert u.shape == m_all.shape and u.dtype == np.float32 and ((u >= 0) & (u <= 1)).all()
+    assert full.take_uncertainty().size == 0  # taken once
+    for limit in (0.5, 0.3):
+        strict = FusedMatcher(FusedParams(max_uncertainty=limit, temporal_weight=0.0), resolution=resolution)
+        np.testing.assert_array_equal(feed_cut(strict, left, right, []), m_all[u <= np.float32(limit)])
+
+
+def test_left_right_failures_rank_behind_consistent_matches():
+    left, right, resolution = textured_pair(4, windows=6)
+    runs = {}
+    for tol in (-1, 1):
+        m = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0, lr_tolerance=tol, fill_radius=0),
+                         resolution=resolution)
+        runs[tol] = (feed_cut(m, left, right, []), m.take_uncertainty())
+    # Same winners; the check only adds 0.5 to the uncertainty of the inconsistent ones, and some fail it.
+    np.testing.assert_array_equal(runs[1][0], runs[-1][0])
+    added = runs[1][1].astype(np.float64) - runs[-1][1]
+    assert np.all(np.isclose(added, 0.0) | np.isclose(added, 0.5))
+    assert 0 < np.count_nonzero(np.isclose(added, 0.5)) < added.size
+    assert (runs[-1][1] <= 0.5).all()
+
+
+def test_inconsistent_matches_take_the_median_of_consistent_neighbours():
+    left, right, resolution = textured_pair(4, windows=6)
+    m = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0, fill_radius=2), resolution=resolution)
+    got = feed_cut(m, left, right, [])
+    u = m.take_uncertainty()
+    ok = u <= 0.5
+    filled = 0
+    for i in np.flatnonzero(~ok):
+        near = ok & (got["t"] == got["t"][i]) & (np.abs(got["x"].astype(int) - got["x"][i]) <= 2) & \
+            (np.abs(got["y"].astype(int) - got["y"][i]) <= 2)
+        if near.any():
+            assert got["disparity"][i] == pytest.approx(np.median(got["disparity"][near]), abs=1e-5)
+            filled += 1
+    assert filled > 0
+
+
+def test_isolated_noise_gets_no_answer():
+    # One event per pixel, far apart: no pixel has a neighbour that fired, so the noise filter answers nowhere.
+    t = np.arange(0, 40_000, 4_000)
+    x = np.arange(2, 42, 4)
+    ev = make_events(t, x, np.full(t.size, 5), np.ones(t.size, int))
+    assert feed_cut(FusedMatcher(resolution=(48, 12)), ev, ev, []).size == 0
+    assert feed_cut(FusedMatcher(FusedParams(min_neighbours=1), resolution=(48, 12)), ev, ev, []).size > 0
+
+
+def test_registered_and_window_anchored():
+    m = create_matcher("fused", resolution=(64, 32))
+    assert isinstance(m, FusedMatcher)
+    meta = m.describe()
+    assert meta["anchor"] == "window" and meta["window_us"] == 40_000 and meta["anchor_cameras"] == [0]
+
+
+@pytest.mark.parametrize(("field", "value", "words"), [
+    ("sgm_paths", 3, "sgm_paths"), ("p2", 0.1, "p1 <= p2"), ("max_uncertainty", 0.0, "max_uncertainty"),
+    ("tau_us", 0, "tau_us"), ("row_tolerance", 5, "row_tolerance"), ("lr_tolerance", -2, "lr_tolerance"),
+])
+def test_bad_parameters_say_which(field, value, words):
+    with pytest.raises(ValueError, match=words):
+        FusedParams(**{field: value})
