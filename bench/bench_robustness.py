@@ -21,7 +21,7 @@ from cvstereo.registry import available_methods
 from cvstereo.sweep import Grid, resolve_recordings, run_sweep
 
 THESIS_METHODS = ("frame", "frame-area", "event-time", "event-area", "event-vector")
-PEERS = ("stereobm", "sgbm", "dv-semidense")
+PEERS = ("stereobm", "sgbm", "dv-semidense", "fused")
 SETS = ("thesis", "adaptive")
 
 

@@ -10,7 +10,7 @@ import numpy as np
 
 import cvstereo
 from cvstereo.events import StereoPacket
-from cvstereo.matches import MatchResult, concat_matches, sort_matches
+from cvstereo.matches import MatchResult, concat_matches
 from cvstereo.recording import Recording
 from cvstereo.registry import create_matcher
 
@@ -161,9 +161,17 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
                                   packets.dropped_times}
     if rectified is not None:
         meta["rectification"] = {**rectification.describe(), "dropped_events": sum(rectified.dropped)}
-    matches = sort_matches(matches)
+    order = np.argsort(matches["t"], kind="stable")  # sort_matches' order, applied to per-match arrays too
+    matches = matches[order]
+    arrays = {}
+    if hasattr(matcher, "take_uncertainty"):  # matchers that rate their matches (formats.md: `uncertainty`)
+        uncertainty = matcher.take_uncertainty()
+        if uncertainty.size == order.size:
+            arrays["uncertainty"] = uncertainty[order]
+        else:  # a stage in between (rectification) dropped matches: the values no longer line up
+            meta["uncertainty"] = "not stored: a stage between matcher and output changed the matches"
     meta["diagnostics"] = _diagnostics(matcher, counted.windows, matches, meta)
-    return MatchResult(matches, meta)
+    return MatchResult(matches, meta, arrays)
 
 
 def _diagnostics(matcher, event_windows: set[int], matches, meta: dict) -> dict:
