@@ -40,7 +40,7 @@ RESULTS = Path(__file__).resolve().parent / "results"
 
 #: The thesis' five methods (they take a parameter set); the others are baselines.
 THESIS_METHODS = ("frame", "frame-area", "event-time", "event-area", "event-vector")
-BASELINES = ("stereobm", "sgbm", "dv-semidense")
+BASELINES = ("stereobm", "sgbm", "dv-semidense", "fused")
 DEFAULT_KS = (0.5, 1.0, 2.0, 3.0)
 SECONDS = 3.0
 SEED = 7
