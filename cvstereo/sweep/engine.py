@@ -1,0 +1,234 @@
+"""Running a sweep: cell keys, one cell (match + evaluate), the resumable run on Dask or here."""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.metadata
+import importlib.util
+import json
+import math
+import os
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from cvstereo.registry import ENTRY_POINT_GROUP
+from cvstereo.sweep.grid import Cell
+
+#: Figures of :func:`cvstereo.evaluate.evaluate` kept per cell.
+FIGURE_COLUMNS = ("matches", "coverage", "bad1", "bad2", "mae", "rmse", "median_ae", "false_rate", "mean", "std")
+#: Columns that depend on the machine and the moment, not on the grid.
+TIMING_COLUMNS = ("elapsed_s", "events_per_s", "realtime_x", "worker")
+
+
+def file_digest(path: str | os.PathLike) -> str:
+    """sha256 of a file's bytes (hex), read in 1 MiB blocks."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def source_digest() -> str:
+    """sha256 over the package's Python source files (cvstereo and the matcher packages it finds).
+
+    Part of every cell key, so that a changed matcher never reuses a stale result although the version
+    number stays the same.
+    """
+    import cvstereo
+
+    roots = {Path(cvstereo.__file__).parent}
+    for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+        spec = importlib.util.find_spec(ep.value.split(":")[0].split(".")[0])
+        if spec is not None and spec.origin is not None:
+            roots.add(Path(spec.origin).parent)
+    h = hashlib.sha256()
+    for root in sorted(roots):
+        for file in sorted(root.rglob("*.py")):
+            h.update(file.relative_to(root.parent).as_posix().encode())
+            h.update(b"\0")
+            h.update(file.read_bytes())
+    return h.hexdigest()
+
+
+def cell_key(cell: Cell, recording_digest: str, code_digest: str) -> str:
+    """The cell's identity: recording content, method, variant, parameters and source code (hex, 24)."""
+    text = json.dumps({"recording": recording_digest, "method": cell.method, "variant": cell.variant,
+                       **({"param_set": cell.param_set} if cell.param_set else {}),
+                       "params": [[k, v] for k, v in cell.params], "code": code_digest}, sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:24]
+
+
+def run_cell(cell: Cell) -> dict:
+    """Match and evaluate one cell; never raises for a bad cell (the error is in the row).
+
+    Returns
+    -------
+    dict
+        :data:`FIGURE_COLUMNS`, :data:`TIMING_COLUMNS` and ``error`` (None when the cell ran).
+    """
+    row: dict = dict.fromkeys(FIGURE_COLUMNS)
+    row.update(dict.fromkeys(TIMING_COLUMNS), error=None, worker=f"{os.uname().nodename}:{os.getpid()}")
+    start = time.perf_counter()
+    try:
+        from cvstereo.evaluate import evaluate
+        from cvstereo.io import read_recording
+        from cvstereo.pipeline import match
+
+        extra = {"param_set": cell.param_set} if cell.param_set else {}
+        result = match(cell.recording, method=cell.method, variant=cell.variant, **extra, **dict(cell.params))
+        figures = evaluate(read_recording(cell.recording), result)
+        for name in (*FIGURE_COLUMNS, "events_per_s", "realtime_x"):
+            row[name] = _plain(figures.get(name))
+    except Exception as exc:  # a failing cell is recorded, never fatal to the sweep
+        row["error"] = f"{type(exc).__name__}: {' '.join(str(exc).split())}"
+    row["elapsed_s"] = time.perf_counter() - start
+    return row
+
+
+def _plain(value):
+    """JSON-safe scalar: NaN -> None, numpy numbers -> Python numbers."""
+    if value is None:
+        return None
+    value = value.item() if hasattr(value, "item") else value
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+@dataclass
+class SweepResult:
+    """Rows in grid order, and what the run did.
+
+    Attributes
+    ----------
+    rows : list of dict
+        One per cell: ``key``, ``recording``, ``method``, ``variant``, ``params`` (JSON), one
+        ``param.NAME`` column per swept parameter, the figures, timing columns and ``error``.
+    computed, reused, failed : int
+        Cells run now, cells taken from an earlier run of the same sweep, cells with an error.
+    """
+
+    rows: list[dict] = field(default_factory=list)
+    computed: int = 0
+    reused: int = 0
+    failed: int = 0
+
+
+def run_sweep(cells: Sequence[Cell], out_dir: str | os.PathLike, *, workers: int | None = None,
+              scheduler: str | None = None, progress: bool = False,
+              on_row: Callable[[Cell, dict], None] | None = None) -> SweepResult:
+    """Run every cell not already in ``out_dir`` and return all rows in grid order.
+
+    Parameters
+    ----------
+    cells : sequence of Cell
+    out_dir : path-like
+        Output folder; ``cells/`` inside it keeps one JSON file per finished cell.
+    workers : int, optional, keyword-only
+        Worker processes of the local cluster (default: one per core); 0 runs the cells here, one after
+        another, without Dask.
+    scheduler : str, optional, keyword-only
+        Address of an existing Dask scheduler (``tcp://host:8786``); then ``workers`` is ignored.
+    progress : bool, keyword-only
+        Progress bar with cells done / failed / remaining.
+    on_row : callable, optional
+        Called with (cell, row) as each cell finishes (rows of earlier runs are not reported).
+
+    Returns
+    -------
+    SweepResult
+    """
+    out = Path(out_dir)
+    (out / "cells").mkdir(parents=True, exist_ok=True)
+    code = source_digest()
+    digests: dict[str, str] = {}
+    keys = []
+    for cell in cells:
+        if cell.recording not in digests:
+            digests[cell.recording] = file_digest(cell.recording)
+        keys.append(cell_key(cell, digests[cell.recording], code))
+    done = {k: _read_cell(out, k) for k in dict.fromkeys(keys) if (out / "cells" / f"{k}.json").exists()}
+    todo = [(k, c) for k, c in dict(zip(keys, cells, strict=True)).items() if k not in done]
+    result = SweepResult(reused=len(done))
+    bar = _bar(progress, total=len(todo), reused=len(done))
+
+    def finished(key: str, cell: Cell, row: dict) -> None:
+        _write_cell(out, key, row)
+        done[key] = row
+        result.computed += 1
+        if on_row is not None:
+            on_row(cell, row)
+        if bar is not None:
+            bar.update()
+            bar.set_postfix(failed=sum(r.get("error") is not None for r in done.values()))
+
+    if todo:
+        if workers == 0 and scheduler is None:
+            for key, cell in todo:
+                finished(key, cell, run_cell(cell))
+        else:
+            _run_on_dask(todo, finished, workers=workers, scheduler=scheduler)
+    if bar is not None:
+        bar.close()
+    result.rows = [_table_row(cell, key, done[key]) for cell, key in zip(cells, keys, strict=True)]
+    result.failed = sum(r["error"] is not None for r in result.rows)
+    return result
+
+
+def _run_on_dask(todo, finished, *, workers: int | None, scheduler: str | None) -> None:
+    try:
+        from dask.distributed import Client, LocalCluster, as_completed
+    except ImportError:
+        raise ImportError("cvstereo sweep needs Dask: pip install 'cvstereo[sweep]'.") from None
+    cluster = None
+    if scheduler is None:
+        n = workers or os.cpu_count() or 1
+        # One single-threaded process per worker: the matchers are single-threaded numba/numpy code, and
+        # processes keep each cell's memory apart. No dashboard: it needs bokeh and a free port.
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
+        client = Client(cluster)
+    else:
+        client = Client(scheduler)
+    try:
+        futures = {client.submit(run_cell, cell, key=f"cell-{key}", pure=False): (key, cell) for key, cell in todo}
+        for future in as_completed(futures):
+            key, cell = futures[future]
+            finished(key, cell, future.result())
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _bar(enabled: bool, *, total: int, reused: int):
+    if not enabled:
+        return None
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, unit="cell", desc=f"sweep ({reused} done before)" if reused else "sweep", leave=False)
+
+
+def _write_cell(out: Path, key: str, row: dict) -> None:
+    from cvstereo.io._atomic import write_text_atomic
+
+    write_text_atomic(out / "cells" / f"{key}.json", json.dumps(row, sort_keys=True))
+
+
+def _read_cell(out: Path, key: str) -> dict:
+    path = out / "cells" / f"{key}.json"
+    try:
+        return json.loads(path.read_text())
+    except (ValueError, UnicodeDecodeError):
+        raise ValueError(f"{path}: not a sweep cell file; delete it to recompute that cell.") from None
+
+
+def _table_row(cell: Cell, key: str, row: dict) -> dict:
+    out = {"key": key, "recording": cell.recording, "method": cell.method, "variant": cell.variant or "default",
+           "param_set": cell.param_set or "default",
+           "params": json.dumps(dict(cell.params), sort_keys=True)}
+    out.update({f"param.{k}": v for k, v in cell.params})
+    out.update({name: row.get(name) for name in (*FIGURE_COLUMNS, *TIMING_COLUMNS, "error")})
+    return out
