@@ -54,7 +54,8 @@ def events_from(data, *, columns: str | None = None, time_unit: str = "us",
 
     Returns
     -------
-    (N,) ndarray of EVENT_DTYPE
+    (N,) ndarray of :data:`~cvstereo.events.EVENT_DTYPE`
+        A new array, time-ordered as given.
 
     Raises
     ------

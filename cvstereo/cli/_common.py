@@ -85,11 +85,12 @@ def check_files(inputs: Iterable, outputs: Iterable = (), *, option: str = "-o")
     cvstereo.io._paths.OutputIsInputError
         An output resolves (through symlinks or hard links too) to an input.
     """
-    from cvstereo.io._paths import refuse_output_over_input, require_input_file
+    from cvstereo.io._paths import refuse_output_over_input
+    from cvstereo.io._source import require_regular_file
 
     inputs = [p for p in inputs if p is not None]
     for path in inputs:
-        require_input_file(path)
+        require_regular_file(path)
     for out in outputs:
         if out is not None:
             refuse_output_over_input(out, inputs, option=option)

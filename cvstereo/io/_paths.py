@@ -1,8 +1,8 @@
 """Checks on the files a command reads and writes, before anything is read or written.
 
 :func:`refuse_output_over_input` stops a command whose output would replace one of its inputs (also through
-a symlink or a hard link); :func:`require_input_file` says what is wrong with an input that is not a regular
-file (a folder, a FIFO, a device) instead of a reader's "no such file" or an endless read.
+a symlink or a hard link). Inputs that are not regular files (a folder, a FIFO, a device) are refused by
+:func:`cvstereo.io._source.require_regular_file`, the one check every reader uses too.
 """
 
 from __future__ import annotations
@@ -73,29 +73,3 @@ def _mode(path: str | os.PathLike) -> int | None:
         return os.stat(path).st_mode
     except OSError:
         return None
-
-
-def require_input_file(path: str | os.PathLike, *, what: str = "input") -> None:
-    """Raise a clear OSError when ``path`` is missing, a folder, or not a regular file (FIFO, device, socket).
-
-    Readers seek and read to the end, so a FIFO would hang and ``/dev/zero`` would grow without bound.
-
-    Raises
-    ------
-    FileNotFoundError, IsADirectoryError, OSError
-    """
-    name = os.fspath(path)
-    try:
-        mode = os.stat(path).st_mode
-    except FileNotFoundError:
-        raise FileNotFoundError(f"{name}: no such file ({what}).") from None
-    except NotADirectoryError:
-        raise NotADirectoryError(f"{name}: a part of this path is not a folder ({what}).") from None
-    except PermissionError:
-        raise PermissionError(f"{name}: permission denied ({what}).") from None
-    if stat.S_ISDIR(mode):
-        raise IsADirectoryError(f"{name}: is a directory, not a recording file ({what}).")
-    if not stat.S_ISREG(mode):
-        kind = "a FIFO" if stat.S_ISFIFO(mode) else "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) \
-            else "a socket" if stat.S_ISSOCK(mode) else "a special file"
-        raise OSError(f"{name}: is not a regular file ({kind}); save the data to a file first ({what}).")

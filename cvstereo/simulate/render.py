@@ -45,6 +45,13 @@ _FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 
 
 @njit(inline="always", fastmath=_FASTMATH, error_model="numpy")
+def _ray_direction(rot, rx, ry):
+    """World direction of the camera ray through normalised image point (rx, ry): rot @ (rx, ry, 1)."""
+    return (rot[0, 0] * rx + rot[0, 1] * ry + rot[0, 2], rot[1, 0] * rx + rot[1, 1] * ry + rot[1, 2],
+            rot[2, 0] * rx + rot[2, 1] * ry + rot[2, 2])
+
+
+@njit(inline="always", fastmath=_FASTMATH, error_model="numpy")
 def _frame_geometry(k, rot, c, origins, u_axis, v_axis, texel, size):
     """Per frame and layer: screen bounding box, plane normal, origin - centre and normal . (origin - centre)."""
     n_layers = u_axis.shape[0]
@@ -121,9 +128,7 @@ def _layer_hits_kernel(xn, yn, cam_pos, cam_rot, origins, u_axis, v_axis, texel,
         for x in range(w):
             rx = xn[y, x]
             ry = yn[y, x]
-            d0 = rot[0, 0] * rx + rot[0, 1] * ry + rot[0, 2]
-            d1 = rot[1, 0] * rx + rot[1, 1] * ry + rot[1, 2]
-            d2 = rot[2, 0] * rx + rot[2, 1] * ry + rot[2, 2]
+            d0, d1, d2 = _ray_direction(rot, rx, ry)
             for m in range(u_axis.shape[0]):
                 out_s[m, y, x], out_a[m, y, x], out_i[m, y, x] = _intersect(
                     m, rx, ry, d0, d1, d2, bbox, normal, rel, num, u_axis, v_axis, texel, size, tex, alpha)
@@ -146,9 +151,7 @@ def _render_planes_kernel(xn, yn, cam_pos, cam_rot, origins, u_axis, v_axis, tex
             for x in range(w):
                 rx = xn[y, x]
                 ry = yn[y, x]
-                d0 = rot[0, 0] * rx + rot[0, 1] * ry + rot[0, 2]
-                d1 = rot[1, 0] * rx + rot[1, 1] * ry + rot[1, 2]
-                d2 = rot[2, 0] * rx + rot[2, 1] * ry + rot[2, 2]
+                d0, d1, d2 = _ray_direction(rot, rx, ry)
                 if still_i.shape[0]:
                     # Where no moving layer can reach, the pixel shows the pre-composited still layers.
                     reached = False
