@@ -116,6 +116,11 @@ class FusedMatcher(FrameMatcher):
     variants: ClassVar[dict[str, dict]] = {"default": {}}
     method = "fused"
 
+    @classmethod
+    def max_disparity_for(cls, default: int, width: int, given: dict) -> int:
+        """The scaled range, within the 255 px the kernel's cost arrays are sized for."""
+        return min(255, super().max_disparity_for(default, width, given))
+
     def __init__(self, params=None, *, resolution=(128, 128)):
         super().__init__(params, resolution=resolution)
         self._state = WindowState(self.resolution)

@@ -21,6 +21,7 @@ the ``/16`` is applied here and nowhere else.
 from __future__ import annotations
 
 import abc
+import math
 from dataclasses import dataclass
 from typing import ClassVar, Literal
 
@@ -160,6 +161,13 @@ class _OpenCVMatcher(FrameMatcher):
     """Common part of the baselines: frames -> 8-bit images -> OpenCV -> matches at left event pixels."""
 
     variants: ClassVar[dict[str, dict]] = {"default": {}}
+
+    @classmethod
+    def max_disparity_for(cls, default: int, width: int, given: dict) -> int:
+        """The scaled range, rounded up so that OpenCV's disparity count stays a multiple of 16."""
+        low = int(given.get("min_disparity", cls.Params.__dataclass_fields__["min_disparity"].default))
+        count = 16 * math.ceil((default - low + 1) * width / 128 / 16)
+        return low + count - 1
 
     def __init__(self, params=None, *, resolution=(128, 128)):
         super().__init__(params, resolution=resolution)

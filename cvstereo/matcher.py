@@ -154,8 +154,37 @@ class StreamMatcher(abc.ABC):
 
     @classmethod
     def from_variant(cls, variant: str | None = None, *, resolution=DEFAULT_RESOLUTION, **params):
-        """Build the matcher for a named variant, with parameter overrides."""
+        """Build the matcher for a named variant, with parameter overrides.
+
+        Defaults that are sizes in pixels follow the sensor (:meth:`sensor_defaults`): on a 346x260 sensor the
+        disparity range is ``round(64 * 346 / 128) = 173`` px unless ``max_disparity`` is given.
+        """
+        params = cls.sensor_defaults(resolution, variant, params)
         return cls(cls.make_params(variant, **params), resolution=resolution)
+
+    @classmethod
+    def sensor_defaults(cls, resolution, variant: str | None, given: dict) -> dict:
+        """``given`` plus the defaults that scale with the sensor width: ``max_disparity`` (the one rule of the
+        disparity range: the default on a 128 px wide sensor, times ``width / 128``, see
+        :meth:`max_disparity_for`), where the parameters have it and neither ``given`` nor the variant sets it.
+
+        The same optics on a wider sensor give disparities larger by the same factor, so a range fixed in
+        pixels would cut off every near object (at 640x480 the thesis' 64 px reach only to ~2 m).
+        """
+        from cvstereo.params import canonical_params
+
+        fields = cls.Params.__dataclass_fields__
+        width = int(resolution[0])
+        if ("max_disparity" not in fields or width == DEFAULT_RESOLUTION[0]
+                or "max_disparity" in canonical_params(cls.Params, given)
+                or "max_disparity" in cls.variants.get(variant or next(iter(cls.variants)), {})):
+            return given
+        return {**given, "max_disparity": cls.max_disparity_for(fields["max_disparity"].default, width, given)}
+
+    @classmethod
+    def max_disparity_for(cls, default: int, width: int, given: dict) -> int:
+        """The default disparity range on a sensor ``width`` px wide: ``round(default * width / 128)``."""
+        return round(default * width / DEFAULT_RESOLUTION[0])
 
     @classmethod
     def make_params(cls, variant: str | None = None, **overrides):
