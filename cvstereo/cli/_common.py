@@ -174,3 +174,17 @@ def parse_depth_option(values: list[str]):
         return DepthModel(a=a, c=c)
     except ValueError as exc:
         raise ValueError(f"--depth A C: {exc}") from None
+
+
+def add_progress_option(parser: argparse.ArgumentParser) -> None:
+    """``--progress/--no-progress``: progress bars on stderr, by default only when stderr is a terminal (a log
+    file or a pipe gets no carriage-return animation)."""
+    parser.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                        help="show progress bars (default: when stderr is a terminal)")
+
+
+def progress_wanted(args: argparse.Namespace) -> bool:
+    """What ``--progress/--no-progress`` asks for; by default whether stderr is a terminal."""
+    import sys
+
+    return sys.stderr.isatty() if getattr(args, "progress", None) is None else bool(args.progress)

@@ -6,6 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from cvstereo.cli._common import add_progress_option, progress_wanted
+
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p = sub.add_parser(
@@ -21,6 +23,7 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p.add_argument("--no-distance", action="store_true", help="skip the distance fit")
     p.add_argument("--shared", default=None,
                    help="shared data folder with data/tum-stereo (default: $CVSTEREO_SHARED or ../shared)")
+    add_progress_option(p)
     return p
 
 
@@ -38,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
     cv2.setNumThreads(1)
     config = BenchConfig(quick=args.quick, methods=tuple(args.methods) if args.methods else None,
                          shared=shared_folder(args.shared), distance=not args.no_distance)
-    results = run_bench(config, log=lambda msg: print(msg, file=sys.stderr))
+    results = run_bench(config, progress=progress_wanted(args), log=lambda msg: print(msg, file=sys.stderr))
     json_path, md_path = write_results(results, Path(args.output))
     print(md_path.read_text())
     print(f"written: {json_path}, {md_path}", file=sys.stderr)

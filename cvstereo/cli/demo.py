@@ -13,6 +13,8 @@ import os
 import sys
 from pathlib import Path
 
+from cvstereo.cli._common import add_progress_option, progress_wanted
+
 #: Matchers the demo runs: the thesis' five and OpenCV's block matcher (`cvstereo bench` runs them all).
 DEMO_METHODS = ("frame", "frame-area", "event-time", "event-area", "event-vector", "stereobm")
 
@@ -32,6 +34,7 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
                    help="matchers to run (default: every available one)")
     p.add_argument("--shared", default=None,
                    help="shared data folder with data/tum-stereo (default: $CVSTEREO_SHARED or ../shared)")
+    add_progress_option(p)
     return p
 
 
@@ -83,9 +86,11 @@ def run(args: argparse.Namespace) -> int:
         print("No matcher has landed yet: nothing to run on the simulated recordings.")
         return 0
     print("Simulating the thesis' six recordings (cached after the first run) ...", file=sys.stderr)
-    recordings = {name: read_recording(cached_preset(name, seconds=args.seconds)) for name in RECORDINGS}
+    progress = progress_wanted(args)
+    recordings = {name: read_recording(cached_preset(name, seconds=args.seconds, progress=progress))
+                  for name in RECORDINGS}
     # The thesis reproduction runs the thesis set; each method's adaptive default stands beside it.
-    result = run_experiment(recordings, all_combos(methods, param_sets=("thesis", "adaptive")), progress=True)
+    result = run_experiment(recordings, all_combos(methods, param_sets=("thesis", "adaptive")), progress=progress)
     text = experiment_markdown(result)
     print(text)
     write_text_atomic(out / "results.md", text + "\n")

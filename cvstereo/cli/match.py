@@ -20,9 +20,11 @@ import numpy as np
 from cvstereo.cli._common import (
     add_depth_options,
     add_format_options,
+    add_progress_option,
     check_files,
     depth_model,
     format_options,
+    progress_wanted,
     require_range,
 )
 from cvstereo.cli._text import number
@@ -56,8 +58,7 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", metavar="MATCHES.npz", default=None, help="matches file to write")
     p.add_argument("--packet-us", type=int, default=None, metavar="US",
                    help="stream the recording in packets of this length (the result does not depend on it)")
-    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
-                   help="show a progress bar (default: when stderr is a terminal)")
+    add_progress_option(p)
     p.add_argument("--list-methods", action="store_true", help="list methods, variants and parameters, then exit")
     add_depth_options(p)
     g = p.add_argument_group("rig correction (cvstereo rigcheck)")
@@ -125,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
                          f"got {args.row_offset}.")
     depth = depth_model(args, recording)
     recording, rig, offsets = _rig_correction(args, recording)
-    progress = sys.stderr.isatty() if args.progress is None else args.progress
+    progress = progress_wanted(args)
     result = match(recording, method=args.method, variant=args.variant, progress=progress,
                    packet_us=args.packet_us or DEFAULT_PACKET_US, param_set=args.param_set, **offsets,
                    **overrides_rect, **overrides)

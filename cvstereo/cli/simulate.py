@@ -21,6 +21,8 @@ import sys
 import time
 from pathlib import Path
 
+from cvstereo.cli._common import add_progress_option, progress_wanted
+
 #: --distance default per scene that takes one (metres).
 _DEFAULT_DISTANCE = {"arms": 0.5, "fan": 1.5}
 
@@ -48,7 +50,7 @@ def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
     p.add_argument("--seconds", type=float, default=None,
                    help="length (default: the preset's, 11 s; 2 s for --scene; the suite's for --suite)")
     p.add_argument("--seed", type=int, default=0, help="seed of textures, motion, mismatch, noise (default 0)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_progress_option(p)
     p.set_defaults(_usage_error=p.error)  # missing options are usage errors (exit 2), found only in run()
     return p
 
@@ -79,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
         args._usage_error("--distance belongs to --scene arms or --scene fan")
     if args.scene != "arms" and args.arms is not None:
         args._usage_error("--arms belongs to --scene arms")
-    progress = not args.no_progress
+    progress = progress_wanted(args)
     if args.preset:
         rec = simulate_preset(args.preset, seconds=args.seconds, seed=args.seed, progress=progress)
     else:
@@ -131,7 +133,7 @@ def _run_suite(args: argparse.Namespace) -> int:
         print(f"generated {rec.name} in {took:.1f} s", file=sys.stderr)
 
     start = time.perf_counter()
-    paths = suite_recordings(args.suite, seconds=args.seconds, progress=not args.no_progress, on_generate=report)
+    paths = suite_recordings(args.suite, seconds=args.seconds, progress=progress_wanted(args), on_generate=report)
     total = time.perf_counter() - start
     if folder is not None:
         folder.mkdir(parents=True, exist_ok=True)

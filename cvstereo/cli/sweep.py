@@ -8,7 +8,8 @@ cell, so that an interrupted sweep resumes where it stopped).
 from __future__ import annotations
 
 import argparse
-import sys
+
+from cvstereo.cli._common import add_progress_option, progress_wanted
 
 GRID_EXAMPLE = """\
 grid file example (TOML):
@@ -58,8 +59,7 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="address of an existing Dask scheduler, e.g. tcp://host:8786")
     p.add_argument("-o", "--output", required=True, metavar="DIR", help="output folder")
-    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
-                   help="progress bar (default: when stderr is a terminal)")
+    add_progress_option(p)
     return p
 
 
@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
 
     if args.workers is not None and args.workers < 0:
         raise ValueError(f"--workers {args.workers}: give 0 (no Dask) or a positive number of workers.")
-    progress = sys.stderr.isatty() if args.progress is None else args.progress
+    progress = progress_wanted(args)
     grids, specs, options = [], list(args.recordings), {}
     if args.grid:
         grids, file_specs, options = read_grid_file(args.grid)
