@@ -262,8 +262,10 @@ class StreamDecoder:
         prev_arr = np.empty_like(arr)
         prev_arr[0] = arr[0] if self._last_arrival is None else self._last_arrival
         prev_arr[1:] = arr[:-1]
-        # Only a fresh arrival (a reader that waited for it) after a long quiet spell can reveal a pause.
-        gaps = np.flatnonzero((arr - prev_arr >= wrap / 2) & fresh)
+        # A long quiet spell in arrival times may hide wraps, whether or not the reader was waiting when the bytes
+        # came (a reader scheduled late sees a pause's first events as not fresh): the bound below takes the
+        # tightest event up to the next gap, so a late read alone never adds a wrap.
+        gaps = np.flatnonzero(arr - prev_arr >= wrap / 2)
         if self._offset is not None:
             bounds = [*gaps.tolist(), arr.size]
             for i, nxt in itertools.pairwise(bounds):
@@ -398,7 +400,7 @@ class StreamDecoder:
         prev = np.empty_like(arr)
         prev[0] = arr[0] if self._last_arrival is None else self._last_arrival
         prev[1:] = arr[:-1]
-        gaps = np.flatnonzero((arr - prev >= self.fmt.wrap / 2) & fresh)
+        gaps = np.flatnonzero(arr - prev >= self.fmt.wrap / 2)
         if gaps.size:
             g = int(gaps[-1])
             # The witness must be emitted with the gap (the last events of a call may be held back).
