@@ -14,6 +14,7 @@ import argparse
 import json
 import math
 import os
+import statistics
 import time
 from pathlib import Path
 
@@ -81,8 +82,8 @@ def main() -> None:
         answered = [r for r in ok if (r["coverage"] or 0) > 0]
         bad2 = sorted((r["bad2"] if r in answered and r["bad2"] is not None else 1.0) for r in ok)
         cover = sorted((r["coverage"] or 0.0) for r in ok)
-        med = bad2[len(bad2) // 2] if bad2 else math.nan
-        medc = cover[len(cover) // 2] if cover else math.nan
+        med = statistics.median(bad2) if bad2 else math.nan
+        medc = statistics.median(cover) if cover else math.nan
         summary[f"{m}/{s}"] = {"answered": len(answered), "recordings": len(names), "median_bad2": med,
                                "median_coverage": medc}
         lines.append(f"| {m} | {s} | {len(answered)}/{len(names)} | {med:.3f} | {medc:.3f} |")

@@ -12,7 +12,7 @@ import cvstereo
 from cvstereo.events import StereoPacket
 from cvstereo.matches import MatchResult, concat_matches
 from cvstereo.recording import Recording
-from cvstereo.registry import create_matcher
+from cvstereo.registry import METHODS, create_matcher
 
 #: Windows of the diagnostics (:func:`cvstereo.signal_level.silence_warning`): 40 ms on the absolute clock.
 DIAGNOSTICS_WINDOW_US = 40_000
@@ -190,7 +190,7 @@ def _as_source(recording, right, method: str, *, columns, time_unit, resolution)
     """A Recording or a path for :func:`match`, after catching the easy mistakes with the arguments."""
     from cvstereo.arrays import events_from, is_event_data
 
-    if isinstance(right, str) and right in _method_names() and not os.path.exists(right):
+    if isinstance(right, str) and right in METHODS and not os.path.exists(right):
         raise TypeError(f"match(recording, {right!r}): the method is keyword-only; write "
                         f"match(recording, method={right!r}) (the second argument is the right camera).")
     if isinstance(recording, Recording):
@@ -212,12 +212,6 @@ def _as_source(recording, right, method: str, *, columns, time_unit, resolution)
         raise TypeError("columns=, time_unit= and resolution= are for events given as arrays; a file says its "
                         "own (or use the --format options of open_recording).")
     return recording
-
-
-def _method_names() -> set[str]:
-    from cvstereo.registry import METHODS
-
-    return set(METHODS)
 
 
 def _progress_bar(enabled: bool, total: int | None, method: str):

@@ -195,7 +195,6 @@ def test_cli_sweep_errors(argv, message, capsys):
 
 
 def test_grid_runs_the_thesis_matchers_under_each_parameter_set():
-    pytest.importorskip("cvstereo.param_sets")
     cells = Grid(("event-time", "sgbm"), (), (), ("thesis", "adaptive")).cells(["a.npz"])
     assert [(c.method, c.param_set) for c in cells] == [("event-time", "thesis"), ("event-time", "adaptive"),
                                                         ("sgbm", None)]

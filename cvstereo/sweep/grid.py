@@ -108,14 +108,11 @@ class Grid:
 
 
 def _has_param_sets(method: str) -> bool:
-    """Whether a method has the thesis/adaptive parameter sets (the thesis' five do, the peers do not)."""
-    try:
-        from cvstereo.param_sets import PARAM_SETS
-    except ImportError:
-        return False
-    from cvstereo.registry import matcher_class
+    """Whether the parameter sets differ for a method: those :data:`cvstereo.param_sets.ADAPTIVE` lists (the
+    thesis' five); the others run the same under both, so once."""
+    from cvstereo.param_sets import ADAPTIVE
 
-    return "threshold_mode" in matcher_class(method).Params.__dataclass_fields__ and bool(PARAM_SETS)
+    return method in ADAPTIVE
 
 
 def read_grid_file(path: str | os.PathLike) -> tuple[list[Grid], list[str], dict]:

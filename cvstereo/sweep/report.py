@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import statistics
 from collections.abc import Sequence
 
 from cvstereo.sweep.engine import FIGURE_COLUMNS
@@ -65,22 +66,14 @@ def summary_markdown(rows: Sequence[dict], *, figure: str = "bad2") -> str:
             cover = [r["coverage"] for r in cell_rows if r["error"] is None and r["coverage"] is not None]
             failed = sum(r["error"] is not None for r in cell_rows)
             complete = len(values) == len(cell_rows)
-            med = _median(values)
+            med = statistics.median(values) if values else None
             rank = (not complete, math.inf if med is None else sign * med)
-            scored.append((rank, params, med, _median(cover), len(cell_rows), failed))
+            scored.append((rank, params, med, statistics.median(cover) if cover else None, len(cell_rows), failed))
         rank, params, med, cover, n, failed = min(scored, key=lambda s: s[0])
         lines.append(f"| {method} | {variant} | {param_set} | {_params_text(params)} | {_fmt(med)} | {_fmt(cover)} | "
                      f"{n} | "
                      f"{failed} |")
     return "\n".join(lines) + "\n"
-
-
-def _median(values: list) -> float | None:
-    if not values:
-        return None
-    s = sorted(values)
-    mid = len(s) // 2
-    return float(s[mid]) if len(s) % 2 else (s[mid - 1] + s[mid]) / 2.0
 
 
 def _fmt(value) -> str:
