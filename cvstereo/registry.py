@@ -28,6 +28,10 @@ from cvstereo.params import aliases_of, canonical_params
 #: The entry-point group that lists the matchers: name (formats.md) -> "module:Class".
 ENTRY_POINT_GROUP = "cvstereo.matchers"
 
+#: The method run when none is named (`cvstereo match`, `cvstereo live`, ``pipeline.match``): the thesis' frame
+#: matcher, the one that answers on the most recordings.
+DEFAULT_METHOD = "frame"
+
 #: The order in which tables and listings show the methods (the installed metadata sorts entry points by
 #: name); methods not named here follow in name order.
 LISTING_ORDER = ("frame", "frame-area", "event-time", "event-area", "event-vector", "stereobm", "sgbm",

@@ -90,6 +90,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         with _stop_signals_raise():
+            settle = getattr(args, "_settle_inputs", None)
+            if settle is not None:  # RECORDING [RIGHT] [MATCHES] and --right: see _common.add_recording_arguments
+                settle(args)
             return int(args._run(args) or 0)
     except Terminated as exc:
         print(f"cvstereo {args.command}: stopped by {signal.Signals(exc.signum).name}", file=sys.stderr)

@@ -8,14 +8,118 @@ import math
 import os
 from collections.abc import Iterable, Iterator
 
+#: How the commands that read a recording take it: ``RECORDING [RIGHT]`` as positional arguments, the right
+#: camera's file also as ``--right RIGHT`` (the spelling ``plot``, ``video`` and ``evaluate`` had); the
+#: commands that also read a matches file take it after them: ``RECORDING [RIGHT] [MATCHES]``.
+MATCHES_MODES = (None, "optional", "required")
 
-def add_recording_arguments(parser: argparse.ArgumentParser, *, right: bool = True) -> None:
-    """Add ``RECORDING [RIGHT]`` and the format options a file cannot always tell."""
-    parser.add_argument("recording", metavar="RECORDING", help="recording file (or the left camera's file)")
-    if right:
-        parser.add_argument("right", metavar="RIGHT", nargs="?", default=None,
-                            help="the right camera's file, for formats with one file per camera")
+
+def add_recording_arguments(parser: argparse.ArgumentParser, *, matches: str | None = None,
+                            required: bool = True) -> None:
+    """Add ``RECORDING [RIGHT]`` (``[MATCHES]`` or ``MATCHES`` after them), ``--right`` and the format options.
+
+    Every command that reads a recording takes it this one way; :func:`settle_recording_inputs` (run by the CLI
+    before the command) turns what was given into ``args.recording``, ``args.right`` and ``args.matches``.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    matches : {None, "optional", "required"}
+        Whether a matches file (written by `cvstereo match`) follows the recording.
+    required : bool
+        False where the command can run without a recording (``match --list-methods``).
+    """
+    if matches not in MATCHES_MODES:
+        raise ValueError(f"matches={matches!r}: choose one of {MATCHES_MODES}")
+    parser.add_argument("recording", metavar="RECORDING", nargs=None if required else "?", default=None,
+                        help="the recording file, or the left camera's file where each camera has its own "
+                        "(DSEC events.h5, eDVS text, AEDAT4)")
+    parser.add_argument("right", metavar="RIGHT", nargs="?", default=None,
+                        help="the right camera's file, for formats with one file per camera")
+    if matches is not None:
+        parser.add_argument("matches", metavar="MATCHES", nargs="?" if matches == "optional" else None, default=None,
+                            help="matches .npz written by `cvstereo match` (a file after RECORDING named .npz "
+                            "is MATCHES: a right camera's file never is one)")
+    parser.add_argument("--right", dest="right_option", metavar="RIGHT", default=None,
+                        help="the right camera's file, as an option: the same as the RIGHT argument")
+    parser.set_defaults(_settle_inputs=settle_recording_inputs, _inputs_parser=parser, _matches_mode=matches)
     add_format_options(parser)
+
+
+def settle_recording_inputs(args: argparse.Namespace) -> None:
+    """Set ``args.recording``, ``args.right`` (and ``args.matches``) from the positionals and ``--right``.
+
+    argparse fills the positionals left to right, so with ``RECORDING X [MATCHES]`` it cannot know whether X is
+    the right camera's file or the matches file: X is the matches file when ``--right`` names the right camera,
+    or when X is named ``.npz`` (matches files are .npz; a right camera's file never is: a recording .npz holds
+    both cameras). The name decides, not the content, so that a missing file or a FIFO is reported as such.
+    Giving the right camera's file both ways is a usage error (exit 2). Running it twice changes nothing.
+    """
+    option = getattr(args, "right_option", None)
+    mode = getattr(args, "_matches_mode", None)
+    if option is not None:
+        if args.right is not None:
+            if mode is None or args.matches is not None:
+                args._inputs_parser.error(f"the right camera's file is given twice (RIGHT {args.right} and --right "
+                                          f"{option}): give it once")
+            args.matches, args.right = args.right, None  # RECORDING MATCHES --right RIGHT
+        args.right, args.right_option = option, None
+    elif mode == "optional" and args.matches is None and str(args.right or "").lower().endswith(".npz"):
+        args.matches, args.right = args.right, None
+
+
+def is_matches_file(path, file_format: str | None = None) -> bool:
+    """Whether ``path`` is a matches .npz (written by `cvstereo match`) rather than a recording; False for a
+    missing file (the command says that itself, with the other inputs)."""
+    from cvstereo.io.npz import npz_keys
+
+    if file_format not in (None, "npz") or not str(path).lower().endswith(".npz") or not os.path.isfile(path):
+        return False
+    keys = npz_keys(path)
+    return "matches" in keys and "left" not in keys
+
+
+def add_matcher_options(parser: argparse.ArgumentParser, *, what: str = "matcher") -> None:
+    """``-m/--method``, ``-v/--variant``, ``-p/--param`` and ``--param-set``: one matcher, as `match` and `live`
+    take it (default: the registry's default method and the parameter set's default variant)."""
+    from cvstereo.param_sets import DEFAULT_PARAM_SET, PARAM_SETS
+    from cvstereo.registry import DEFAULT_METHOD
+
+    g = parser.add_argument_group(what)
+    g.add_argument("-m", "--method", default=DEFAULT_METHOD,
+                   help=f"matcher name (default: {DEFAULT_METHOD}; see `cvstereo match --list-methods`)")
+    g.add_argument("-v", "--variant", default=None,
+                   help="variant name (default: the parameter set's default variant; see --list-methods)")
+    g.add_argument("--param-set", choices=PARAM_SETS, default=DEFAULT_PARAM_SET,
+                   help="adaptive (default): thresholds relative to the recording's own signal level and each "
+                   "method's best variant; thesis: the thesis' constants and default variants, as published")
+    g.add_argument("-p", "--param", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a parameter (repeatable); names as in --list-methods")
+
+
+def matcher_overrides(args: argparse.Namespace) -> dict:
+    """Check ``--method``, ``--variant``, ``--param-set`` and ``--param`` together, before any file is read; return
+    the ``--param`` values, typed, as keyword arguments for the matcher.
+
+    Raises
+    ------
+    ValueError
+        An unknown method (the known ones listed), a method not installed here, an unknown variant, or a
+        parameter name or value the method does not take (the allowed ones named).
+    """
+    from cvstereo.param_sets import resolve
+    from cvstereo.registry import available_methods, matcher_class, parse_param_strings
+
+    try:
+        cls = matcher_class(args.method)  # ValueError listing the known methods
+    except ImportError:
+        raise ValueError(f"--method {args.method}: not available here; available: "
+                         f"{', '.join(available_methods()) or 'none'}.") from None
+    overrides = parse_param_strings(cls.Params, args.param)
+    variant, set_params = resolve(args.method, args.variant, args.param_set)
+    cls.make_params(variant, **{**set_params, **overrides})
+    return overrides
 
 
 def add_format_options(parser: argparse.ArgumentParser) -> None:
@@ -56,12 +160,17 @@ def format_options(args: argparse.Namespace) -> dict:
     return opts
 
 
-def load_recording(args: argparse.Namespace, path_attr: str = "recording"):
-    """Read the recording named on the command line with its format options (errors name the file)."""
+def load_recording(args: argparse.Namespace, *, outputs: Iterable = ()):
+    """Read the recording that :func:`add_recording_arguments` took, with its format options.
+
+    Before reading: every input (the recording, the right camera's file, the matches file) is a regular file
+    and no output is one of them (:func:`check_files`). Errors name the file.
+    """
     from cvstereo.io import read_recording
 
-    path, right = getattr(args, path_attr), getattr(args, "right", None)
-    check_files([path, right])
+    settle_recording_inputs(args)
+    path, right = args.recording, args.right
+    check_files([path, right, getattr(args, "matches", None)], outputs)
     with naming(path, right):
         return read_recording(path, right, **format_options(args))
 

@@ -19,7 +19,7 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
                    help="folder for results.json and results.md (default: %(default)s)")
     p.add_argument("--quick", action="store_true",
                    help="1.5 s clips of every recording: about a minute once the recordings are cached")
-    p.add_argument("--methods", nargs="+", default=None, metavar="METHOD", help="matchers to run (default: all)")
+    p.add_argument("-m", "--methods", nargs="+", default=None, metavar="METHOD", help="matchers to run (default: all)")
     p.add_argument("--no-distance", action="store_true", help="skip the distance fit")
     p.add_argument("--shared", default=None,
                    help="shared data folder with data/tum-stereo (default: $CVSTEREO_SHARED or ../shared)")

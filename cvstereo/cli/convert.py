@@ -1,11 +1,11 @@
-"""``cvstereo convert IN... -o OUT...``: rewrite a recording in another format (atomically)."""
+"""``cvstereo convert RECORDING [RIGHT] -o OUT [OUT_RIGHT]``: rewrite a recording in another format (atomically)."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 
-from cvstereo.cli._common import add_format_options, check_files, format_options, naming
+from cvstereo.cli._common import add_recording_arguments, check_files, format_options, naming
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
@@ -19,14 +19,12 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
         "file, or two text names (left, right) for one file per camera. Outputs appear only once complete. "
         "Ground truth is kept by .npz only.",
     )
-    p.add_argument("inputs", metavar="IN", nargs="+",
-                   help="the recording, or the left and right camera's files")
+    add_recording_arguments(p)
     p.add_argument("-o", "--output", metavar="OUT", nargs="+", required=True,
                    help="output file, or the left and right output files for --to edvs-text")
     p.add_argument("--to", choices=FORMATS, default=None, help="output format (default: from the output name)")
     p.add_argument("--out-left-retina", type=int, choices=(0, 1), default=0,
                    help="merged text output: the retina id written for the left camera (default 0)")
-    add_format_options(p)
     return p
 
 
@@ -34,17 +32,16 @@ def run(args: argparse.Namespace) -> int:
     from cvstereo.io import open_recording, output_format, write_recording
     from cvstereo.recording import Recording
 
-    if len(args.inputs) > 2 or len(args.output) > 2:
-        return _usage("give at most two inputs (left, right) and two outputs (left, right)")
+    if len(args.output) > 2:
+        return _usage("give at most two outputs (left, right)")
     if args.to is not None and (args.to == "edvs-text") != (len(args.output) == 2):
         return _usage("--to edvs-text writes two files: give -o LEFT RIGHT (and only then two outputs)")
     right_out = args.output[1] if len(args.output) == 2 else None
     # Everything about the outputs is checked before a possibly long read: format, names, inputs.
     to = output_format(args.output[0], format=args.to, right=right_out)
-    check_files(args.inputs, args.output)
-    with naming(*args.inputs):
-        stream = open_recording(args.inputs[0], args.inputs[1] if len(args.inputs) == 2 else None,
-                                **format_options(args))
+    check_files([args.recording, args.right], args.output)
+    with naming(args.recording, args.right):
+        stream = open_recording(args.recording, args.right, **format_options(args))
         rec = stream.read()
     # The reader's decisions (left retina, one-based, ...) stay in meta, marked as the source's.
     meta = {**rec.meta, "converted_from": {"format": stream.format, "files": list(stream.files)}}

@@ -30,7 +30,7 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", default="demo-output", help="folder for tables and figures (default: %(default)s)")
     p.add_argument("--seconds", type=float, default=None,
                    help="simulate only the first SECONDS of each preset (default: all 11 s, as the thesis)")
-    p.add_argument("--methods", nargs="+", default=None, metavar="METHOD",
+    p.add_argument("-m", "--methods", nargs="+", default=None, metavar="METHOD",
                    help="matchers to run (default: every available one)")
     p.add_argument("--shared", default=None,
                    help="shared data folder with data/tum-stereo (default: $CVSTEREO_SHARED or ../shared)")

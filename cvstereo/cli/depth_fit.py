@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 
-from cvstereo.cli._common import check_files, naming
+from cvstereo.cli._common import add_matcher_options, check_files, matcher_overrides, naming
 from cvstereo.cli._text import number
 
 
@@ -18,9 +18,10 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
         "Prints a and c and the option `--depth A C` that `match`, `plot` and `video` take; -o writes the model "
         "file that `--depth DEPTH.json` reads.")
     p.add_argument("points", nargs="+", metavar="FILE:DISTANCE",
-                   help="a recording or a matches .npz, and its distance in metres, e.g. arm50.npz:0.5")
-    p.add_argument("--method", default="frame", help="matcher for recordings (default: frame)")
-    p.add_argument("--variant", default=None, help="matcher variant (default: the method's first)")
+                   help="a recording or a matches .npz, and its distance in metres, e.g. arm50.npz:0.5 (a pair of "
+                   "one-file-per-camera files: match them first, `cvstereo match LEFT RIGHT -o m.npz`, and give "
+                   "m.npz:DISTANCE)")
+    add_matcher_options(p, what="matcher for the recordings (matches files are used as they are)")
     p.add_argument("-o", "--output", default=None, metavar="DEPTH.json", help="write the model as JSON")
     return p
 
@@ -42,8 +43,8 @@ def run(args: argparse.Namespace) -> int:
     from cvstereo.depth import fit_depth_model
     from cvstereo.io import read_matches, read_recording
     from cvstereo.io.npz import npz_keys
-
     points = [_point(p) for p in args.points]
+    overrides = matcher_overrides(args)  # before any file is read or matched
     if len({z for _, z in points}) < 2:
         raise ValueError("give files at two or more different distances (d = a/Z - c has two unknowns).")
     check_files([p for p, _ in points], [args.output])
@@ -55,7 +56,8 @@ def run(args: argparse.Namespace) -> int:
             else:
                 from cvstereo.pipeline import match
 
-                disparity = match(read_recording(path), method=args.method, variant=args.variant).disparity
+                disparity = match(read_recording(path), method=args.method, variant=args.variant,
+                                  param_set=args.param_set, **overrides).disparity
         if disparity.size == 0:
             raise ValueError(f"{path}: no matches, so no disparity to fit; try another --method.")
         rows.append((path, z, float(np.median(disparity)), int(disparity.size)))

@@ -1,11 +1,11 @@
-"""``cvstereo evaluate RECORDING MATCHES``: the figures of evaluation.md for one matches file."""
+"""``cvstereo evaluate RECORDING [RIGHT] MATCHES``: the figures of evaluation.md for one matches file."""
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
-from cvstereo.cli._common import add_format_options, check_files, format_options, load_matches, naming
+from cvstereo.cli._common import add_recording_arguments, load_matches, load_recording, naming
 from cvstereo.cli._text import printable
 
 
@@ -17,25 +17,19 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
         "mean and std of the disparities (the thesis' figures) and, where the recording has ground truth, "
         "error, bad-pixel rates, false-match rate and coverage (evaluation.md).",
     )
-    p.add_argument("recording", metavar="RECORDING", help="the recording the matches were computed on")
-    p.add_argument("matches", metavar="MATCHES", help="matches .npz written by `cvstereo match`")
-    p.add_argument("--right", default=None, help="the right camera's file, for one-file-per-camera formats")
+    add_recording_arguments(p, matches="required")
     p.add_argument("--json", action="store_true", help="print a JSON object instead of a table")
     p.add_argument("--force", action="store_true",
                    help="score even when the matches file says it was computed on another recording (other "
                    "event count or sensor size)")
-    add_format_options(p)
     return p
 
 
 def run(args: argparse.Namespace) -> int:
     from cvstereo.evaluate import FIGURES, check_same_recording, evaluate, markdown_table, to_json
-    from cvstereo.io import read_recording
     from cvstereo.thesis import thesis_disparity
 
-    check_files([args.recording, args.right, args.matches])
-    with naming(args.recording, args.right):
-        recording = read_recording(args.recording, args.right, **format_options(args))
+    recording = load_recording(args)
     result = load_matches(args.matches)
     with naming(args.matches):
         if not args.force:

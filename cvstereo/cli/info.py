@@ -6,7 +6,7 @@ import argparse
 
 import numpy as np
 
-from cvstereo.cli._common import add_format_options, check_files, format_options, naming
+from cvstereo.cli._common import add_format_options, check_files, format_options, is_matches_file, naming
 from cvstereo.cli._text import number, printable
 
 
@@ -20,38 +20,27 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
         "with how that was decided. A file holding one camera is described on its own.",
     )
     p.add_argument("files", metavar="FILE", nargs="+",
-                   help="recording files (.npz, .txt/.dat, .aedat); a matches .npz is summarised as such")
+                   help="recording files (.npz, .txt/.dat, .aedat, .aedat4, .h5), each described on its own (so "
+                   "both files of a one-file-per-camera pair too); a matches .npz is summarised as such")
     add_format_options(p)
     return p
 
 
 def run(args: argparse.Namespace) -> int:
-    from cvstereo.io import open_recording
+    from cvstereo.io import open_recording, read_matches
 
     options = format_options(args)
     for k, path in enumerate(args.files):
         check_files([path])
         with naming(path):
-            matches = _matches_file(path, options)
-            if matches is not None:
-                lines = describe_matches(path, matches)
+            if is_matches_file(path, options.get("format")):
+                lines = describe_matches(path, read_matches(path))
             else:
                 lines = describe(open_recording(path, **options))
         if k:
             print()
         print("\n".join(lines))
     return 0
-
-
-def _matches_file(path, options: dict):
-    """The MatchResult when ``path`` is a matches .npz (written by `cvstereo match`), else None."""
-    from cvstereo.io import read_matches
-    from cvstereo.io.npz import npz_keys
-
-    if options.get("format", "npz") != "npz" or not str(path).lower().endswith(".npz"):
-        return None
-    keys = npz_keys(path)
-    return read_matches(path) if "matches" in keys and "left" not in keys else None
 
 
 def describe_matches(path, result) -> list[str]:

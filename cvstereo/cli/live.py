@@ -11,6 +11,7 @@ import argparse
 import json
 import sys
 
+from cvstereo.cli._common import add_matcher_options, matcher_overrides
 from cvstereo.sensors.session import add_rig_arguments, open_rig, stop_on_signals
 
 
@@ -18,9 +19,7 @@ def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
     p = subparsers.add_parser(name, help="match two live eDVS128 boards (or --simulate) and show depth",
                               description=__doc__)
     add_rig_arguments(p)
-    p.add_argument("--method", required=True, help="matcher (see `cvstereo match --list-methods`)")
-    p.add_argument("--variant", default=None, help="matcher variant (default: the method's first)")
-    p.add_argument("--param", action="append", default=[], metavar="KEY=VALUE", help="matcher parameter")
+    add_matcher_options(p)
     p.add_argument("--focal-px", type=float, default=160.0, help="focal length in px (default 160)")
     p.add_argument("--baseline-m", type=float, default=0.10, help="baseline in m (default 0.10)")
     p.add_argument("--offset-px", type=float, default=2.5, help="axis offset c in px (default 2.5)")
@@ -33,16 +32,11 @@ def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     from cvstereo.cli._common import parse_depth_option
     from cvstereo.depth import DepthModel
-    from cvstereo.registry import available_methods, create_matcher, matcher_class, parse_param_strings
+    from cvstereo.registry import create_matcher
     from cvstereo.sensors.live import run_live
 
-    try:
-        cls = matcher_class(args.method)
-    except ImportError:
-        raise ValueError(f"method '{args.method}' is not available here; available: "
-                         f"{', '.join(available_methods()) or 'none'}.") from None
-    params = parse_param_strings(cls.Params, args.param)
-    matcher = create_matcher(args.method, args.variant, **params)
+    params = matcher_overrides(args)
+    matcher = create_matcher(args.method, args.variant, param_set=args.param_set, **params)
     depth = (parse_depth_option(args.depth) if args.depth is not None else
              DepthModel.from_rig(focal_px=args.focal_px, baseline_m=args.baseline_m, offset_px=args.offset_px))
     from cvstereo.sensors.detect import ProtocolMismatchError

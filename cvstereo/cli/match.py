@@ -19,16 +19,18 @@ import numpy as np
 
 from cvstereo.cli._common import (
     add_depth_options,
-    add_format_options,
+    add_matcher_options,
     add_progress_option,
+    add_recording_arguments,
     check_files,
     depth_model,
     format_options,
+    matcher_overrides,
     progress_wanted,
     require_range,
 )
 from cvstereo.cli._text import number
-from cvstereo.param_sets import ADAPTIVE, DEFAULT_PARAM_SET, PARAM_SETS, resolve
+from cvstereo.param_sets import ADAPTIVE
 from cvstereo.signal_level import silence_warning
 
 #: Largest --time-offset-us either way: a day (real rigs are off by milliseconds).
@@ -43,18 +45,8 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
         "the same frames) over a recording and write the matches file (.npz). "
         "`cvstereo match --list-methods` lists methods, variants and parameters with their defaults.",
     )
-    p.add_argument("recording", metavar="RECORDING", nargs="?", default=None,
-                   help="recording file (or the left camera's file)")
-    p.add_argument("right", metavar="RIGHT", nargs="?", default=None,
-                   help="the right camera's file, for formats with one file per camera")
-    p.add_argument("--method", "-m", default="frame", help="matcher name (default: frame; see --list-methods)")
-    p.add_argument("--variant", default=None,
-                   help="variant name (default: the parameter set's default variant; see --list-methods)")
-    p.add_argument("--param-set", choices=PARAM_SETS, default=DEFAULT_PARAM_SET,
-                   help="adaptive (default): thresholds relative to the recording's own signal level and each "
-                   "method's best variant; thesis: the thesis' constants and default variants, as published")
-    p.add_argument("--param", "-p", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a parameter (repeatable); names as in --list-methods")
+    add_recording_arguments(p, required=False)
+    add_matcher_options(p)
     p.add_argument("-o", "--output", metavar="MATCHES.npz", default=None, help="matches file to write")
     p.add_argument("--packet-us", type=int, default=None, metavar="US",
                    help="stream the recording in packets of this length (the result does not depend on it)")
@@ -77,24 +69,17 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
                    help="also write the matches with a distance as a PLY point cloud (needs a depth model)")
     g.add_argument("--focal-px", type=float, default=None, metavar="F",
                    help="point cloud without a calibration: focal length in px (default: the thesis rig's 165)")
-    add_format_options(p)
     p.set_defaults(_parser=p)
     return p
 
 
 def run(args: argparse.Namespace) -> int:
-    from cvstereo.registry import matcher_class, parse_param_strings
-
     if args.list_methods:
         print(list_methods())
         return 0
     if args.recording is None or args.output is None:
         args._parser.error("RECORDING and -o MATCHES.npz are required (or give --list-methods)")
-    cls = matcher_class(args.method)  # ValueError listing the known methods
-    overrides = parse_param_strings(cls.Params, args.param)  # ValueError listing the allowed names
-    # Validate variant and values before reading a possibly long recording.
-    variant, set_params = resolve(args.method, args.variant, args.param_set)
-    cls.make_params(variant, **{**set_params, **overrides})
+    overrides = matcher_overrides(args)  # method, variant and values, before reading a possibly long recording
     require_range(args.packet_us, "--packet-us", gt=0)
     if args.time_offset_us is not None and abs(args.time_offset_us) > MAX_TIME_OFFSET_US:
         raise ValueError(f"--time-offset-us must be within +-{MAX_TIME_OFFSET_US:,} us (a day), got "

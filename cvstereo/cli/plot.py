@@ -1,4 +1,4 @@
-"""``cvstereo plot KIND RECORDING [MATCHES] -o OUT.png``: the thesis' pictures of a recording and its matches.
+"""``cvstereo plot KIND RECORDING [RIGHT] [MATCHES] -o OUT.png``: the thesis' pictures of a recording and its matches.
 
 Needs the ``viz`` extra (matplotlib). ``KIND all`` writes every picture the inputs allow into the folder ``-o``.
 """
@@ -10,11 +10,10 @@ from pathlib import Path
 
 from cvstereo.cli._common import (
     add_depth_options,
-    add_format_options,
-    check_files,
+    add_recording_arguments,
     depth_model,
-    format_options,
     load_matches,
+    load_recording,
     meta_depth,
     naming,
     require_range,
@@ -72,11 +71,9 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("kind", metavar="KIND", choices=[*KINDS, "all"], help=f"one of: {', '.join(KINDS)}, all")
-    p.add_argument("recording", metavar="RECORDING", help="the recording (the one the matches were computed on)")
-    p.add_argument("matches", metavar="MATCHES", nargs="?", default=None, help="matches .npz from `cvstereo match`")
+    add_recording_arguments(p, matches="optional")
     p.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="picture to write (.png, .pdf, .svg); for KIND all, a folder (created if missing)")
-    p.add_argument("--right", default=None, help="the right camera's file, for one-file-per-camera formats")
     p.add_argument("--t-start-ms", type=float, default=None, metavar="MS",
                    help="start of the window shown (default: the window with the most events); disparity-map: "
                    "the first of --windows consecutive windows (default: windows spread over the matches)")
@@ -96,7 +93,6 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
                    help="the same as --width-in 3.5 (a single paper column)")
     add_depth_options(p)
     p.add_argument("--dpi", type=float, default=None, help="resolution of raster pictures (default: 120)")
-    add_format_options(p)
     return p
 
 
@@ -115,20 +111,17 @@ def run(args: argparse.Namespace) -> int:
     if args.kind != "all" and KINDS[args.kind][0] and args.matches is None:
         raise ValueError(f"plot {args.kind} shows matches: give the MATCHES file written by `cvstereo match` "
                          f"after RECORDING (e.g. cvstereo plot {args.kind} rec.npz matches.npz -o out.png).")
-    from cvstereo.io import read_recording
     from cvstereo.viz import save_figure
 
-    inputs = [args.recording, args.right, args.matches]
     folder = Path(args.output)
     if args.kind == "all":
         if folder.exists() and not folder.is_dir():
             raise NotADirectoryError(f"-o {folder}: exists and is not a folder; plot all writes one picture per "
                                      "kind into a folder.")
-        check_files(inputs, [folder / f"{kind}.png" for kind in KINDS])
+        outputs = [folder / f"{kind}.png" for kind in KINDS]
     else:
-        check_files(inputs, [args.output])
-    with naming(args.recording, args.right):
-        recording = read_recording(args.recording, args.right, **format_options(args))
+        outputs = [args.output]
+    recording = load_recording(args, outputs=outputs)
     name_recording(recording, args.recording)
     result = load_matches(args.matches) if args.matches is not None else None
     depth = picture_depth(args, recording, result)

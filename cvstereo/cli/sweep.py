@@ -46,7 +46,7 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
                    help="recording files, globs, preset:NAME[:SECONDS] or suite:NAME")
     p.add_argument("--grid", metavar="GRID.toml", default=None, help="grid file (see the example below)")
     p.add_argument("--method", "-m", action="append", default=[], help="method to sweep (repeatable)")
-    p.add_argument("--variant", action="append", default=[],
+    p.add_argument("--variant", "-v", action="append", default=[],
                    help="variant (repeatable; 'all' for every variant; default: each method's default)")
     p.add_argument("--param", "-p", action="append", default=[], metavar="KEY=V1,V2,...",
                    help="parameter values to try (repeatable)")

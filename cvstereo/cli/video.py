@@ -1,4 +1,4 @@
-"""``cvstereo video RECORDING [MATCHES] -o OUT.mp4``: an MP4 of the events and, given matches, their disparities.
+"""``cvstereo video RECORDING [RIGHT] [MATCHES] -o OUT.mp4``: an MP4 of the events and, given matches, disparities.
 
 One video frame per window (40 ms: real time at 25 fps): both cameras' events, ON blue and OFF orange, and the
 colour-coded disparity at each anchor pixel, with time, median disparity and distance written on top.
@@ -8,15 +8,7 @@ from __future__ import annotations
 
 import argparse
 
-from cvstereo.cli._common import (
-    add_depth_options,
-    add_format_options,
-    check_files,
-    format_options,
-    load_matches,
-    naming,
-    require_range,
-)
+from cvstereo.cli._common import add_depth_options, add_recording_arguments, load_matches, load_recording, require_range
 from cvstereo.cli.plot import check_window_options, name_recording, picture_depth
 
 #: Limits of the video options: a frame rate a player shows, and a frame size that fits in memory.
@@ -26,10 +18,8 @@ MAX_FPS, MAX_SCALE = 1000.0, 32
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p = sub.add_parser(name, help="write an MP4 of a recording with its disparities",
                        description=__doc__.split("\n\n")[1])
-    p.add_argument("recording", metavar="RECORDING", help="the recording (the one the matches were computed on)")
-    p.add_argument("matches", metavar="MATCHES", nargs="?", default=None, help="matches .npz from `cvstereo match`")
+    add_recording_arguments(p, matches="optional")
     p.add_argument("-o", "--output", required=True, metavar="OUT.mp4", help="video file to write")
-    p.add_argument("--right", default=None, help="the right camera's file, for one-file-per-camera formats")
     p.add_argument("--fps", type=float, default=25.0, help="frames per second (default: %(default)g)")
     p.add_argument("--scale", type=int, default=4, help="video pixels per sensor pixel (default: %(default)d)")
     p.add_argument("--seconds", type=float, default=None, help="only the first SECONDS of the recording")
@@ -40,12 +30,10 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p.add_argument("--vmax", type=float, default=None, metavar="PX",
                    help="disparity at the high end of the colour scale (default: from the data)")
     add_depth_options(p)
-    add_format_options(p)
     return p
 
 
 def run(args: argparse.Namespace) -> int:
-    from cvstereo.io import read_recording
     from cvstereo.viz import write_video
     from cvstereo.viz.video import CODEC_NAMES, video_codec
 
@@ -54,9 +42,7 @@ def run(args: argparse.Namespace) -> int:
     if not 1 <= args.scale <= MAX_SCALE:
         raise ValueError(f"--scale must be between 1 and {MAX_SCALE} video pixels per sensor pixel, got {args.scale}.")
     require_range(args.seconds, "--seconds", gt=0)
-    check_files([args.recording, args.right, args.matches], [args.output])
-    with naming(args.recording, args.right):
-        recording = read_recording(args.recording, args.right, **format_options(args))
+    recording = load_recording(args, outputs=[args.output])
     name_recording(recording, args.recording)
     result = load_matches(args.matches) if args.matches is not None else None
     n = write_video(recording, args.output, result, fps=args.fps, window_us=round(args.window_ms * 1000),
