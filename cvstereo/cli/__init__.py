@@ -50,7 +50,30 @@ def build_parser() -> argparse.ArgumentParser:
         mod = importlib.import_module(f"cvstereo.cli.{module}")
         p = mod.add_parser(sub, name)
         p.set_defaults(_run=mod.run)
+    plain_help(parser)
     return parser
+
+
+def plain_help(parser: argparse.ArgumentParser) -> None:
+    """Strip reStructuredText markup from every text ``parser --help`` shows, subcommands included, in place.
+
+    Much help text comes from docstrings (descriptions, listings); cleaning it here, once, keeps every command's
+    ``--help`` plain whatever its module writes. argparse keeps these texts in attributes that are not public
+    but have not changed since Python 3.2 (``_actions``, ``_action_groups``, ``_choices_actions``).
+    """
+    from cvstereo.cli._text import plain_text
+
+    parser.description, parser.epilog = plain_text(parser.description), plain_text(parser.epilog)
+    for group in parser._action_groups:
+        group.description = plain_text(group.description)
+    for action in parser._actions:
+        if action.help is not argparse.SUPPRESS:
+            action.help = plain_text(action.help)
+        if isinstance(action, argparse._SubParsersAction):
+            for choice in action._choices_actions:
+                choice.help = plain_text(choice.help)
+            for subparser in action.choices.values():
+                plain_help(subparser)
 
 
 class Terminated(KeyboardInterrupt):

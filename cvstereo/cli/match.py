@@ -29,7 +29,7 @@ from cvstereo.cli._common import (
     progress_wanted,
     require_range,
 )
-from cvstereo.cli._text import number
+from cvstereo.cli._text import number, plain_text
 from cvstereo.param_sets import ADAPTIVE
 from cvstereo.signal_level import silence_warning
 
@@ -235,7 +235,8 @@ def list_methods() -> str:
         for f in dataclasses.fields(cls.Params):
             lines.append(f"    {f.name} = {_text(getattr(defaults, f.name))}  ({_type_text(hints[f.name])})")
         lines.append("")
-    return "\n".join(lines).rstrip()
+    # Method docstrings and the parameter sets' reasons are written for Sphinx: shown here as plain text.
+    return plain_text("\n".join(lines).rstrip())
 
 
 def _text(value) -> str:
