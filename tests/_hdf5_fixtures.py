@@ -34,3 +34,19 @@ def write_mvsec_events(path, left: np.ndarray, right: np.ndarray) -> None:
         for name, ev in (("left", left), ("right", right)):
             rows = np.column_stack([ev["x"], ev["y"], ev["t"] / 1e6, np.where(ev["p"] == 1, 1.0, -1.0)])
             f.create_dataset(f"davis/{name}/events", data=rows.astype(np.float64))
+
+
+def write_dsec_pair(folder, recording, *, t_offset: int) -> tuple:
+    """A recording as DSEC ships a sequence: ``folder/events/{left,right}/events.h5``, each camera's times moved
+    by ``t_offset`` (microseconds of the day, as DSEC's) and stored relative to it. Returns the two paths."""
+    from pathlib import Path
+
+    paths = []
+    for cam in ("left", "right"):
+        ev = getattr(recording, cam).copy()
+        ev["t"] += t_offset
+        path = Path(folder) / "events" / cam / "events.h5"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_dsec_events(path, ev, t_offset=t_offset)
+        paths.append(path)
+    return tuple(paths)
