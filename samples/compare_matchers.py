@@ -7,7 +7,8 @@ Without a file it simulates two seconds of the thesis' "one arm at 100 cm" recor
 Run:
     python samples/compare_matchers.py                     # simulated 1arm-100cm clip
     python samples/compare_matchers.py my_recording.npz    # any recording cvstereo can read
-    python samples/compare_matchers.py Fan_disp8.dat --methods frame event-time
+    python samples/compare_matchers.py Fan_disp8.dat -m frame event-time
+    python samples/compare_matchers.py left.h5 right.h5                  # one file per camera (DSEC, eDVS text)
 """
 
 import argparse
@@ -22,12 +23,13 @@ CLIP_SECONDS = 2.0
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("recording", nargs="?", help="recording file (default: a simulated clip)")
-    parser.add_argument("--methods", nargs="+", default=None, help="matchers to run (default: all installed)")
+    parser.add_argument("recording", nargs="?", help="recording file, or the left camera's (default: a simulated clip)")
+    parser.add_argument("right", nargs="?", help="the right camera's file, for formats with one file per camera")
+    parser.add_argument("-m", "--methods", nargs="+", default=None, help="matchers to run (default: all installed)")
     args = parser.parse_args(argv)
 
     if args.recording:
-        recording = read_recording(args.recording)
+        recording = read_recording(args.recording, args.right)
     else:
         from cvstereo.simulate import simulate_preset
 

@@ -5,7 +5,8 @@ with time, median disparity and the distance it means on top.
 
 Run:
     python samples/disparity_video.py                          # simulated 2 s of 1arm-50cm, event-area
-    python samples/disparity_video.py rec.npz --method frame -o out.mp4
+    python samples/disparity_video.py rec.npz -m frame -o out.mp4
+    python samples/disparity_video.py left.h5 right.h5 -o out.mp4   # one file per camera (DSEC, eDVS text)
 """
 
 import argparse
@@ -21,13 +22,14 @@ RIG = DepthModel.from_rig(focal_px=160.0, baseline_m=0.10, offset_px=2.5)
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("recording", nargs="?", help="recording file (default: a simulated clip)")
-    parser.add_argument("--method", default="event-area", help="matcher (default: event-area)")
+    parser.add_argument("recording", nargs="?", help="recording file, or the left camera's (default: a simulated clip)")
+    parser.add_argument("right", nargs="?", help="the right camera's file, for formats with one file per camera")
+    parser.add_argument("-m", "--method", default="event-area", help="matcher (default: event-area)")
     parser.add_argument("-o", "--output", default="disparity.mp4", help="video to write")
     args = parser.parse_args(argv)
 
     if args.recording:
-        recording = read_recording(args.recording)
+        recording = read_recording(args.recording, args.right)
     else:
         from cvstereo.simulate import simulate_preset
 

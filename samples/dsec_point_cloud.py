@@ -7,8 +7,8 @@ extra) in the rectified left camera's frame, metres. Prints how many points, and
 
 Run:
     python samples/dsec_point_cloud.py zurich_city_04_a -o cloud.ply              # first second, sgbm
-    python samples/dsec_point_cloud.py SEQ --start-s 10 --seconds 0.5 --method stereobm
-    python samples/dsec_point_cloud.py --left l.h5 --right r.h5 --calibration cam_to_cam.yaml
+    python samples/dsec_point_cloud.py SEQ --start-s 10 --seconds 0.5 -m event-time
+    python samples/dsec_point_cloud.py l.h5 r.h5 --calibration cam_to_cam.yaml     # (or --left l.h5 --right r.h5)
     python samples/dsec_point_cloud.py SEQ --window-ms 50 -o cloud.ply   # cloud_<t_us>.ply per 50 ms window
 """
 
@@ -27,25 +27,31 @@ from cvstereo.rectify import Rectification
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("sequence", nargs="?", help="DSEC sequence folder (events/left, events/right, calibration)")
-    parser.add_argument("--left", help="left events.h5 (instead of a sequence folder)")
-    parser.add_argument("--right", help="right events.h5")
+    parser.add_argument("inputs", nargs="*", metavar="SEQUENCE | LEFT RIGHT",
+                        help="a DSEC sequence folder (events/left, events/right, calibration), or the left and right "
+                        "events.h5 (then give --calibration)")
+    parser.add_argument("--left", help="the left events.h5, as an option")
+    parser.add_argument("--right", help="the right events.h5, as an option")
     parser.add_argument("--calibration", help="cam_to_cam.yaml")
-    parser.add_argument("--method", default="sgbm", help="matcher (default: sgbm)")
+    parser.add_argument("-m", "--method", default="sgbm", help="matcher (default: sgbm)")
     parser.add_argument("--start-s", type=float, default=0.0, help="start, seconds after the first event")
     parser.add_argument("--seconds", type=float, default=1.0, help="length of the slice read (default 1 s)")
     parser.add_argument("--window-ms", type=float, default=None,
                         help="one cloud per window of this length (NAME_<start us>.ply) instead of one for the slice")
     parser.add_argument("-o", "--output", default="cloud.ply", help="PLY file to write")
     args = parser.parse_args(argv)
-    if args.sequence:
-        seq = Path(args.sequence)
+    if len(args.inputs) == 1 and not (args.left or args.right):
+        seq = Path(args.inputs[0])
         left, right = seq / "events" / "left" / "events.h5", seq / "events" / "right" / "events.h5"
-        calibration = seq / "calibration" / "cam_to_cam.yaml"
-    elif args.left and args.right and args.calibration:
-        left, right, calibration = Path(args.left), Path(args.right), Path(args.calibration)
+        calibration = Path(args.calibration) if args.calibration else seq / "calibration" / "cam_to_cam.yaml"
     else:
-        parser.error("give a sequence folder, or --left, --right and --calibration")
+        rest = list(args.inputs)  # LEFT RIGHT, either of them possibly given as --left/--right instead
+        left = args.left or (rest.pop(0) if rest else None)
+        right = args.right or (rest.pop(0) if rest else None)
+        if rest or not (left and right and args.calibration):
+            parser.error("give a sequence folder, or the LEFT and RIGHT events.h5 (or --left, --right) and "
+                         "--calibration")
+        left, right, calibration = Path(left), Path(right), Path(args.calibration)
 
     cal = load_calibration(calibration)
     # The slice only: DSEC files are gigabytes. Both cameras on one clock, from the left camera's first event.

@@ -24,7 +24,7 @@ def main(argv=None):
     parser.add_argument("--left", help="serial port of the left board")
     parser.add_argument("--right", help="serial port of the right board")
     parser.add_argument("--simulate", metavar="RECORDING", help="play this recording on two virtual boards")
-    parser.add_argument("--method", default="event-time", help="matcher (default: event-time)")
+    parser.add_argument("-m", "--method", default="event-time", help="matcher (default: event-time)")
     parser.add_argument("--seconds", type=float, default=None, help="stop after this long (default: Ctrl-C)")
     args = parser.parse_args(argv)
     if not args.simulate and not (args.left and args.right):

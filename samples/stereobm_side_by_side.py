@@ -24,13 +24,14 @@ MATCHERS = {"frame (thesis 3.3, separate ON/OFF)": ("frame", "separate"), "OpenC
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("recording", nargs="?", help="recording file (default: a simulated clip)")
+    parser.add_argument("recording", nargs="?", help="recording file, or the left camera's (default: a simulated clip)")
+    parser.add_argument("right", nargs="?", help="the right camera's file, for formats with one file per camera")
     parser.add_argument("-o", "--output", default="side_by_side.png",
                         help="picture name; one per matcher is written: NAME_frame.png, NAME_stereobm.png")
     args = parser.parse_args(argv)
 
     if args.recording:
-        recording = read_recording(args.recording)
+        recording = read_recording(args.recording, args.right)
     else:
         from cvstereo.simulate import simulate_preset
 

@@ -69,3 +69,24 @@ def test_dsec_point_cloud_sample_per_window(tmp_path):
     assert len(files) >= 2 and all(s % 40_000 == 0 for s in starts)
     total = sum(plyfile.PlyData.read(str(f))["vertex"].count for f in files)
     assert f"{total} points" in proc.stdout
+
+
+def test_dsec_point_cloud_sample_takes_left_right_like_the_cli(tmp_path):
+    seq = write_dsec_sequence(tmp_path / "seq", seconds=0.1, seed=3)
+    ev, cal = seq / "events", str(seq / "calibration" / "cam_to_cam.yaml")
+    left, right = str(ev / "left" / "events.h5"), str(ev / "right" / "events.h5")
+    forms = {"pos.ply": [left, right], "opt.ply": ["--left", left, "--right", right],
+             "mixed.ply": [left, "--right", right]}
+    z = {}
+    for name, inputs in forms.items():
+        proc = subprocess.run([sys.executable, str(SAMPLE), *inputs, "--calibration", cal, "-m", "event-time",
+                               "--seconds", "0.1", "-o", name], cwd=tmp_path, capture_output=True, text=True,
+                              timeout=600)
+        assert proc.returncode == 0, proc.stderr
+        z[name] = np.asarray(plyfile.PlyData.read(str(tmp_path / name))["vertex"]["z"], np.float64)
+    assert z["pos.ply"].size > 1000
+    assert all(np.array_equal(v, z["pos.ply"]) for v in z.values())
+    assert (_relative_error_to_nearest_plane(z["pos.ply"]) < 0.1).mean() > 0.9  # event-time, on the planes
+    proc = subprocess.run([sys.executable, str(SAMPLE), left, right], cwd=tmp_path, capture_output=True, text=True,
+                          timeout=600)
+    assert proc.returncode == 2 and "--calibration" in proc.stderr
