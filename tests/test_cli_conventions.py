@@ -118,6 +118,7 @@ def test_video_right_positional_or_option(pair, tmp_path, capsys):
     ["convert", "l.txt", "r.txt", "--right", "r.txt", "-o", "x.npz"],
     ["evaluate", "l.txt", "r.txt", "m.npz", "--right", "r.txt"],
     ["plot", "events", "l.txt", "r.txt", "m.npz", "--right", "r.txt", "-o", "x.png"],
+    ["plot", "events", "l.txt", "r.txt", "--right", "r.txt", "-o", "x.png"],  # r.txt is no matches file
     ["video", "l.txt", "r.txt", "m.npz", "--right", "r.txt", "-o", "x.mp4"],
 ])
 def test_right_given_twice_is_a_usage_error(argv, pair, monkeypatch, capsys):

@@ -58,14 +58,17 @@ def settle_recording_inputs(args: argparse.Namespace) -> None:
     """
     option = getattr(args, "right_option", None)
     mode = getattr(args, "_matches_mode", None)
+    # X in RECORDING X (no third positional) is the matches file where the command takes one and X says so.
+    x_is_matches = (mode is not None and getattr(args, "matches", None) is None
+                    and str(args.right or "").lower().endswith(".npz"))
     if option is not None:
-        if args.right is not None:
-            if mode is None or args.matches is not None:
-                args._inputs_parser.error(f"the right camera's file is given twice (RIGHT {args.right} and --right "
-                                          f"{option}): give it once")
-            args.matches, args.right = args.right, None  # RECORDING MATCHES --right RIGHT
+        if args.right is not None and not x_is_matches:
+            args._inputs_parser.error(f"the right camera's file is given twice (RIGHT {args.right} and --right "
+                                      f"{option}): give it once")
+        if x_is_matches:
+            args.matches = args.right  # RECORDING MATCHES --right RIGHT
         args.right, args.right_option = option, None
-    elif mode == "optional" and args.matches is None and str(args.right or "").lower().endswith(".npz"):
+    elif x_is_matches and mode == "optional":
         args.matches, args.right = args.right, None
 
 
