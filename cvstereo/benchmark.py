@@ -17,10 +17,8 @@ from __future__ import annotations
 
 import dataclasses
 import importlib.util
-import math
 import os
 import platform
-import tempfile
 import threading
 import time
 from collections.abc import Callable
@@ -30,13 +28,13 @@ import numpy as np
 
 from cvstereo.depth import fit_depth_model
 from cvstereo.evaluate import FIGURES, format_figure, markdown_table, to_json
-from cvstereo.experiment import Combo, all_combos
+from cvstereo.experiment import Combo, all_combos, run_experiment
 from cvstereo.io._atomic import write_text_atomic
 from cvstereo.matches import MatchResult
 from cvstereo.pipeline import match
 from cvstereo.recording import Recording
 from cvstereo.registry import METHODS, available_methods, matcher_class
-from cvstereo.sweep import Cell, run_sweep
+from cvstereo.sweep import Cell
 from cvstereo.thesis import DISPARITY_TABLES, MATLAB_SECONDS, RECORDING_SECONDS, RECORDINGS
 from cvstereo.timing import measure
 
@@ -186,33 +184,25 @@ def bench_cell_figures(cell: Cell, recording: Recording, result: MatchResult) ->
 
 #: Figures of an accuracy cell (evaluation.md's, without the speed figures: cells may share the machine).
 ACCURACY_FIGURES = tuple(f for f in FIGURES if f not in ("events_per_s", "realtime_x"))
+#: What :func:`bench_cell_figures` adds.
+_BENCH_FIGURES = ("median", "within_1px")
 
 
 def accuracy_cells(recordings: dict[str, Path], combos: list[Combo], *, workers: int | None,
                    progress: bool) -> dict[str, dict[str, dict]]:
-    """Figures per combo label and recording name, every cell run by :func:`cvstereo.sweep.run_sweep`.
+    """Figures per combo label and recording name, every cell run by :func:`run_experiment` on the sweep
+    engine (speed figures left out: cells may run side by side).
 
     Raises
     ------
     RuntimeError
-        A cell failed (a matcher's bug or an unreadable recording): its configuration, file and error.
+        A cell failed (a matcher's bug or an unreadable recording): its configuration, recording and error.
     """
-    cells = [Cell(os.fspath(path), c.method, c.variant, c.params, c.param_set)
-             for c in combos for path in recordings.values()]
     if workers is None and importlib.util.find_spec("dask") is None:
         workers = 0  # without the sweep extra the cells run here, one after another
-    with tempfile.TemporaryDirectory(prefix="cvstereo-bench-") as tmp:
-        result = run_sweep(cells, tmp, workers=workers, progress=progress, score=bench_cell_figures)
-    runs: dict[str, dict[str, dict]] = {}
-    rows = iter(result.rows)
-    for combo in combos:
-        for name in recordings:
-            row = next(rows)
-            if row["error"] is not None:
-                raise RuntimeError(f"bench: {combo.label} on {name} ({row['recording']}) failed: {row['error']}")
-            figures = {f: row[f] for f in (*ACCURACY_FIGURES, "median", "within_1px") if f in row}
-            runs.setdefault(combo.label, {})[name] = {f: math.nan if v is None else v for f, v in figures.items()}
-    return runs
+    experiment = run_experiment(recordings, combos, workers=workers, progress=progress, score=bench_cell_figures)
+    return {c.label: {name: {f: v for f, v in figures.items() if f in ACCURACY_FIGURES or f in _BENCH_FIGURES}
+                      for name, figures in by_name.items()} for c, by_name in experiment.figures.items()}
 
 
 def speed_cells(recording: Recording, combos: list[Combo]) -> dict[str, dict]:

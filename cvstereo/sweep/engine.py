@@ -9,7 +9,7 @@ import json
 import math
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -34,6 +34,21 @@ def file_digest(path: str | os.PathLike) -> str:
     with open(path, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):
             h.update(block)
+    return h.hexdigest()
+
+
+def recording_digest(recording: Recording) -> str:
+    """sha256 of an in-memory recording's events, ground truth and sensor size (hex)."""
+    import numpy as np
+
+    h = hashlib.sha256(json.dumps(list(recording.resolution)).encode())
+    for array in (recording.left, recording.right, recording.left_disparity, recording.right_disparity):
+        if array is None:
+            h.update(b"\0none")
+            continue
+        array = np.ascontiguousarray(array)
+        h.update(f"\0{array.dtype.str}{array.shape}".encode())
+        h.update(array.tobytes())
     return h.hexdigest()
 
 
@@ -77,7 +92,7 @@ def _function_name(fn) -> str:
     return f"{fn.__module__}.{fn.__qualname__}"
 
 
-def run_cell(cell: Cell, score: Score | None = None) -> dict:
+def run_cell(cell: Cell, score: Score | None = None, recording: Recording | None = None) -> dict:
     """Match and evaluate one cell; never raises for a bad cell (the error is in the row).
 
     Parameters
@@ -92,6 +107,8 @@ def run_cell(cell: Cell, score: Score | None = None) -> dict:
     dict
         :data:`FIGURE_COLUMNS`, :data:`TIMING_COLUMNS`, ``error`` (None when the cell ran) and the figures of
         ``score``.
+    recording : Recording, optional
+        The recording in memory (in-process runs); None: read from ``cell.recording``, a path.
     """
     row: dict = dict.fromkeys(FIGURE_COLUMNS)
     row.update(dict.fromkeys(TIMING_COLUMNS), error=None, worker=f"{os.uname().nodename}:{os.getpid()}")
@@ -102,8 +119,10 @@ def run_cell(cell: Cell, score: Score | None = None) -> dict:
         from cvstereo.pipeline import match
 
         extra = {"param_set": cell.param_set} if cell.param_set else {}
-        result = match(cell.recording, method=cell.method, variant=cell.variant, **extra, **dict(cell.params))
-        recording = read_recording(cell.recording)
+        result = match(cell.recording if recording is None else recording, method=cell.method,
+                       variant=cell.variant, **extra, **dict(cell.params))
+        if recording is None:
+            recording = read_recording(cell.recording)
         figures = evaluate(recording, result)
         for name in (*FIGURE_COLUMNS, "events_per_s", "realtime_x"):
             row[name] = _plain(figures.get(name))
@@ -146,7 +165,8 @@ class SweepResult:
 
 def run_sweep(cells: Sequence[Cell], out_dir: str | os.PathLike, *, workers: int | None = None,
               scheduler: str | None = None, progress: bool = False,
-              on_row: Callable[[Cell, dict], None] | None = None, score: Score | None = None) -> SweepResult:
+              on_row: Callable[[Cell, dict], None] | None = None, score: Score | None = None,
+              recordings: Mapping[str, Recording] | None = None) -> SweepResult:
     """Run every cell not already in ``out_dir`` and return all rows in grid order.
 
     Parameters
@@ -165,11 +185,23 @@ def run_sweep(cells: Sequence[Cell], out_dir: str | os.PathLike, *, workers: int
         Called with (cell, row) as each cell finishes (rows of earlier runs are not reported).
     score : callable, optional
         Further figures per cell, see :func:`run_cell` (part of the cell key).
+    recordings : mapping, optional
+        Recordings in memory, by the name the cells give as ``recording`` (their key hashes their arrays);
+        only with ``workers=0``, since workers read recordings from paths.
+
+    Raises
+    ------
+    ValueError
+        In-memory recordings with workers or a scheduler.
 
     Returns
     -------
     SweepResult
     """
+    in_memory = dict(recordings or {})
+    if in_memory and (workers != 0 or scheduler is not None):
+        raise ValueError("recordings in memory are matched in this process only (workers=0): workers read "
+                         "recordings from paths, so give the cells file paths to run them on workers.")
     out = Path(out_dir)
     (out / "cells").mkdir(parents=True, exist_ok=True)
     code = source_digest()
@@ -177,7 +209,8 @@ def run_sweep(cells: Sequence[Cell], out_dir: str | os.PathLike, *, workers: int
     keys = []
     for cell in cells:
         if cell.recording not in digests:
-            digests[cell.recording] = file_digest(cell.recording)
+            rec = in_memory.get(cell.recording)
+            digests[cell.recording] = file_digest(cell.recording) if rec is None else recording_digest(rec)
         keys.append(cell_key(cell, digests[cell.recording], code, score))
     done = {k: _read_cell(out, k) for k in dict.fromkeys(keys) if (out / "cells" / f"{k}.json").exists()}
     todo = [(k, c) for k, c in dict(zip(keys, cells, strict=True)).items() if k not in done]
@@ -197,7 +230,7 @@ def run_sweep(cells: Sequence[Cell], out_dir: str | os.PathLike, *, workers: int
     if todo:
         if workers == 0 and scheduler is None:
             for key, cell in todo:
-                finished(key, cell, run_cell(cell, score))
+                finished(key, cell, run_cell(cell, score, in_memory.get(cell.recording)))
         else:
             _run_on_dask(todo, finished, workers=workers, scheduler=scheduler, score=score)
     if bar is not None:
