@@ -269,7 +269,7 @@ def run_bench(config: BenchConfig, *, progress: bool = True, log: Callable[[str]
     sims = simulated_recordings(config)
     reals = real_recordings(config.shared)
     dists = distance_recordings(config) if config.distance else {}
-    # Compiling first (numba caches to disk) also spares the workers that work.
+    # Compiled here first, the kernels are in numba's on-disk cache when the workers start: they load them.
     compile_s = warm_up(combos)
 
     # The distance set is named like the presets (1arm-50cm, 1arm-150cm): under a shared name its recording
