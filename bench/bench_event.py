@@ -39,6 +39,7 @@ sys.path.insert(0, str(REPO))
 
 from cvstereo.events import make_events  # noqa: E402
 from cvstereo.registry import create_matcher, matcher_class  # noqa: E402
+from cvstereo.timing import Agreement  # noqa: E402
 
 METHODS = ("event-time", "event-area", "event-vector")
 #: Targets of issue 5, input events per second on one core.
@@ -130,27 +131,31 @@ def variants():
             yield method, variant
 
 
-def throughput(method: str, variant: str, packets, repeats: int = 3) -> dict:
-    """Input events per second over the packets: best of ``repeats`` runs, after a warm-up that compiles or
-    loads the kernels."""
+def throughput(method: str, variant: str, packets) -> dict:
+    """Input events per second over the packets, after a warm-up that compiles or loads the kernels: runs
+    repeated until two agree within 10 % in CPU time (:mod:`cvstereo.timing`), with the load before and after."""
     warm = create_matcher(method, variant)
     for left, right, until in packets[:3]:
         warm.feed(left, right, until=until)
     warm.flush()
     n_in = sum(left.size + right.size for left, right, _ in packets)
-    runs = []
-    for _ in range(repeats):
+    agreement, walls = Agreement(), []
+    agreement.start()
+    while not agreement.done:
         matcher = create_matcher(method, variant)
         n_out = 0
         wall, cpu = time.perf_counter(), time.process_time()
         for left, right, until in packets:
             n_out += matcher.feed(left, right, until=until).size
         n_out += matcher.flush().size
-        runs.append((time.process_time() - cpu, time.perf_counter() - wall))
+        walls.append(time.perf_counter() - wall)
+        agreement.add(time.process_time() - cpu)
     # CPU time of this process: the machine is shared, and wall-clock time counts other people's work too.
-    cpu, wall = min(runs)
+    timing = agreement.result()
+    cpu, wall = timing.seconds, min(walls)
     return {"events": int(n_in), "matches": int(n_out), "cpu_seconds": cpu, "wall_seconds": wall,
-            "events_per_s": n_in / cpu, "events_per_s_wall": n_in / wall}
+            "events_per_s": n_in / cpu, "events_per_s_wall": n_in / wall, "runs": timing.runs,
+            "agreed": timing.agreed, "load_before": timing.load_before, "load_after": timing.load_after}
 
 
 _COMPILE_CHILD = """
@@ -229,8 +234,8 @@ def write_report(results: dict, out_dir: Path) -> str:
         f"one core; {results['machine']}.",
         "",
         "| method | variant | events/s (CPU) | events/s (wall) | x real time | target | matches "
-        "| compile (cold) s | first call (cached) s | peak RSS MB (10 min) |",
-        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "| compile (cold) s | first call (cached) s | peak RSS MB (10 min) | runs, load |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|",
     ]
     for row in results["rows"]:
         mem = row.get("memory", {}).get("peak_rss_mb")
@@ -240,7 +245,7 @@ def write_report(results: dict, out_dir: Path) -> str:
             f"{row['events_per_s'] / results['input']['events_per_s']:.1f} | {TARGETS[row['method']]:,} "
             f"{'ok' if row['events_per_s'] >= TARGETS[row['method']] else 'MISSED'} | {row['matches']:,} | "
             f"{comp.get('cold_compile_s', float('nan')):.2f} | {comp.get('cached_first_call_s', float('nan')):.2f} | "
-            f"{'' if mem is None else f'{mem:.0f}'} |"
+            f"{'' if mem is None else f'{mem:.0f}'} | {_runs_load(row)} |"
         )
     base = results.get("memory_baseline")
     if base:
@@ -251,6 +256,13 @@ def write_report(results: dict, out_dir: Path) -> str:
     text = "\n".join(lines) + "\n"
     (out_dir / "event.md").write_text(text)
     return text
+
+
+def _runs_load(row: dict) -> str:
+    """Runs until two agreed (``*``: none did) and the load average before -> after; '-' in older results."""
+    if "runs" not in row:
+        return "-"
+    return f"{row['runs']}{'' if row['agreed'] else ' *'}, {row['load_before']:.1f} -> {row['load_after']:.1f}"
 
 
 def main(argv=None) -> int:

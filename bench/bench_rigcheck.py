@@ -3,7 +3,8 @@
 1. **Speed**: ``check_rig`` time as a share of each recording's duration, for the code at a base revision
    (``--before REV``, default ``main``; extracted with ``git archive`` and run in its own process) and for
    this tree, alternately in the same run, with the load average before and after each timing. Each is
-   repeated until two runs agree within 10 % (at most ``--repeats``); the best agreeing pair's mean is shown.
+   repeated until two runs agree within 10 % (at most ``--repeats``, :mod:`cvstereo.timing`); the faster of
+   the agreeing pair is shown, with its CPU time.
 2. **Accuracy**: share of a matcher's estimates within 1 px of 8 px on Fan_disp8.dat, before and after
    ``--auto``. "Before" is the recording as read with retina 0 as the left camera (wrong for this file,
    README) and with the README's retina 1; "after" runs the rig check first and applies its findings (swap,
@@ -18,7 +19,6 @@ $CVSTEREO_SHARED or ../shared).
 from __future__ import annotations
 
 import argparse
-import itertools
 import json
 import os
 import subprocess
@@ -31,12 +31,14 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from cvstereo.timing import Agreement  # noqa: E402
+
 SHARED = Path(os.environ.get("CVSTEREO_SHARED", ROOT.parent / "shared"))
 TUM = SHARED / "data" / "tum-stereo"
 FAN = TUM / "Fan_disp8.dat"
 REAL_FILES = ("Fan_disp8.dat", "NSTlogo_disp12-8-3.dat", "movingPersons.dat")
-#: Two timings agree when they differ by at most this share (a loaded machine must not pass for slow code).
-AGREE = 0.10
 
 #: Run in a child process on the code under test: reads a file (retina 0 as left, as a user who does not
 #: know), times check_rig on it and prints JSON.
@@ -75,22 +77,6 @@ def time_check(code_dir: Path | None, path: Path) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def agreeing(runs: list[dict]) -> dict | None:
-    """The two runs closest in time if they agree within :data:`AGREE`, as their mean (with both loads)."""
-    times = sorted(runs, key=lambda r: r["elapsed_s"])
-    pairs = [(b["elapsed_s"] - a["elapsed_s"], a, b) for a, b in itertools.pairwise(times)]
-    if not pairs:
-        return None
-    _, a, b = min(pairs, key=lambda p: p[0])
-    if b["elapsed_s"] > (1 + AGREE) * a["elapsed_s"]:
-        return None
-    return {"elapsed_s": (a["elapsed_s"] + b["elapsed_s"]) / 2, "cpu_s": (a.get("cpu_s", 0) + b.get("cpu_s", 0)) / 2,
-            "duration_s": a["duration_s"],
-            "load_before": min(a["load_before"], b["load_before"]), "load_after": max(a["load_after"],
-                                                                                       b["load_after"]),
-            "agreed": True}
-
-
 def speed(before: str, repeats: int) -> tuple[list[str], list[dict]]:
     """Timings of the base revision and this tree on the real files, alternately: (markdown lines, rows)."""
     rows = []
@@ -102,37 +88,44 @@ def speed(before: str, repeats: int) -> tuple[list[str], list[dict]]:
             tar.extractall(base_dir, filter="data")
         for name in REAL_FILES:
             runs = {"before": [], "after": []}
-            for _ in range(repeats):
+            agreements = {label: Agreement(max_runs=repeats) for label in runs}
+            for a in agreements.values():
+                a.start()
+            # Before and after in turn, each until two of its runs agree.
+            while not all(a.done for a in agreements.values()):
                 for label, code in (("before", base_dir), ("after", None)):
-                    if agreeing(runs[label]) is None:
+                    if not agreements[label].done:
                         runs[label].append(time_check(code, TUM / name))
-                if all(agreeing(r) is not None for r in runs.values()):
-                    break
+                        agreements[label].add(runs[label][-1]["elapsed_s"])
             for label, r in runs.items():
-                best = agreeing(r) or {**min(r, key=lambda x: x["elapsed_s"]), "agreed": False}
-                rows.append({"file": name, "code": label, "runs": len(r), **best,
-                             "share": best["elapsed_s"] / best["duration_s"]})
-                print(f"{name:24s} {label:6s} {best['elapsed_s']:.2f} s = {rows[-1]['share']:.1%} of "
-                      f"{best['duration_s']:.1f} s (load {best['load_before']:.1f} -> {best['load_after']:.1f}, "
-                      f"{len(r)} runs{'' if best['agreed'] else ', no two within 10 %'})", flush=True)
+                t = agreements[label].result()
+                best = next(x for x in r if x["elapsed_s"] == t.seconds)
+                rows.append({"file": name, "code": label, **best, "runs": t.runs, "agreed": t.agreed,
+                             "load_before": t.load_before, "load_after": t.load_after,
+                             "share": t.seconds / best["duration_s"], "cpu_share": best["cpu_s"] / best["duration_s"]})
+                print(f"{name:24s} {label:6s} {t.seconds:.2f} s = {rows[-1]['share']:.1%} of "
+                      f"{best['duration_s']:.1f} s, CPU {best['cpu_s']:.2f} s = {rows[-1]['cpu_share']:.1%} "
+                      f"({t.note()})", flush=True)
     lines = [
         f"## Speed: `check_rig` time as a share of the recording's duration (before = `{before}`, after = this "
         "tree)", "",
-        "Each cell: wall time (share of the duration) and CPU time of the process, the mean of the two runs "
-        "that agree within 10 % (in a child process, file already read, retina 0 given as left), with the "
-        "1-minute load average on this 2-core machine before and after. Before and after ran alternately in "
-        "the same run; on a loaded machine the wall time is several times the CPU time.", "",
-        "| file | duration | before: wall (share), CPU | after: wall (share), CPU | speed-up | load before -> after |",
-        "|---|---|---|---|---|---|",
+        "Each cell: wall time (share of the duration) and CPU time of the process (share), the faster of the "
+        "first two runs within 10 % of each other (in a child process, file already read, retina 0 given as "
+        "left), with the runs needed and the 1-minute load average on this machine before and after. Before "
+        "and after ran in turn in the same run; on a loaded machine the wall time is several times the CPU "
+        "time. Target: at most 10 % of the duration.", "",
+        "| file | duration | before: wall (share), CPU (share) | after: wall (share), CPU (share) | speed-up | "
+        "runs before, after | load before -> after |",
+        "|---|---|---|---|---|---|---|",
     ]
     for name in REAL_FILES:
         b, a = (next(r for r in rows if r["file"] == name and r["code"] == c) for c in ("before", "after"))
 
         def cell(r):
-            return (f"{r['elapsed_s']:.2f} s ({r['share']:.1%}), {r.get('cpu_s', float('nan')):.2f} s"
+            return (f"{r['elapsed_s']:.2f} s ({r['share']:.1%}), {r['cpu_s']:.2f} s ({r['cpu_share']:.1%})"
                     + ("" if r["agreed"] else " *"))
         lines.append(f"| {name} | {b['duration_s']:.1f} s | {cell(b)} | {cell(a)} | "
-                     f"{b['elapsed_s'] / a['elapsed_s']:.1f}x | "
+                     f"{b['elapsed_s'] / a['elapsed_s']:.1f}x | {b['runs']}, {a['runs']} | "
                      f"{min(a['load_before'], b['load_before']):.1f} -> {max(a['load_after'], b['load_after']):.1f} |")
     lines += ["", "`*`: no two runs agreed within 10 % (the fastest is shown).", ""]
     return lines, rows
@@ -154,7 +147,7 @@ def update_speed(speed_lines: list[str], speed_rows: list[dict]) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--before", default="main", help="base revision for the speed comparison")
-    parser.add_argument("--repeats", type=int, default=4, help="timings per file and code at most")
+    parser.add_argument("--repeats", type=int, default=6, help="timings per file and code at most")
     parser.add_argument("--skip-accuracy", action="store_true", help="only the speed table")
     args = parser.parse_args()
     speed_lines, speed_rows = speed(args.before, args.repeats)

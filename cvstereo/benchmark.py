@@ -6,11 +6,17 @@ the thesis' published mean/std; speed (events per second, times real time, speed
 Matlab times on ``2arms-50cm``) and peak memory; the real TUM recordings where present (share of estimates
 within 1 px of their known disparity); and distance: d = a/Z - c fitted per matcher on the 50 and 150 cm
 recordings, its error in cm at 75, 100 and 125 cm.
+
+The accuracy cells (every recording x matcher configuration: match + evaluate) run on the sweep engine
+(:func:`cvstereo.sweep.run_sweep`, one worker process per core by default); the speed and memory cells run
+afterwards in this process, one after another, with no worker alive, each timing repeated until two runs
+agree (:mod:`cvstereo.timing`).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import os
 import platform
 import threading
@@ -21,14 +27,16 @@ from pathlib import Path
 import numpy as np
 
 from cvstereo.depth import fit_depth_model
-from cvstereo.evaluate import evaluate, format_figure, markdown_table, to_json
+from cvstereo.evaluate import FIGURES, format_figure, markdown_table, to_json
 from cvstereo.experiment import Combo, all_combos, run_experiment
 from cvstereo.io._atomic import write_text_atomic
 from cvstereo.matches import MatchResult
 from cvstereo.pipeline import match
 from cvstereo.recording import Recording
 from cvstereo.registry import METHODS, available_methods, matcher_class
+from cvstereo.sweep import Cell
 from cvstereo.thesis import DISPARITY_TABLES, MATLAB_SECONDS, RECORDING_SECONDS, RECORDINGS
+from cvstereo.timing import measure
 
 #: The real recordings and the disparities known in them (README of tum-stereo): px.
 REAL_DISPARITIES: dict[str, tuple[float, ...]] = {
@@ -62,12 +70,16 @@ class BenchConfig:
         Shared data folder holding ``data/tum-stereo`` (skipped when absent).
     distance : bool
         Run the distance fit.
+    workers : int or None
+        Worker processes for the accuracy cells (:func:`cvstereo.sweep.run_sweep`): None, one per core
+        (in this process when Dask is not installed); 0, in this process without Dask.
     """
 
     quick: bool = False
     methods: tuple[str, ...] | None = None
     shared: Path | None = None
     distance: bool = True
+    workers: int | None = None
 
     @property
     def preset_seconds(self) -> float | None:
@@ -118,34 +130,31 @@ class PeakMemory:
         return self.peak_mb - self.start_mb
 
 
-def _cached_simulation(name: str, make: Callable[[], Recording]) -> Recording:
-    """A simulated recording from the preset cache folder, generated once."""
-    from cvstereo.io import read_recording_npz, write_recording_npz
+def _cached_simulation(name: str, make: Callable[[], Recording]) -> Path:
+    """The path of a simulated recording in the preset cache folder, generated once."""
+    from cvstereo.io import write_recording_npz
     from cvstereo.simulate import GENERATOR_VERSION, default_cache_dir
 
     path = default_cache_dir() / f"bench-{name}-v{GENERATOR_VERSION}.npz"
-    if path.exists():
-        return read_recording_npz(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    rec = make()
-    write_recording_npz(path, rec)
-    return rec
+    if not path.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_recording_npz(path, make())
+    return path
 
 
-def simulated_recordings(config: BenchConfig) -> dict[str, Recording]:
-    """The six presets and the motorcycle scene (cached)."""
-    from cvstereo.io import read_recording_npz
+def simulated_recordings(config: BenchConfig) -> dict[str, Path]:
+    """Paths of the six presets and the motorcycle scene (cached)."""
     from cvstereo.simulate import MotorcycleScene, cached_preset, simulate
 
-    recs = {name: read_recording_npz(cached_preset(name, seconds=config.preset_seconds)) for name in RECORDINGS}
+    recs = {name: Path(cached_preset(name, seconds=config.preset_seconds)) for name in RECORDINGS}
     secs = config.extra_seconds
     recs["motorcycle"] = _cached_simulation(f"motorcycle-{secs}s",
                                             lambda: simulate(MotorcycleScene(), seconds=secs, seed=0))
     return recs
 
 
-def distance_recordings(config: BenchConfig) -> dict[float, Recording]:
-    """One arm at each fit and test distance (cached)."""
+def distance_recordings(config: BenchConfig) -> dict[float, Path]:
+    """Paths of one arm at each fit and test distance (cached)."""
     from cvstereo.simulate import ArmsScene, simulate
 
     secs = config.extra_seconds
@@ -156,34 +165,65 @@ def distance_recordings(config: BenchConfig) -> dict[float, Recording]:
     }
 
 
-def real_recordings(shared: Path | None) -> dict[str, Recording]:
-    """The real TUM recordings (left retina detected from the data), or nothing when absent."""
-    from cvstereo.io import read_recording
-
+def real_recordings(shared: Path | None) -> dict[str, Path]:
+    """Paths of the real TUM recordings present (the readers detect the left retina from the data)."""
     folder = (shared or Path()) / "data" / "tum-stereo"
-    return {name: read_recording(folder / name) for name in REAL_DISPARITIES if (folder / name).exists()}
+    return {name: folder / name for name in REAL_DISPARITIES if (folder / name).exists()}
 
 
-def run_timed(recording: Recording, combo: Combo):
-    """Run one combo with peak-memory sampling; the MatchResult's meta holds the memory figures."""
-    with PeakMemory() as mem:
-        result = match(recording, method=combo.method, variant=combo.variant, param_set=combo.param_set,
-                       **dict(combo.params))
-    result.meta["peak_rss_mb"] = mem.peak_mb
-    result.meta["rss_increase_mb"] = mem.increase_mb
-    return result
-
-
-def bench_figures(name: str, recording: Recording, result: MatchResult) -> dict:
-    """The figures of one benchmark run: :func:`evaluate`'s, memory, time, the median disparity and, on the
-    real recordings, the share within 1 px of the known disparities."""
-    figures = evaluate(recording, result)
-    figures.update(peak_rss_mb=result.meta["peak_rss_mb"], rss_increase_mb=result.meta["rss_increase_mb"],
-                   elapsed_s=result.meta["elapsed_s"], input_events=result.meta["input_events"],
-                   median=float(np.median(result.disparity)) if len(result) else float("nan"))
+def bench_cell_figures(cell: Cell, recording: Recording, result: MatchResult) -> dict:
+    """The bench's figures of an accuracy cell beside the sweep's (the ``score`` of
+    :func:`cvstereo.sweep.run_sweep`): the median disparity and, on the real recordings, the share within
+    1 px of the known disparities."""
+    figures = {"median": float(np.median(result.disparity)) if len(result) else float("nan")}
+    name = Path(cell.recording).name
     if name in REAL_DISPARITIES:
         figures["within_1px"] = share_within(result.disparity, REAL_DISPARITIES[name])
     return figures
+
+
+#: Figures of an accuracy cell (evaluation.md's, without the speed figures: cells may share the machine).
+ACCURACY_FIGURES = tuple(f for f in FIGURES if f not in ("events_per_s", "realtime_x"))
+#: What :func:`bench_cell_figures` adds.
+_BENCH_FIGURES = ("median", "within_1px")
+
+
+def accuracy_cells(recordings: dict[str, Path], combos: list[Combo], *, workers: int | None,
+                   progress: bool) -> dict[str, dict[str, dict]]:
+    """Figures per combo label and recording name, every cell run by :func:`run_experiment` on the sweep
+    engine (speed figures left out: cells may run side by side).
+
+    Raises
+    ------
+    RuntimeError
+        A cell failed (a matcher's bug or an unreadable recording): its configuration, recording and error.
+    """
+    if workers is None and importlib.util.find_spec("dask") is None:
+        workers = 0  # without the sweep extra the cells run here, one after another
+    experiment = run_experiment(recordings, combos, workers=workers, progress=progress, score=bench_cell_figures)
+    return {c.label: {name: {f: v for f, v in figures.items() if f in ACCURACY_FIGURES or f in _BENCH_FIGURES}
+                      for name, figures in by_name.items()} for c, by_name in experiment.figures.items()}
+
+
+def speed_cells(recording: Recording, combos: list[Combo]) -> dict[str, dict]:
+    """Speed and peak memory of each combo on ``recording``, in this process, one after another.
+
+    Memory is sampled on one run; the time is the matcher's own (``elapsed_s``), repeated until two runs
+    agree within 10 % (:func:`cvstereo.timing.measure`), with the load average before and after.
+    """
+    out = {}
+    for c in combos:
+        def run(c=c):
+            return match(recording, method=c.method, variant=c.variant, param_set=c.param_set, **dict(c.params))
+        with PeakMemory() as mem:
+            first = run()
+        timing = measure(lambda run=run: run().meta["elapsed_s"])
+        out[c.label] = {"events_per_s": first.meta["input_events"] / timing.seconds,
+                        "realtime_x": recording.duration_s / timing.seconds, "elapsed_s": timing.seconds,
+                        "runs": timing.runs, "agreed": timing.agreed, "load_before": timing.load_before,
+                        "load_after": timing.load_after, "peak_rss_mb": mem.peak_mb,
+                        "rss_increase_mb": mem.increase_mb}
+    return out
 
 
 def share_within(disparity: np.ndarray, known: tuple[float, ...], tolerance: float = 1.0) -> float:
@@ -229,14 +269,21 @@ def run_bench(config: BenchConfig, *, progress: bool = True, log: Callable[[str]
     sims = simulated_recordings(config)
     reals = real_recordings(config.shared)
     dists = distance_recordings(config) if config.distance else {}
+    # Compiled here first, the kernels are in numba's on-disk cache when the workers start: they load them.
     compile_s = warm_up(combos)
 
     # The distance set is named like the presets (1arm-50cm, 1arm-150cm): under a shared name its recording
-    # is the one run and tabulated, as before the benchmark used the experiment's loop.
+    # is the one run and tabulated.
     recordings = {**sims, **reals, **{f"1arm-{round(z * 100)}cm": r for z, r in dists.items()}}
-    experiment = run_experiment(recordings, combos, run=run_timed, score=bench_figures, progress=progress,
-                                desc="bench")
-    runs = {c.label: figures for c, figures in experiment.figures.items()}
+    log(f"accuracy: {len(combos) * len(recordings)} cells on the sweep engine "
+        f"({_workers_text(config.workers)}) ...")
+    runs = accuracy_cells(recordings, combos, workers=config.workers, progress=progress)
+    speed = {}
+    if "2arms-50cm" in sims:
+        from cvstereo.io import read_recording
+
+        log("speed and memory: on 2arms-50cm in this process, one cell after another ...")
+        speed = speed_cells(read_recording(sims["2arms-50cm"]), combos)
 
     results = {
         "machine": machine_info(),
@@ -245,29 +292,28 @@ def run_bench(config: BenchConfig, *, progress: bool = True, log: Callable[[str]
         "combos": {c.label: {"method": c.method, "variant": c.variant, "param_set": c.param_set} for c in combos},
         "skipped": skipped,
         "compile_s": compile_s,
+        "workers": config.workers,
         "runs": runs,
-        "speed": speed_table(combos, runs),
+        "speed": speed_table(combos, speed),
         "real": {c.label: {n: runs[c.label][n]["within_1px"] for n in reals} for c in combos} if reals else {},
         "distance": distance_table(combos, runs, dists) if dists else {},
     }
     return results
 
 
-def speed_table(combos: list[Combo], runs: dict) -> dict:
-    """Speed and memory per combo on 2arms-50cm, with the speed-up over the thesis' Matlab."""
+def speed_table(combos: list[Combo], speed: dict[str, dict]) -> dict:
+    """Speed and memory per combo on 2arms-50cm (``speed``: :func:`speed_cells`' figures per label), with the
+    speed-up over the thesis' Matlab."""
     out = {}
     for c in combos:
-        fig = runs[c.label].get("2arms-50cm")
+        fig = speed.get(c.label)
         if fig is None:
             continue
         matlab = MATLAB_SECONDS.get((c.method, c.variant))
         # Matlab times are for 11 s of data; scale them to the length we ran.
         seconds_of_data = fig["realtime_x"] * fig["elapsed_s"] if fig["elapsed_s"] else float("nan")
         speedup = (matlab * seconds_of_data / RECORDING_SECONDS) / fig["elapsed_s"] if matlab else float("nan")
-        out[c.label] = {"events_per_s": fig["events_per_s"], "realtime_x": fig["realtime_x"],
-                        "elapsed_s": fig["elapsed_s"], "matlab_s": matlab if matlab else float("nan"),
-                        "speedup_vs_matlab": speedup, "peak_rss_mb": fig["peak_rss_mb"],
-                        "rss_increase_mb": fig["rss_increase_mb"]}
+        out[c.label] = {**fig, "matlab_s": matlab if matlab else float("nan"), "speedup_vs_matlab": speedup}
     return out
 
 
@@ -317,6 +363,10 @@ def machine_info() -> dict:
     return info
 
 
+def _workers_text(workers: int | None) -> str:
+    return "one worker per core" if workers is None else f"workers={workers}"
+
+
 def bench_markdown(results: dict) -> str:
     """The benchmark as a markdown report: machine, thesis tables with truth, speed, real data, distance."""
     m = results["machine"]
@@ -327,7 +377,9 @@ def bench_markdown(results: dict) -> str:
         f"Machine: {m['processor']}, {m['cpus']} CPUs, {m['platform']}; Python {m['python']}, numpy {m['numpy']}, "
         f"OpenCV {m['opencv']}, numba {m.get('numba', '-')}; cvstereo {m['cvstereo']}; {m['date']}.",
         f"Presets: {cfg['preset_seconds']:g} s each{' (--quick)' if cfg['quick'] else ''}; extra scenes "
-        f"{cfg['extra_seconds']:g} s. Matching runs on one process, single-threaded where the library allows."
+        f"{cfg['extra_seconds']:g} s. Accuracy cells ran on the sweep engine "
+        f"({_workers_text(results.get('workers'))}); "
+        "speed and memory in one process afterwards, alone, single-threaded where the library allows."
         + (f" Not installed, so not run: {', '.join(results['skipped'])}." if results.get("skipped") else ""),
         "",
         "## Accuracy against ground truth, beside the thesis' mean/std",
@@ -346,14 +398,17 @@ def bench_markdown(results: dict) -> str:
         heading = f"{info['method']}/{info['variant']} ({info.get('param_set', 'thesis')} set)"
         lines += ["", f"### {heading}", "", markdown_table(rows, columns=columns, thesis=thesis)]
     lines += ["", "## Speed and memory on 2arms-50cm", "",
+              "Each time is the faster of the first two runs within 10 % of each other (at most 6 runs; `*`: none "
+              "agreed, the fastest shown), with the 1-minute load average before and after.", "",
               "| matcher | events/s | x real time | Matlab s (11 s) | speed-up vs Matlab | peak RSS MB | "
-              "RSS increase MB | compile s |", "|---|---:|---:|---:|---:|---:|---:|---:|"]
+              "RSS increase MB | compile s | runs | load |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|---|"]
     for label, s in results["speed"].items():
         lines.append(
             f"| {label} | {format_figure('events_per_s', s['events_per_s'])} | "
             f"{format_figure('realtime_x', s['realtime_x'])} | {format_figure('x', s['matlab_s'])} | "
             f"{format_figure('x', s['speedup_vs_matlab'])}x | {format_figure('x', s['peak_rss_mb'])} | "
-            f"{format_figure('x', s['rss_increase_mb'])} | {format_figure('x', results['compile_s'].get(label))} |")
+            f"{format_figure('x', s['rss_increase_mb'])} | {format_figure('x', results['compile_s'].get(label))} | "
+            f"{s['runs']}{'' if s['agreed'] else ' *'} | {s['load_before']:.1f} -> {s['load_after']:.1f} |")
     if results["real"]:
         names = list(next(iter(results["real"].values())))
         lines += ["", "## Real TUM recordings: share of estimates within 1 px of the known disparity", "",

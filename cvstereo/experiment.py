@@ -1,20 +1,25 @@
 """The thesis' experiment: every matcher variant on a set of recordings, scored and tabulated.
 
-Used by ``cvstereo demo`` and ``cvstereo bench`` (which adds memory sampling and its own figures through
-the hooks of :func:`run_experiment`). Matchers are looked up by name in :mod:`cvstereo.registry`.
+Used by ``cvstereo demo`` and ``cvstereo bench`` (which adds its own figures through the ``score`` hook
+of :func:`run_experiment`). The runs are the cells of the sweep engine (:func:`cvstereo.sweep.run_sweep`),
+the one loop over matcher configurations and recordings. Matchers are looked up by name in
+:mod:`cvstereo.registry`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Mapping
+import math
+import os
+import tempfile
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 
-from cvstereo.evaluate import evaluate, markdown_table
-from cvstereo.matches import MatchResult
+from cvstereo.evaluate import FIGURES, markdown_table
 from cvstereo.param_sets import ADAPTIVE
-from cvstereo.pipeline import match
 from cvstereo.recording import Recording
 from cvstereo.registry import available_methods, matcher_class
+from cvstereo.sweep.engine import Score, run_sweep
+from cvstereo.sweep.grid import Cell
 from cvstereo.thesis import DISPARITY_TABLES
 
 
@@ -40,14 +45,12 @@ class Combo:
 
 @dataclass
 class ExperimentResult:
-    """Figures per combo and recording, and the meta of each matches run."""
+    """Figures per combo and recording."""
 
     figures: dict[Combo, dict[str, dict]] = field(default_factory=dict)
-    meta: dict[Combo, dict[str, dict]] = field(default_factory=dict)
 
-    def add(self, combo: Combo, recording: str, figures: dict, meta: dict) -> None:
+    def add(self, combo: Combo, recording: str, figures: dict) -> None:
         self.figures.setdefault(combo, {})[recording] = figures
-        self.meta.setdefault(combo, {})[recording] = meta
 
 
 def all_combos(methods: Iterable[str] | None = None, *, param_sets: Iterable[str] = ("thesis",)) -> list[Combo]:
@@ -63,64 +66,59 @@ def all_combos(methods: Iterable[str] | None = None, *, param_sets: Iterable[str
     return out
 
 
-def run_combo(recording: Recording, combo: Combo) -> MatchResult:
-    """Run one combo over a recording (the default ``run`` of :func:`run_experiment`)."""
-    return match(recording, method=combo.method, variant=combo.variant, param_set=combo.param_set,
-                 **dict(combo.params))
+#: Fields of a sweep row that are bookkeeping or machine-dependent, not figures of the run.
+_NOT_FIGURES = frozenset({"key", "recording", "method", "variant", "param_set", "params", "elapsed_s", "worker",
+                          "error"})
 
 
-def score_result(name: str, recording: Recording, result: MatchResult) -> dict:
-    """The figures of one run (the default ``score`` of :func:`run_experiment`): :func:`evaluate`."""
-    return evaluate(recording, result)
-
-
-def run_experiment(recordings: Mapping[str, Recording], combos: Iterable[Combo], *,
-                   on_result: Callable[[Combo, str, dict], None] | None = None,
-                   progress: bool = False, desc: str = "matching",
-                   run: Callable[[Recording, Combo], MatchResult] = run_combo,
-                   score: Callable[[str, Recording, MatchResult], dict] = score_result) -> ExperimentResult:
-    """Run each combo on each recording and evaluate it.
+def run_experiment(recordings: Mapping[str, Recording | str | os.PathLike], combos: Iterable[Combo], *,
+                   progress: bool = False, workers: int | None = 0, score: Score | None = None) -> ExperimentResult:
+    """Run each combo on each recording and evaluate it, as cells of :func:`cvstereo.sweep.run_sweep`.
 
     Parameters
     ----------
     recordings : mapping
-        Name -> Recording (with or without ground truth).
+        Name -> Recording (with or without ground truth; matched in this process) or the path of a
+        recording file (workers read it themselves).
     combos : iterable of Combo
-    on_result : callable, optional
-        Called with (combo, recording name, figures) after each run, e.g. to print progress.
     progress : bool
         Show a progress bar over the runs.
-    desc : str
-        The progress bar's label.
-    run : callable, keyword-only
-        ``run(recording, combo) -> MatchResult`` (e.g. with memory sampling); default :func:`run_combo`.
-    score : callable, keyword-only
-        ``score(name, recording, result) -> figures``; default :func:`score_result`.
+    workers : int or None, keyword-only
+        Worker processes (Dask; None: one per core); 0, the default: one run after another in this process.
+        Recordings in memory need 0.
+    score : callable, optional, keyword-only
+        ``score(cell, recording, result) -> dict`` of figures added to :func:`evaluate`'s (a module-level
+        function, so that workers can run it).
 
     Returns
     -------
     ExperimentResult
+        Per combo and recording name: :func:`cvstereo.evaluate.evaluate`'s figures (NaN where undefined)
+        and those of ``score``.
+
+    Raises
+    ------
+    RuntimeError
+        A run failed: which combo on which recording, and its error.
     """
     combos = list(combos)
-    jobs = [(c, name) for c in combos for name in recordings]
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=len(jobs), unit="run", desc=desc, leave=False)
+    in_memory = {f"memory:{name}": rec for name, rec in recordings.items() if isinstance(rec, Recording)}
+    where = {name: f"memory:{name}" if isinstance(rec, Recording) else os.fspath(rec)
+             for name, rec in recordings.items()}
+    cells = [Cell(where[name], c.method, c.variant, c.params, c.param_set) for c in combos for name in recordings]
+    # Cell files only live for this call: an experiment is run whole (a sweep is the resumable kind).
+    with tempfile.TemporaryDirectory(prefix="cvstereo-experiment-") as tmp:
+        sweep = run_sweep(cells, tmp, workers=workers, progress=progress, score=score, recordings=in_memory)
     result = ExperimentResult()
-    for combo, name in jobs:
-        if bar is not None:
-            bar.set_postfix_str(f"{combo.label} on {name}")
-        res = run(recordings[name], combo)
-        figures = score(name, recordings[name], res)
-        result.add(combo, name, figures, res.meta)
-        if on_result is not None:
-            on_result(combo, name, figures)
-        if bar is not None:
-            bar.update()
-    if bar is not None:
-        bar.close()
+    rows = iter(sweep.rows)
+    for combo in combos:
+        for name in recordings:
+            row = next(rows)
+            if row["error"] is not None:
+                raise RuntimeError(f"{combo.label} on {name} failed: {row['error']}")
+            figures = {f: row.get(f) for f in FIGURES}
+            figures.update((k, v) for k, v in row.items() if k not in _NOT_FIGURES and not k.startswith("param."))
+            result.add(combo, name, {k: math.nan if v is None else v for k, v in figures.items()})
     return result
 
 

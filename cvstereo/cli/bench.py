@@ -21,6 +21,9 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
                    help="1.5 s clips of every recording: about a minute once the recordings are cached")
     p.add_argument("-m", "--methods", nargs="+", default=None, metavar="METHOD", help="matchers to run (default: all)")
     p.add_argument("--no-distance", action="store_true", help="skip the distance fit")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="worker processes for the accuracy cells (sweep engine, Dask; default: one per core; "
+                   "0: in this process). Speed and memory are measured afterwards in this process, alone")
     p.add_argument("--shared", default=None,
                    help="shared data folder with data/tum-stereo (default: $CVSTEREO_SHARED or ../shared)")
     add_progress_option(p)
@@ -28,6 +31,8 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.workers is not None and args.workers < 0:
+        raise ValueError(f"--workers {args.workers}: give 0 (in this process) or a positive number of workers.")
     out = Path(args.output)
     if out.exists() and not out.is_dir():
         raise NotADirectoryError(f"-o {out}: exists and is not a folder; bench writes results.json and results.md "
@@ -40,7 +45,8 @@ def run(args: argparse.Namespace) -> int:
     # Speed is reported per core: OpenCV would otherwise spread its kernels over every CPU.
     cv2.setNumThreads(1)
     config = BenchConfig(quick=args.quick, methods=tuple(args.methods) if args.methods else None,
-                         shared=shared_folder(args.shared), distance=not args.no_distance)
+                         shared=shared_folder(args.shared), distance=not args.no_distance,
+                         workers=args.workers)
     results = run_bench(config, progress=progress_wanted(args), log=lambda msg: print(msg, file=sys.stderr))
     json_path, md_path = write_results(results, Path(args.output))
     print(md_path.read_text())

@@ -25,6 +25,7 @@ from cvstereo.sweep.engine import (
     SweepResult,
     cell_key,
     file_digest,
+    recording_digest,
     run_cell,
     run_sweep,
     source_digest,
@@ -33,5 +34,5 @@ from cvstereo.sweep.grid import Cell, Grid, read_grid_file, resolve_recordings
 from cvstereo.sweep.report import LOWER_IS_BETTER, summary_markdown, write_table
 
 __all__ = ["FIGURE_COLUMNS", "LOWER_IS_BETTER", "TIMING_COLUMNS", "Cell", "Grid", "SweepResult", "cell_key",
-           "file_digest", "read_grid_file", "resolve_recordings", "run_cell", "run_sweep", "source_digest",
-           "summary_markdown", "write_table"]
+           "file_digest", "read_grid_file", "recording_digest", "resolve_recordings", "run_cell", "run_sweep",
+           "source_digest", "summary_markdown", "write_table"]

@@ -9,15 +9,21 @@ import json
 import math
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from cvstereo.registry import ENTRY_POINT_GROUP
 from cvstereo.sweep.grid import Cell
 
+if TYPE_CHECKING:
+    from cvstereo.matches import MatchResult
+    from cvstereo.recording import Recording
+
 #: Figures of :func:`cvstereo.evaluate.evaluate` kept per cell.
-FIGURE_COLUMNS = ("matches", "coverage", "bad1", "bad2", "mae", "rmse", "median_ae", "false_rate", "mean", "std")
+FIGURE_COLUMNS = ("matches", "coverage", "bad1", "bad2", "mae", "rmse", "median_ae", "false_rate", "mean", "std",
+                  "truth_mean")
 #: Columns that depend on the machine and the moment, not on the grid.
 TIMING_COLUMNS = ("elapsed_s", "events_per_s", "realtime_x", "worker")
 
@@ -28,6 +34,21 @@ def file_digest(path: str | os.PathLike) -> str:
     with open(path, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):
             h.update(block)
+    return h.hexdigest()
+
+
+def recording_digest(recording: Recording) -> str:
+    """sha256 of an in-memory recording's events, ground truth and sensor size (hex)."""
+    import numpy as np
+
+    h = hashlib.sha256(json.dumps(list(recording.resolution)).encode())
+    for array in (recording.left, recording.right, recording.left_disparity, recording.right_disparity):
+        if array is None:
+            h.update(b"\0none")
+            continue
+        array = np.ascontiguousarray(array)
+        h.update(f"\0{array.dtype.str}{array.shape}".encode())
+        h.update(array.tobytes())
     return h.hexdigest()
 
 
@@ -53,21 +74,41 @@ def source_digest() -> str:
     return h.hexdigest()
 
 
-def cell_key(cell: Cell, recording_digest: str, code_digest: str) -> str:
-    """The cell's identity: recording content, method, variant, parameters and source code (hex, 24)."""
+#: ``score(cell, recording, result) -> figures``: extra figures of a cell beside :data:`FIGURE_COLUMNS`.
+Score = Callable[[Cell, "Recording", "MatchResult"], dict]
+
+
+def cell_key(cell: Cell, recording_digest: str, code_digest: str, score: Score | None = None) -> str:
+    """The cell's identity: recording content, method, variant, parameters, source code and the ``score``
+    function adding figures, if any (hex, 24)."""
     text = json.dumps({"recording": recording_digest, "method": cell.method, "variant": cell.variant,
                        **({"param_set": cell.param_set} if cell.param_set else {}),
+                       **({"score": _function_name(score)} if score is not None else {}),
                        "params": [[k, v] for k, v in cell.params], "code": code_digest}, sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()[:24]
 
 
-def run_cell(cell: Cell) -> dict:
+def _function_name(fn) -> str:
+    return f"{fn.__module__}.{fn.__qualname__}"
+
+
+def run_cell(cell: Cell, score: Score | None = None, recording: Recording | None = None) -> dict:
     """Match and evaluate one cell; never raises for a bad cell (the error is in the row).
+
+    Parameters
+    ----------
+    cell : Cell
+    score : callable, optional
+        ``score(cell, recording, result) -> dict`` of further figures for the row (a module-level function,
+        so that Dask can send it to the workers); its figures are added after :data:`FIGURE_COLUMNS`.
 
     Returns
     -------
     dict
-        :data:`FIGURE_COLUMNS`, :data:`TIMING_COLUMNS` and ``error`` (None when the cell ran).
+        :data:`FIGURE_COLUMNS`, :data:`TIMING_COLUMNS`, ``error`` (None when the cell ran) and the figures of
+        ``score``.
+    recording : Recording, optional
+        The recording in memory (in-process runs); None: read from ``cell.recording``, a path.
     """
     row: dict = dict.fromkeys(FIGURE_COLUMNS)
     row.update(dict.fromkeys(TIMING_COLUMNS), error=None, worker=f"{os.uname().nodename}:{os.getpid()}")
@@ -78,10 +119,15 @@ def run_cell(cell: Cell) -> dict:
         from cvstereo.pipeline import match
 
         extra = {"param_set": cell.param_set} if cell.param_set else {}
-        result = match(cell.recording, method=cell.method, variant=cell.variant, **extra, **dict(cell.params))
-        figures = evaluate(read_recording(cell.recording), result)
+        result = match(cell.recording if recording is None else recording, method=cell.method,
+                       variant=cell.variant, **extra, **dict(cell.params))
+        if recording is None:
+            recording = read_recording(cell.recording)
+        figures = evaluate(recording, result)
         for name in (*FIGURE_COLUMNS, "events_per_s", "realtime_x"):
             row[name] = _plain(figures.get(name))
+        if score is not None:
+            row.update((name, _plain(value)) for name, value in score(cell, recording, result).items())
     except Exception as exc:  # a failing cell is recorded, never fatal to the sweep
         row["error"] = f"{type(exc).__name__}: {' '.join(str(exc).split())}"
     row["elapsed_s"] = time.perf_counter() - start
@@ -119,7 +165,8 @@ class SweepResult:
 
 def run_sweep(cells: Sequence[Cell], out_dir: str | os.PathLike, *, workers: int | None = None,
               scheduler: str | None = None, progress: bool = False,
-              on_row: Callable[[Cell, dict], None] | None = None) -> SweepResult:
+              on_row: Callable[[Cell, dict], None] | None = None, score: Score | None = None,
+              recordings: Mapping[str, Recording] | None = None) -> SweepResult:
     """Run every cell not already in ``out_dir`` and return all rows in grid order.
 
     Parameters
@@ -136,11 +183,25 @@ def run_sweep(cells: Sequence[Cell], out_dir: str | os.PathLike, *, workers: int
         Progress bar with cells done / failed / remaining.
     on_row : callable, optional
         Called with (cell, row) as each cell finishes (rows of earlier runs are not reported).
+    score : callable, optional
+        Further figures per cell, see :func:`run_cell` (part of the cell key).
+    recordings : mapping, optional
+        Recordings in memory, by the name the cells give as ``recording`` (their key hashes their arrays);
+        only with ``workers=0``, since workers read recordings from paths.
+
+    Raises
+    ------
+    ValueError
+        In-memory recordings with workers or a scheduler.
 
     Returns
     -------
     SweepResult
     """
+    in_memory = dict(recordings or {})
+    if in_memory and (workers != 0 or scheduler is not None):
+        raise ValueError("recordings in memory are matched in this process only (workers=0): workers read "
+                         "recordings from paths, so give the cells file paths to run them on workers.")
     out = Path(out_dir)
     (out / "cells").mkdir(parents=True, exist_ok=True)
     code = source_digest()
@@ -148,8 +209,9 @@ def run_sweep(cells: Sequence[Cell], out_dir: str | os.PathLike, *, workers: int
     keys = []
     for cell in cells:
         if cell.recording not in digests:
-            digests[cell.recording] = file_digest(cell.recording)
-        keys.append(cell_key(cell, digests[cell.recording], code))
+            rec = in_memory.get(cell.recording)
+            digests[cell.recording] = file_digest(cell.recording) if rec is None else recording_digest(rec)
+        keys.append(cell_key(cell, digests[cell.recording], code, score))
     done = {k: _read_cell(out, k) for k in dict.fromkeys(keys) if (out / "cells" / f"{k}.json").exists()}
     todo = [(k, c) for k, c in dict(zip(keys, cells, strict=True)).items() if k not in done]
     result = SweepResult(reused=len(done))
@@ -168,9 +230,9 @@ def run_sweep(cells: Sequence[Cell], out_dir: str | os.PathLike, *, workers: int
     if todo:
         if workers == 0 and scheduler is None:
             for key, cell in todo:
-                finished(key, cell, run_cell(cell))
+                finished(key, cell, run_cell(cell, score, in_memory.get(cell.recording)))
         else:
-            _run_on_dask(todo, finished, workers=workers, scheduler=scheduler)
+            _run_on_dask(todo, finished, workers=workers, scheduler=scheduler, score=score)
     if bar is not None:
         bar.close()
     result.rows = [_table_row(cell, key, done[key]) for cell, key in zip(cells, keys, strict=True)]
@@ -178,7 +240,7 @@ def run_sweep(cells: Sequence[Cell], out_dir: str | os.PathLike, *, workers: int
     return result
 
 
-def _run_on_dask(todo, finished, *, workers: int | None, scheduler: str | None) -> None:
+def _run_on_dask(todo, finished, *, workers: int | None, scheduler: str | None, score: Score | None) -> None:
     try:
         from dask.distributed import Client, LocalCluster, as_completed
     except ImportError:
@@ -193,7 +255,8 @@ def _run_on_dask(todo, finished, *, workers: int | None, scheduler: str | None) 
     else:
         client = Client(scheduler)
     try:
-        futures = {client.submit(run_cell, cell, key=f"cell-{key}", pure=False): (key, cell) for key, cell in todo}
+        futures = {client.submit(run_cell, cell, score, key=f"cell-{key}", pure=False): (key, cell)
+                   for key, cell in todo}
         for future in as_completed(futures):
             key, cell = futures[future]
             finished(key, cell, future.result())
@@ -231,4 +294,6 @@ def _table_row(cell: Cell, key: str, row: dict) -> dict:
            "params": json.dumps(dict(cell.params), sort_keys=True)}
     out.update({f"param.{k}": v for k, v in cell.params})
     out.update({name: row.get(name) for name in (*FIGURE_COLUMNS, *TIMING_COLUMNS, "error")})
+    # Figures of a score function (run_cell), after the standard columns.
+    out.update({name: value for name, value in row.items() if name not in out})
     return out
