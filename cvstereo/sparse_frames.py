@@ -203,6 +203,31 @@ def _dilate_row(src, dst, width):  # pragma: no cover - compiled
         dst[n - 1] &= (np.uint64(1) << np.uint64(tail)) - np.uint64(1)
 
 
+@numba.njit(cache=True, nogil=True)
+def band_of_rows(bits, y, r, width):  # pragma: no cover - compiled
+    """Row ``y``'s band: the set bits of rows y - r .. y + r of ``bits`` (a plane's bitmap), widened by r columns
+    on each side; bit x says whether the (2r+1)-square centred at (y, x) holds a set bit."""
+    h, n_words = bits.shape
+    band = np.zeros(n_words, np.uint64)
+    for yy in range(max(0, y - r), min(h, y + r + 1)):
+        for i in range(n_words):
+            band[i] |= bits[yy, i]
+    one = np.uint64(1)
+    for _ in range(r):  # one column per pass
+        wider = band.copy()
+        for i in range(n_words):
+            s = band[i]
+            wider[i] |= (s << one) | (s >> one)
+            if i > 0:
+                wider[i] |= band[i - 1] >> np.uint64(63)
+            if i + 1 < n_words:
+                wider[i] |= band[i + 1] << np.uint64(63)
+        band = wider
+    if width & 63:
+        band[n_words - 1] &= (one << np.uint64(width & 63)) - one
+    return band
+
+
 @numba.njit(cache=True, nogil=True, inline="always")
 def _tap5(c, p1, p2, k0, k1, k2, fused_product_first, fused):  # pragma: no cover - compiled
     """One output of a 5-tap symmetric pass: centre c, neighbour sums p1 (1 px) and p2 (2 px).

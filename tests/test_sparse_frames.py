@@ -63,6 +63,33 @@ def test_other_kernels_and_off_sensor_events():
     assert not sf.values.any() and not sf.touched.any()  # cleared for the next window
 
 
+def _shifted_patches(seed, *, width, height, windows=3):
+    """Patches with 3 events a pixel, the right camera's a few px further left, plus noise: frames that pass the
+    thresholds, blocks that match and blocks that do not."""
+    rng = np.random.default_rng(seed)
+    cams = [[], []]
+    for k in range(windows):
+        for _ in range(10):
+            shift, w, h = rng.integers(0, 12), rng.integers(2, 9), rng.integers(2, 6)
+            x0, y0 = rng.integers(shift, width - w), rng.integers(0, height - h)
+            yy, xx = np.mgrid[y0:y0 + h, x0:x0 + w]
+            x, y = np.repeat(xx.ravel(), 3), np.repeat(yy.ravel(), 3)
+            t = rng.integers(k * 40_000, (k + 1) * 40_000, x.size)
+            p = np.full(x.size, rng.integers(0, 2))
+            cams[0].append((t, x, y, p))
+            cams[1].append((t, x - shift, y, p))
+        for cam in cams:
+            n = 100
+            cam.append((rng.integers(k * 40_000, (k + 1) * 40_000, n), rng.integers(0, width, n),
+                        rng.integers(0, height, n), rng.integers(0, 2, n)))
+    out = []
+    for cam in cams:
+        t, x, y, p = (np.concatenate(c) for c in zip(*cam, strict=True))
+        order = np.argsort(t, kind="stable")
+        out.append(make_events(t[order], x[order], y[order], p[order]))
+    return out[0], out[1], (width, height)
+
+
 def _dense_and_sparse(method, variant, left, right, resolution, cuts, **params):
     cls = matcher_class(method)
     sparse = cls(cls.make_params(variant, **params), resolution=resolution)
@@ -82,3 +109,17 @@ def test_frame_matcher_sparse_path_equals_dense_path(variant, mode):
     assert expected.size > 0
     np.testing.assert_array_equal(got, expected)
     assert sparse.diagnostics() == dense.diagnostics()  # the signal level saw the same values
+
+
+@pytest.mark.parametrize("variant", ["gaussian", "no-gaussian"])
+@pytest.mark.parametrize("params", [{}, {"reference_camera": 0, "max_disparity": 9},
+                                    {"threshold_mode": "relative", "level_window_us": 5_000, "level_warmup": 20},
+                                    {"block": 3}, {"block": 7, "max_disparity": 40}])
+def test_frame_area_sparse_path_equals_dense_path(variant, params):
+    left, right, resolution = _shifted_patches(5, width=90, height=30)
+    extra = {"threshold": 1.5} if variant == "gaussian" else {"threshold": 3.0}
+    got, expected, sparse, dense = _dense_and_sparse("frame-area", variant, left, right, resolution,
+                                                     [10_000, 25_000], **{**extra, **params})
+    assert expected.size > 0
+    np.testing.assert_array_equal(got, expected)
+    assert sparse.diagnostics() == dense.diagnostics()
