@@ -73,28 +73,43 @@ class SortedRuns:
             raise ValueError("SortedRuns.quantile: no values (append a run first).")
         stops = np.fromiter(self._stops, np.int64, len(self._stops))
         starts = np.concatenate(([self._lo], stops[:-1]))
-        return _linear_quantile(self._buf.view(np.int64), starts, stops, n, q)
+        virtual = (n - 1) * float(q)
+        a, b = _neighbours(self._buf, self._buf.view(np.int64), starts, stops, n, virtual)
+        return _lerp(a, b, virtual)
 
 
-def _linear_quantile(bits: np.ndarray, starts: np.ndarray, stops: np.ndarray, n: int, q: float) -> float:
-    """numpy's ``linear`` quantile (numpy.lib._function_base_impl._quantile with a scalar q), step by step."""
-    virtual = (n - 1) * float(q)
-    if virtual >= n - 1:  # numpy takes the last value (both neighbours are index -1)
-        a = b = _from_bits(_order_statistic(bits, starts, stops, n - 1))
-        gamma = virtual + 1.0  # virtual - (-1): numpy's gamma there; a == b makes it irrelevant but for 0 * inf
-    else:
-        previous = math.floor(virtual)
-        a_bits = _order_statistic(bits, starts, stops, previous)
-        b_bits = _next_order_statistic(bits, starts, stops, previous, a_bits)
-        a, b = _from_bits(a_bits), _from_bits(b_bits)
-        gamma = virtual - previous
-    # numpy's _lerp: a + (b - a) * t, and b - (b - a) * (1 - t) where t >= 0.5.
+def _lerp(a: float, b: float, virtual: float) -> float:
+    """numpy's ``linear`` quantile (numpy.lib._function_base_impl._quantile with a scalar q) from the values
+    ``a``, ``b`` at ``floor(virtual)`` and the next index (both the last value when virtual >= n - 1)."""
+    # numpy's gamma is virtual - the previous index (-1 at the last value, where a == b makes gamma moot).
+    gamma = virtual - math.floor(virtual)
     diff = b - a
+    # numpy's _lerp: a + (b - a) * t, and b - (b - a) * (1 - t) where t >= 0.5.
     return b - diff * (1.0 - gamma) if gamma >= 0.5 else a + diff * gamma
 
 
-def _from_bits(b: int) -> float:
-    return float(np.array([b], np.int64).view(np.float64)[0])
+@numba.njit(cache=True, nogil=True)
+def _neighbours(values, bits, starts, stops, n, virtual):  # pragma: no cover - compiled
+    """The values at index floor(virtual) and the next of the sorted union of the runs; the last value twice
+    when virtual >= n - 1 (as numpy)."""
+    if virtual >= n - 1:
+        last = _order_statistic(bits, starts, stops, n - 1)
+        v = _value_of(values, bits, starts, stops, last)
+        return v, v
+    previous = int(np.floor(virtual))
+    a_bits = _order_statistic(bits, starts, stops, previous)
+    b_bits = _next_order_statistic(bits, starts, stops, previous, a_bits)
+    return _value_of(values, bits, starts, stops, a_bits), _value_of(values, bits, starts, stops, b_bits)
+
+
+@numba.njit(cache=True, nogil=True)
+def _value_of(values, bits, starts, stops, pattern):  # pragma: no cover - compiled
+    """The value whose bit pattern is ``pattern`` (one of the runs holds it)."""
+    for r in range(starts.size):
+        k = starts[r] + np.searchsorted(bits[starts[r]: stops[r]], pattern)
+        if k < stops[r] and bits[k] == pattern:
+            return values[k]
+    return np.nan
 
 
 @numba.njit(cache=True, nogil=True)
