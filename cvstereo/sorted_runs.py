@@ -45,8 +45,9 @@ class SortedRuns:
         n = values.size
         if self._hi + n > self._buf.size:
             live = self._hi - self._lo
-            # Move the live runs to the front, into a larger buffer when they would fill more than half of it.
-            buf = self._buf if 2 * (live + n) <= self._buf.size else np.empty(2 * (live + n), np.float64)
+            # Move the live runs to the front, into a larger buffer (with room for growth: a fresh buffer's pages
+            # cost a fault each) when they would fill more than half of it.
+            buf = self._buf if 2 * (live + n) <= self._buf.size else np.empty(4 * (live + n), np.float64)
             buf[:live] = self._buf[self._lo: self._hi]
             self._stops = deque(s - self._lo for s in self._stops)
             self._buf, self._lo, self._hi = buf, 0, live
