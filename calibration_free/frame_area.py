@@ -8,7 +8,11 @@ differences (ties: the smaller disparity); the winner is written into the whole 
 disparity map, overwriting, so that those pixels are not searched again.
 
 The scan is one numba kernel (:func:`scan_sad`) that computes the SAD only for the pixels it actually searches
-(each search fills a whole block of the disparity map, so most above-threshold pixels are never searched).
+(each search fills a whole block of the disparity map, so most above-threshold pixels are never searched). On
+sparse frames (:mod:`cvstereo.sparse_frames`) the matcher uses :func:`_scan_sparse`, which also skips the
+disparities whose block in the other frame is empty (but the first: all of them give the same SAD) and stops a
+sum once it reaches the best so far, with the same result; the dense path stays for the cases the sparse frames
+do not reproduce (another kernel size, thresholds <= 0).
 Its readable twin, a full cost volume from OpenCV kernels (``cv2.absdiff`` and an unnormalised
 ``cv2.boxFilter`` per disparity) and the scan over it, is :mod:`calibration_free.reference.frame_area`.
 

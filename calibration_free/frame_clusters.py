@@ -6,9 +6,14 @@ sign (the thesis' 3xN "comparison array": sign, left edge, right edge). Row y of
 if both list the same number of clusters with the same signs in the same order; cluster i pairs with cluster
 i if the widths differ by at most 30 %, and the disparity is the difference of the centres.
 
-:class:`FrameClusterMatcher` runs one numba kernel per window over all its frames (:func:`_match_stacked_rows`):
-per window, numpy's per-call overhead, not arithmetic, is the cost. Its readable twin, vectorised with numpy
-over a whole frame, is :mod:`calibration_free.reference.frame_clusters`; the tests hold both equal.
+:class:`FrameClusterMatcher` runs one numba kernel per window over all its frames: per window, numpy's per-call
+overhead, not arithmetic, is the cost. On sparse frames (:mod:`cvstereo.sparse_frames`: only the pixels within
+2 px of an event are filtered, with OpenCV's own arithmetic) it reads each row's clusters from the support's
+bitmaps (:func:`_match_sparse_rows`); where the sparse filter cannot reproduce OpenCV's (another kernel size,
+an unknown build) or a threshold is <= 0 (the sparse path reads only pixels near events), it filters whole
+stacked frames with ``cv2.GaussianBlur`` (:func:`_match_stacked_rows`). Both give the same matches. Its readable
+twin, vectorised with numpy over a whole frame, is :mod:`calibration_free.reference.frame_clusters`; the tests
+hold them equal.
 
 Relative thresholds (``threshold_mode="relative"``, :mod:`cvstereo.signal_level`): the cluster threshold
 (1.2 on the filtered sum of signs) becomes ``threshold_scale`` times the signal level of each camera, the 0.9
@@ -85,7 +90,7 @@ class FrameClusterMatcher(FrameMatcher):
         prm = self.params
         k = window.t_start // prm.level_window_us
         threshold = self._level.thresholds(k)  # from the windows before this one
-        if self._sparse is not None and threshold.min() > 0:  # a threshold <= 0 keeps the pixels without events
+        if self._sparse is not None and threshold.min() > 0:  # the sparse path reads only pixels near events
             return self._match_sparse(k, window, threshold)
         if not (window.left.size and window.right.size):
             self._add_levels(k, window, *self._stack(window))

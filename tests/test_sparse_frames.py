@@ -123,3 +123,30 @@ def test_frame_area_sparse_path_equals_dense_path(variant, params):
     assert expected.size > 0
     np.testing.assert_array_equal(got, expected)
     assert sparse.diagnostics() == dense.diagnostics()
+
+
+def test_a_threshold_of_zero_gives_the_references_result():
+    """A relative threshold may reach 0 (floor 0, a level of 0: ON and OFF cancel at every pixel of window 0);
+    frame-area then searches pixels without events too, which only its dense path does: the matches still
+    equal the reference's. (The cluster matcher keeps no zero pixel at a threshold of 0: v >= 0 and v <= -0.)"""
+    from calibration_free.reference.frame_area import frame_area_reference
+    method = "frame-area"
+    width, height = 40, 20
+    yy, xx = np.mgrid[0:height, 0:width]
+    n = xx.size
+    cancel = make_events(np.arange(2 * n) % 40_000, np.repeat(xx.ravel(), 2), np.repeat(yy.ravel(), 2),
+                         np.tile([0, 1], n))  # ON + OFF at every pixel: all frame values 0
+    cams = []
+    for patches in _shifted_patches(8, width=width, height=height, windows=1)[:2]:
+        later = patches.copy()
+        later["t"] += 40_000
+        cams.append(np.concatenate([cancel, later]))
+    params = matcher_class(method).make_params(
+        None, gaussian=False, threshold_mode="relative", level_floor=0.0, level_warmup=10, level_windows=1,
+        threshold=3.0)
+    m = matcher_class(method)(params, resolution=(width, height))
+    got = feed_cut(m, cams[0], cams[1], [20_000, 60_000])
+    assert m._level.thresholds(1).tolist() == [0.0, 0.0]  # window 1 ran with a threshold of 0
+    expected = frame_area_reference(cams[0], cams[1], params, resolution=(width, height))
+    assert (expected["t"] == 80_000).sum() > 20
+    np.testing.assert_array_equal(got, expected)
