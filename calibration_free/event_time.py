@@ -80,6 +80,23 @@ def _resolve(pt, px, py, pp, pv, n, ct, cx, cy, cp, cv, height, window, row_tol,
         out[i] = best
 
 
+@njit(cache=True)
+def _passing(value, p, threshold, signed):
+    """Indices of the events whose ``|value| >= threshold`` (NaN, a dropped polarity, fails) and, if ``signed``,
+    whose value has the event's sign (``2 p - 1``): the threshold and sign tests in one pass."""
+    out = np.empty(value.size, dtype=np.int64)
+    n = 0
+    for i in range(value.size):
+        v = value[i]
+        if not abs(v) >= threshold:
+            continue
+        if signed and (v > 0) - (v < 0) != 2 * p[i] - 1:
+            continue
+        out[n] = i
+        n += 1
+    return out[:n]
+
+
 class EventTimeMatcher(StreamMatcher):
     """Event-time matcher (thesis Algorithm 1), fast path; streaming, ``feed`` / ``flush``.
 
@@ -155,14 +172,14 @@ class EventTimeMatcher(StreamMatcher):
         cols = event_matrix(events)
         if cam == self.params.reference_camera:
             v1 = self._bank.process_columns(cam, cols, read="before")
-            keep = np.abs(v1) >= threshold  # NaN (dropped polarity) compares False
+            keep = _passing(v1, cols[3], float(threshold), False)
             self._pending = np.concatenate([self._pending, cols[:, keep]], axis=1)
             self._pending_value = np.concatenate([self._pending_value, v1[keep]])
-            self._pending_tol = np.concatenate([self._pending_tol, np.full(int(keep.sum()), tolerance)])
+            self._pending_tol = np.concatenate([self._pending_tol, np.full(keep.size, tolerance)])
             self._level.add(k, cam, v1)
         else:
             v2 = self._bank.process_columns(cam, cols, read="after")
-            keep = (np.abs(v2) >= threshold) & (np.sign(v2) == 2 * cols[3] - 1)
+            keep = _passing(v2, cols[3], float(threshold), True)
             self._cands = np.concatenate([self._cands, cols[:, keep]], axis=1)
             self._cand_value = np.concatenate([self._cand_value, v2[keep]])
             self._level.add(k, cam, v2)

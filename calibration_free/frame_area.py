@@ -8,7 +8,11 @@ differences (ties: the smaller disparity); the winner is written into the whole 
 disparity map, overwriting, so that those pixels are not searched again.
 
 The scan is one numba kernel (:func:`scan_sad`) that computes the SAD only for the pixels it actually searches
-(each search fills a whole block of the disparity map, so most above-threshold pixels are never searched).
+(each search fills a whole block of the disparity map, so most above-threshold pixels are never searched). On
+sparse frames (:mod:`cvstereo.sparse_frames`) the matcher uses :func:`_scan_sparse`, which also skips the
+disparities whose block in the other frame is empty (but the first: all of them give the same SAD) and stops a
+sum once it reaches the best so far, with the same result; the dense path stays for the cases the sparse frames
+do not reproduce (another kernel size, thresholds <= 0).
 Its readable twin, a full cost volume from OpenCV kernels (``cv2.absdiff`` and an unnormalised
 ``cv2.boxFilter`` per disparity) and the scan over it, is :mod:`calibration_free.reference.frame_area`.
 
@@ -30,6 +34,7 @@ from calibration_free.params import FrameAreaParams
 from cvstereo.frames import event_mask, filtered_unit, gaussian_filter, polarity_counts, polarity_frames
 from cvstereo.matches import empty_matches, make_matches
 from cvstereo.signal_level import SignalLevel
+from cvstereo.sparse_frames import SparseFrames, band_of_rows, bit_positions
 from cvstereo.windows import FrameMatcher, Window
 
 
@@ -93,6 +98,94 @@ def _scan_sad_kernel(ref, oth, ys, xs, max_disparity, r, step):  # pragma: no co
     return disp
 
 
+#: Frame slot of an event of each polarity: one frame of both (``shared``).
+_SHARED = np.zeros(2, np.int64)
+
+
+@numba.njit(cache=True, nogil=True)
+def _scan_sparse(values, support, touched, ref_plane, threshold, max_disparity, r, step, capacity, done, disp,
+                 searched):  # pragma: no cover - compiled
+    """Algorithm 2 on sparse planes (reference ``ref_plane``, the other ``1 - ref_plane``), with the matches.
+
+    The result of :func:`_scan_sad_kernel`, searched in the same order with the same float64 sums, but
+    - a block of the other frame that holds no support pixel is all zeros, so its SAD is the same number for
+      every such disparity: only the first of them can win (ties go to the smaller disparity), the rest are
+      skipped;
+    - a sum stops once it reaches the best so far: its terms are >= 0 and rounding is monotonic, so it could
+      only end >= best, and only a strictly smaller sum wins.
+    ``done`` and ``disp`` are (height, width) buffers, all False / any on entry (``done`` is cleared again on
+    return), ``searched`` a (2, height * width) buffer.
+    Returns x, y, p (1 where the reference value is > 0) and the disparity of the reference pixels with events
+    that got one, row by row, x ascending.
+    """
+    _, h, w = values.shape
+    ref = values[ref_plane]
+    oth = values[1 - ref_plane]
+    n_words = support.shape[2]
+    searched_y, searched_x = searched[0], searched[1]
+    n_searched = 0
+    for y in range(r, h - r):
+        band = np.zeros(0, np.uint64)
+        for i in range(n_words):
+            word = support[ref_plane, y, i]
+            while word:
+                x, word = bit_positions(word, i)
+                if x < r or x >= w - r or done[y, x] or not abs(np.float64(ref[y, x])) >= threshold:
+                    continue
+                if band.size == 0:
+                    band = band_of_rows(support[1 - ref_plane], y, r, w)
+                best = np.inf
+                best_d = 0
+                zero_block_seen = False
+                for d in range(max_disparity + 1):
+                    xo = x + step * d
+                    if xo - r < 0 or xo + r >= w:
+                        break  # larger disparities only move further out of the sensor
+                    empty = not (band[xo >> 6] >> np.uint64(xo & 63)) & np.uint64(1)
+                    if empty:
+                        if zero_block_seen:
+                            continue
+                        zero_block_seen = True
+                    sad = 0.0
+                    for j in range(-r, r + 1):
+                        for k in range(-r, r + 1):
+                            a = np.float64(ref[y + j, x + k])
+                            sad += abs(a - np.float64(oth[y + j, xo + k])) if not empty else abs(a - 0.0)
+                        if sad >= best:
+                            break
+                    if sad < best:  # strict: ties go to the smaller disparity
+                        best = sad
+                        best_d = d
+                for j in range(y - r, y + r + 1):
+                    for k in range(x - r, x + r + 1):
+                        disp[j, k] = best_d
+                        done[j, k] = True
+                searched_y[n_searched] = y
+                searched_x[n_searched] = x
+                n_searched += 1
+    out_x = np.empty(capacity, np.int64)
+    out_y = np.empty(capacity, np.int64)
+    out_p = np.empty(capacity, np.int8)
+    out_d = np.empty(capacity, np.float32)
+    n = 0
+    for y in range(h):
+        for i in range(n_words):
+            word = touched[ref_plane, y, i]
+            while word:
+                x, word = bit_positions(word, i)
+                if done[y, x]:
+                    out_x[n] = x
+                    out_y[n] = y
+                    out_p[n] = ref[y, x] > 0
+                    out_d[n] = disp[y, x]
+                    n += 1
+    for s in range(n_searched):
+        for j in range(searched_y[s] - r, searched_y[s] + r + 1):
+            for k in range(searched_x[s] - r, searched_x[s] + r + 1):
+                done[j, k] = False
+    return out_x[:n], out_y[:n], out_p[:n], out_d[:n]
+
+
 class FrameAreaMatcher(FrameMatcher):
     """Frame-area SAD matcher (thesis 3.5.1, Algorithm 2) as a streaming object.
 
@@ -118,6 +211,13 @@ class FrameAreaMatcher(FrameMatcher):
         prm = self.params
         self._level = SignalLevel(prm, absolute=prm.threshold, unit=filtered_unit(prm),
                                   value_name="filtered value" if prm.gaussian else "frame value")
+        h, w = self.resolution[1], self.resolution[0]
+        # Buffers of the sparse scan, reused: searched pixels' blocks, their disparity, the searched pixels.
+        self._done, self._disp = np.zeros((h, w), np.bool_), np.zeros((h, w), np.float32)
+        self._searched = np.empty((2, h * w), np.int64)
+        sparse = SparseFrames(2, resolution=self.resolution, gaussian=prm.gaussian, kernel_sigma=prm.kernel_sigma,
+                              kernel_size=prm.kernel_size)
+        self._sparse = sparse if sparse.exact else None  # None: dense frames (cv2's filter), e.g. other kernels
 
     def anchor_cameras(self) -> tuple[int, ...]:
         return (self.params.reference_camera,)
@@ -149,6 +249,8 @@ class FrameAreaMatcher(FrameMatcher):
         prm = self.params
         k = window.t_start // prm.level_window_us
         threshold = self._level.thresholds(k)[prm.reference_camera]  # from the windows before this one
+        if self._sparse is not None and threshold > 0:  # a threshold <= 0 searches pixels without events
+            return self._match_sparse(k, window, threshold)
         ref_cam = prm.reference_camera
         ref_counts, oth_counts = self._counts(window)
         if not (window.right if ref_cam == 1 else window.left).size:
@@ -158,6 +260,26 @@ class FrameAreaMatcher(FrameMatcher):
         self._add_levels(k, ref, oth, ref_counts, oth_counts)
         y, x = np.nonzero(event_mask(ref_counts) & ~np.isnan(disp))
         return make_matches(window.t_end, x, y, (ref[y, x] > 0).astype(np.int8), prm.reference_camera, disp[y, x])
+
+    def _match_sparse(self, k: int, window: Window, threshold: float) -> np.ndarray:
+        """:meth:`match_window` on sparse frames (:mod:`cvstereo.sparse_frames`): the same matches and levels."""
+        prm = self.params
+        ref_cam = prm.reference_camera
+        sf = self._sparse
+        sf.fill((window.left, window.right), _SHARED, 1)  # plane = camera
+        try:
+            ref_ev = window.right if ref_cam == 1 else window.left
+            matches = empty_matches()
+            if ref_ev.size:
+                x, y, p, disp = _scan_sparse(sf.values, sf.support, sf.touched, ref_cam, float(threshold),
+                                             int(prm.max_disparity), prm.block // 2, 1 if ref_cam == 1 else -1,
+                                             ref_ev.size, self._done, self._disp, self._searched)
+                matches = make_matches(window.t_end, x, y, p, ref_cam, disp)
+            for cam, ev in enumerate((window.left, window.right)):
+                self._level.add(k, cam, sf.values_at_events(cam, 1, ev.size))
+        finally:
+            sf.clear()
+        return matches
 
     def _add_levels(self, k: int, ref, oth, ref_counts: np.ndarray, oth_counts: np.ndarray) -> None:
         """Feed the signal level: |frame value| at each camera's pixels with events."""

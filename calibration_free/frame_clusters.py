@@ -6,9 +6,14 @@ sign (the thesis' 3xN "comparison array": sign, left edge, right edge). Row y of
 if both list the same number of clusters with the same signs in the same order; cluster i pairs with cluster
 i if the widths differ by at most 30 %, and the disparity is the difference of the centres.
 
-:class:`FrameClusterMatcher` runs one numba kernel per window over all its frames (:func:`_match_stacked_rows`):
-per window, numpy's per-call overhead, not arithmetic, is the cost. Its readable twin, vectorised with numpy
-over a whole frame, is :mod:`calibration_free.reference.frame_clusters`; the tests hold both equal.
+:class:`FrameClusterMatcher` runs one numba kernel per window over all its frames: per window, numpy's per-call
+overhead, not arithmetic, is the cost. On sparse frames (:mod:`cvstereo.sparse_frames`: only the pixels within
+2 px of an event are filtered, with OpenCV's own arithmetic) it reads each row's clusters from the support's
+bitmaps (:func:`_match_sparse_rows`); where the sparse filter cannot reproduce OpenCV's (another kernel size,
+an unknown build) or a threshold is <= 0 (the sparse path reads only pixels near events), it filters whole
+stacked frames with ``cv2.GaussianBlur`` (:func:`_match_stacked_rows`). Both give the same matches. Its readable
+twin, vectorised with numpy over a whole frame, is :mod:`calibration_free.reference.frame_clusters`; the tests
+hold them equal.
 
 Relative thresholds (``threshold_mode="relative"``, :mod:`cvstereo.signal_level`): the cluster threshold
 (1.2 on the filtered sum of signs) becomes ``threshold_scale`` times the signal level of each camera, the 0.9
@@ -39,6 +44,7 @@ from cvstereo.frames import filtered_unit, gaussian_filter, stacked_frames
 from cvstereo.matches import empty_matches, make_matches
 from cvstereo.polarity import slot_of_p
 from cvstereo.signal_level import SignalLevel
+from cvstereo.sparse_frames import SparseFrames, bit_positions
 from cvstereo.windows import FrameMatcher, Window
 
 
@@ -68,6 +74,10 @@ class FrameClusterMatcher(FrameMatcher):
         super().__init__(params, resolution=resolution)
         prm = self.params
         self._level = SignalLevel(prm, absolute=prm.threshold, unit=filtered_unit(prm), value_name="filtered value")
+        n_frames = slot_of_p(prm.polarity)[0]
+        sparse = SparseFrames(2 * n_frames, resolution=self.resolution, gaussian=prm.gaussian,
+                              kernel_sigma=prm.kernel_sigma, kernel_size=prm.kernel_size)
+        self._sparse = sparse if sparse.exact else None  # None: dense frames (cv2's filter), e.g. other kernels
 
     def anchor_cameras(self) -> tuple[int, ...]:
         return (self.params.anchor_camera,)
@@ -80,6 +90,8 @@ class FrameClusterMatcher(FrameMatcher):
         prm = self.params
         k = window.t_start // prm.level_window_us
         threshold = self._level.thresholds(k)  # from the windows before this one
+        if self._sparse is not None and threshold.min() > 0:  # the sparse path reads only pixels near events
+            return self._match_sparse(k, window, threshold)
         if not (window.left.size and window.right.size):
             self._add_levels(k, window, *self._stack(window))
             return empty_matches()  # a frame without events has no clusters, so no row can match
@@ -92,6 +104,28 @@ class FrameClusterMatcher(FrameMatcher):
         self._add_levels(k, window, stack, seen, gap)
         matches = make_matches(window.t_end, x, y, (sign > 0).view(np.int8), prm.anchor_camera, disparity)
         # One frame: the kernel already emits (y, x) order. Two (separate ON/OFF): a pixel may be in both.
+        return matches if n_frames == 1 else _pixel_order(matches)
+
+    def _match_sparse(self, k: int, window: Window, threshold: np.ndarray) -> np.ndarray:
+        """:meth:`match_window` on sparse frames (:mod:`cvstereo.sparse_frames`): the same matches and levels."""
+        prm = self.params
+        sf = self._sparse
+        n_frames, channel_of = slot_of_p(prm.polarity)
+        frames = n_frames
+        sf.fill((window.left, window.right), channel_of, frames)
+        try:
+            if window.left.size and window.right.size:
+                anchor = (window.left, window.right)[prm.anchor_camera]
+                x, y, sign, disparity = _match_sparse_rows(
+                    sf.values, sf.support, sf.touched, frames, np.float32(threshold[0]), np.float32(threshold[1]),
+                    float(prm.width_tolerance), float(prm.max_disparity), int(prm.anchor_camera), anchor.size)
+                matches = make_matches(window.t_end, x, y, (sign > 0).view(np.int8), prm.anchor_camera, disparity)
+            else:
+                matches, n_frames = empty_matches(), 1
+            for cam, ev in enumerate((window.left, window.right)):
+                self._level.add(k, cam, sf.values_at_events(cam * frames, frames, ev.size))
+        finally:
+            sf.clear()
         return matches if n_frames == 1 else _pixel_order(matches)
 
     def _stack(self, window: Window):
@@ -209,6 +243,83 @@ def _match_stacked_rows(stack, seen, n_channels, height, pitch, threshold_left, 
                         n += 1
     return out_x[:n], out_y[:n], out_sign[:n], out_d[:n]
 
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _bit_row_clusters(values, support, plane, y, threshold, clusters, camera):  # pragma: no cover - compiled
+    """:func:`_row_clusters` of row ``y`` of a sparse plane: runs of consecutive kept pixels of one sign.
+
+    Pixels off the support hold 0, which no threshold > 0 keeps, so only the support's pixels are visited.
+    """
+    n = 0
+    previous_sign = 0
+    previous_x = -2
+    row = support[plane, y]
+    for i in range(row.size):
+        word = row[i]
+        while word:
+            x, word = bit_positions(word, i)
+            v = values[plane, y, x]
+            s = np.int8(v >= threshold) - np.int8(v <= -threshold)
+            if s == 0:
+                continue
+            if s == previous_sign and x == previous_x + 1:
+                clusters[2, camera, n - 1] = x  # the run goes on
+            else:
+                clusters[0, camera, n] = s
+                clusters[1, camera, n] = x
+                clusters[2, camera, n] = x
+                n += 1
+            previous_sign = s
+            previous_x = x
+    return n
+
+
+@numba.njit(cache=True, nogil=True)
+def _match_sparse_rows(values, support, touched, n_channels, threshold_left, threshold_right, width_tolerance,
+                       max_disparity, anchor_camera, capacity):  # pragma: no cover - compiled
+    """:func:`_match_stacked_rows` on sparse planes (:class:`cvstereo.sparse_frames.SparseFrames`: the left
+    camera's channels, then the right camera's); ``capacity``: the anchor camera's events, at least the number
+    of pixels reported."""
+    height, width = values.shape[1], values.shape[2]
+    out_x = np.empty(capacity, np.int64)
+    out_y = np.empty(capacity, np.int64)
+    out_sign = np.empty(capacity, np.int8)
+    out_d = np.empty(capacity, np.float64)
+    clusters = np.empty((3, 2, width), np.int64)
+    sign, left, right = clusters[0], clusters[1], clusters[2]
+    n = 0
+    for c in range(n_channels):
+        seen = anchor_camera * n_channels + c
+        for y in range(height):
+            n_l = _bit_row_clusters(values, support, c, y, threshold_left, clusters, 0)
+            if n_l == 0:
+                continue
+            n_r = _bit_row_clusters(values, support, n_channels + c, y, threshold_right, clusters, 1)
+            if n_r != n_l:
+                continue
+            same_order = True
+            for i in range(n_l):
+                if sign[0, i] != sign[1, i]:
+                    same_order = False
+                    break
+            if not same_order:
+                continue
+            for i in range(n_l):
+                w_l = right[0, i] - left[0, i] + 1
+                w_r = right[1, i] - left[1, i] + 1
+                if abs(w_l - w_r) > width_tolerance * max(w_l, w_r) + WIDTH_EPS:
+                    continue
+                d = (left[0, i] + right[0, i] - left[1, i] - right[1, i]) / 2.0
+                if d < 0 or d > max_disparity:
+                    continue
+                for x in range(left[anchor_camera, i], right[anchor_camera, i] + 1):
+                    if touched[seen, y, x >> 6] & (np.uint64(1) << np.uint64(x & 63)):
+                        out_x[n] = x
+                        out_y[n] = y
+                        out_sign[n] = sign[0, i]
+                        out_d[n] = d
+                        n += 1
+    return out_x[:n], out_y[:n], out_sign[:n], out_d[:n]
 
 def _pixel_order(matches: np.ndarray) -> np.ndarray:
     """Sort one window's matches by (y, x, p), so that the output order does not depend on the variant."""

@@ -47,11 +47,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections import deque
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+
+from cvstereo.sorted_runs import SortedRuns
 
 #: Threshold modes: the thesis' absolute numbers, or a multiple of the recording's signal level.
 THRESHOLD_MODES = ("absolute", "relative")
@@ -147,8 +148,9 @@ class SignalLevel:
         self.unit = float(unit)
         self.value_name = value_name
         self.n_cameras = n_cameras
-        self._history = [deque() for _ in range(n_cameras)]
-        self._counts = [0] * n_cameras  # values in each camera's history
+        # Each camera's history: one sorted run of values per window, oldest first (quantiles without a
+        # partition of the whole history per window: see cvstereo.sorted_runs).
+        self._history = [SortedRuns() for _ in range(n_cameras)]
         self._open: dict[int, list[list[np.ndarray]]] = {}  # window -> per camera chunks of values
         self._levels: dict[int, np.ndarray] = {}  # window -> level in force (NaN: warming up)
         self._seen = 0
@@ -201,7 +203,8 @@ class SignalLevel:
             # The history holds exactly the windows < j now: the level that was (or would have been) in force.
             lv = self._levels.pop(j, None)
             if lv is None:
-                lv = self._current_levels()
+                # Absolute mode needs only which cameras are warm (the trace), not the level itself.
+                lv = self._current_levels() if p.relative else self._warm_levels()
             thr = _scaled(lv, self.absolute, p.threshold_scale, p.level_floor * self.unit) if p.relative else \
                 np.full(self.n_cameras, self.absolute)
             reached = False
@@ -230,18 +233,21 @@ class SignalLevel:
         p = self.params
         hist = self._history[cam]
         hist.append(values)
-        self._counts[cam] += values.size
-        while len(hist) > p.level_windows and (self._counts[cam] - hist[0].size >= p.level_warmup
+        while len(hist) > p.level_windows and (hist.size - hist.first_size() >= p.level_warmup
                                                or len(hist) > MAX_HISTORY_FACTOR * p.level_windows):
-            self._counts[cam] -= hist.popleft().size
+            hist.popleft()
 
     def _current_levels(self) -> np.ndarray:
         p = self.params
         out = np.full(self.n_cameras, np.nan)
         for cam, hist in enumerate(self._history):
-            if self._counts[cam] >= p.level_warmup:
-                out[cam] = float(np.quantile(np.concatenate(list(hist)), p.level_quantile))
+            if hist.size >= p.level_warmup:
+                out[cam] = hist.quantile(p.level_quantile)  # = np.quantile of the history's values
         return out
+
+    def _warm_levels(self) -> np.ndarray:
+        """What :meth:`_current_levels` would give, as far as NaN goes (warming up), with 0 for the levels."""
+        return np.where([h.size >= self.params.level_warmup for h in self._history], 0.0, np.nan)
 
     # -- diagnostics -------------------------------------------------------------------------------------
 
