@@ -89,10 +89,10 @@ for line in sys.stdin:
         recordings[key] = rec
     rec = recordings[key]
     kwargs = {"param_set": req["param_set"]} if req["param_set"] else {}
-    if req["range_width"]:
-        cls = matcher_class(req["method"])
-        default = cls.Params.__dataclass_fields__["max_disparity"].default
-        kwargs["max_disparity"] = cls.max_disparity_for(default, req["range_width"], {})
+    fields = matcher_class(req["method"]).Params.__dataclass_fields__
+    if req["range_width"] and "max_disparity" in fields:  # dv-semidense has a fixed range
+        kwargs["max_disparity"] = matcher_class(req["method"]).max_disparity_for(
+            fields["max_disparity"].default, req["range_width"], {})
     wkey = (req["method"], req["param_set"], key, req["range_width"])
     if wkey not in warm:
         t0 = int(min(rec.left["t"][0], rec.right["t"][0]))
@@ -197,7 +197,9 @@ def label(method: str, param_set: str | None) -> str:
     return method if param_set is None else f"{method} ({param_set})"
 
 
-def run(args) -> dict:
+def run(args, save) -> dict:
+    """Measure every case and combo; ``save(results)`` after each cell, so that an interrupted run keeps
+    what it measured."""
     cases = [c for c in CASES if args.cases is None or c in args.cases]
     paths = case_paths(cases)
     cpu = args.cpu if args.cpu is not None else max(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") \
@@ -221,6 +223,7 @@ def run(args) -> dict:
                             **measure_cell(children, request)}
                     results["cells"].append(cell)
                     print(cell_line(cell), flush=True)
+                    save(results)
         finally:
             for child in children.values():
                 child.close()
@@ -308,13 +311,16 @@ def main() -> None:
     bad = [m for m in args.only or () if m not in known]
     if bad:
         parser.error(f"--only {' '.join(bad)}: not measured here; choose from {', '.join(sorted(known))}")
-    results = run(args)
     out = Path(args.output)
     out.mkdir(parents=True, exist_ok=True)
-    text = markdown(results)
-    (out / "speed.md").write_text(text)
-    (out / "speed.json").write_text(json.dumps(results, indent=1))
-    print(text)
+
+    def save(results: dict) -> None:
+        (out / "speed.md").write_text(markdown(results))
+        (out / "speed.json").write_text(json.dumps(results, indent=1))
+
+    results = run(args, save)
+    save(results)
+    print(markdown(results))
 
 
 if __name__ == "__main__":
