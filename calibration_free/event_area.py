@@ -46,7 +46,6 @@ def _event_area_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, slo
     own = np.empty((size, size))
     n_d = min(max_d, width) + 1  # at most this many candidates stay on the sensor
     own_col = np.empty(size)
-    band = np.empty((size, n_d + 2 * half))
     band_col = np.empty(n_d + 2 * half)
     band_abs = np.empty(n_d + 2 * half)
     bound = np.empty(n_d)
@@ -78,8 +77,8 @@ def _event_area_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, slo
         if abs(value) >= thresholds[cam] and half <= x < width - half and half <= y < height - half:
             # The candidates d = 0 .. last are those whose patch stays on the sensor (the search ends at the
             # first one that leaves it). Only the columns they cover are read, laid out so that column
-            # k + d holds the pixel that candidate d compares at offset k: towards larger x for right-camera
-            # events, mirrored for left-camera ones.
+            # k + d holds what candidate d compares at offset k: towards larger x for right-camera events,
+            # mirrored for left-camera ones.
             if cam == 1:
                 last = min(max_d, width - 1 - half - x)
             else:
@@ -95,19 +94,22 @@ def _event_area_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, slo
                     own[jj, ii] = v
                     own_col[ii] += v
                     own_abs += abs(v)
+            # The other frame's band, summed over its rows per column (for the bound below; the exact SADs
+            # read their few pixels again).
             for k in range(n_cols):
                 band_col[k] = 0.0
                 band_abs[k] = 0.0
             for jj in range(size):
                 if cam == 1:
                     for k in range(n_cols):
-                        band[jj, k] = stored[other, slot, y - half + jj, x - half + k] * c2
+                        v = stored[other, slot, y - half + jj, x - half + k] * c2
+                        band_col[k] += v
+                        band_abs[k] += abs(v)
                 else:
                     for k in range(n_cols):
-                        band[jj, k] = stored[other, slot, y - half + jj, x + half - k] * c2
-                for k in range(n_cols):
-                    band_col[k] += band[jj, k]
-                    band_abs[k] += abs(band[jj, k])
+                        v = stored[other, slot, y - half + jj, x + half - k] * c2
+                        band_col[k] += v
+                        band_abs[k] += abs(v)
             total_abs = own_abs
             for k in range(n_cols):
                 total_abs += band_abs[k]
@@ -135,11 +137,11 @@ def _event_area_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, slo
                 d = first if e < 0 else e
                 if e == first or (e >= 0 and bound[d] > best_sad + 1e-9 * (total_abs + best_sad) + 1e-300):
                     continue
-                k0 = 0 if cam == 1 else 2 * half
+                x2 = x + d if cam == 1 else x - d
                 sad = 0.0
                 for jj in range(size):
                     for ii in range(size):
-                        sad += abs(own[jj, ii] - band[jj, (k0 + ii if cam == 1 else k0 - ii) + d])
+                        sad += abs(own[jj, ii] - stored[other, slot, y - half + jj, x2 - half + ii] * c2)
                     if sad > best_sad:  # partial sums never decrease: this one can neither win nor tie
                         break
                 if sad < best_sad or (sad == best_sad and d < best):  # ties keep the smaller disparity
