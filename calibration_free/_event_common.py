@@ -18,7 +18,7 @@ import abc
 
 import numpy as np
 
-from cvstereo.dynamic_frames import FrameBank, dynamic_unit, event_columns
+from cvstereo.dynamic_frames import FrameBank, block_bounds, dynamic_unit, event_columns
 from cvstereo.events import empty_events
 from cvstereo.matcher import StreamMatcher
 from cvstereo.matches import concat_matches, empty_matches
@@ -63,6 +63,7 @@ class MergedEventMatcher(StreamMatcher):
     def __init__(self, params=None, *, resolution=(128, 128)):
         super().__init__(params, resolution=resolution)
         self._bank = FrameBank(2, self.params.frame_params(), resolution=self.resolution)
+        self._bound = block_bounds(self._bank.stored)  # kept by the kernels (dynamic_frames.splat_bounded)
         self._held = (empty_events(), empty_events())
         self._level = SignalLevel(self.params, absolute=self.params.threshold, unit=dynamic_unit(self.params),
                                   value_name="dynamic-frame value")

@@ -34,7 +34,7 @@ from numba import njit
 from calibration_free._event_common import MergedEventMatcher
 from calibration_free.merge_order import left_is_next_jit
 from calibration_free.params import EventVectorParams
-from cvstereo.dynamic_frames import advance, splat
+from cvstereo.dynamic_frames import advance_bounded, skip_below, splat_bounded
 
 
 @njit(cache=True, inline="always")
@@ -43,7 +43,7 @@ def _sign(v):
 
 
 @njit(cache=True)
-def _event_vector_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, slot_of_p, kernel, decay, period,
+def _event_vector_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, bound, slot_of_p, kernel, decay, period,
                          thresholds, require, max_d, max_cost, out_cam, out_index, out_disparity, values_l, values_r):
     """Process both cameras' events in merged order; one output row per matched event; returns the count."""
     width = stored.shape[3]
@@ -66,8 +66,8 @@ def _event_vector_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, s
         if slot < 0:
             continue
         other = 1 - cam
-        advance(stored, scale, clock, cam, t, decay, period)
-        advance(stored, scale, clock, other, t, decay, period)
+        advance_bounded(stored, scale, clock, bound, cam, t, decay, period)
+        advance_bounded(stored, scale, clock, bound, other, t, decay, period)
         c1 = scale[cam]
         value = stored[cam, slot, y, x] * c1
         if cam == 0:
@@ -80,63 +80,111 @@ def _event_vector_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, s
             k = x
             while k >= 0 and abs(stored[cam, slot, y, k] * c1) >= threshold:
                 k -= 1
-            while k >= 0 and abs(stored[cam, slot, y, k] * c1) < threshold:
-                k -= 1
+            k = skip_below(stored, bound, cam, slot, y, k, -1, -1, c1, threshold)
             a1 = _sign(stored[cam, slot, y, k] * c1) * (x - k) if k >= 0 else 0
             k = x
             while k < width and abs(stored[cam, slot, y, k] * c1) >= threshold:
                 k += 1
-            while k < width and abs(stored[cam, slot, y, k] * c1) < threshold:
-                k += 1
+            k = skip_below(stored, bound, cam, slot, y, k, 1, width, c1, threshold)
             b1 = _sign(stored[cam, slot, y, k] * c1) * (k - x) if k < width else 0
-            # The other row's vectors at the candidate pixels lo..hi in two passes (the same numbers as walking
-            # from each): left to right up to hi, right to left down to lo.
-            step = 1 if cam == 1 else -1  # right-camera events look towards larger x, left towards smaller
-            lo = x if cam == 1 else max(0, x - max_d)
+            lo = x if cam == 1 else max(0, x - max_d)  # the candidate pixels lo..hi of the other row
             hi = min(width - 1, x + max_d) if cam == 1 else x
             c2 = scale[other]
-            for xx in range(width):
-                row[xx] = stored[other, slot, y, xx] * c2
             threshold = thresholds[other]  # the other camera's accumulations, by its own threshold
-            prev = -1  # last above-threshold pixel before the current run
-            last = -1  # last above-threshold pixel so far
-            for xx in range(hi + 1):
-                if abs(row[xx]) >= threshold:
-                    if xx == 0 or abs(row[xx - 1]) < threshold:
-                        prev = last
-                    vec_a[xx] = _sign(row[prev]) * (xx - prev) if prev >= 0 else 0
-                    last = xx
-                else:
-                    vec_a[xx] = _sign(row[last]) * (xx - last) if last >= 0 else 0
-            prev = width
-            last = width
-            for xx in range(width - 1, lo - 1, -1):
-                if abs(row[xx]) >= threshold:
-                    if xx == width - 1 or abs(row[xx + 1]) < threshold:
-                        prev = last
-                    vec_b[xx] = _sign(row[prev]) * (prev - xx) if prev < width else 0
-                    last = xx
-                else:
-                    vec_b[xx] = _sign(row[last]) * (last - xx) if last < width else 0
+            # Scanning the other row from left to right, last = the last above-threshold pixel so far and
+            # prev = the last one before the current run (s_* their signs): what a scan from pixel 0 would
+            # hold on reaching lo, found by walking out of lo's run and gap to the left.
+            prev, s_prev, last, s_last = -1, 0, -1, 0
+            k = lo - 1
+            if k >= 0 and abs(stored[other, slot, y, k] * c2) >= threshold:
+                last, s_last = k, _sign(stored[other, slot, y, k] * c2)
+                while k >= 0 and abs(stored[other, slot, y, k] * c2) >= threshold:
+                    k -= 1
+                k = skip_below(stored, bound, other, slot, y, k, -1, -1, c2, threshold)
+                if k >= 0:
+                    prev, s_prev = k, _sign(stored[other, slot, y, k] * c2)
+            else:
+                k = skip_below(stored, bound, other, slot, y, k, -1, -1, c2, threshold)
+                if k >= 0:
+                    last, s_last = k, _sign(stored[other, slot, y, k] * c2)
             s1 = _sign(value)
             best = -1
             best_cost = max_cost
-            for d in range(max_d + 1):
-                x2 = x + step * d
-                if x2 < 0 or x2 >= width:
-                    break
-                if require and not (abs(row[x2]) >= threshold and _sign(row[x2]) == s1):
-                    continue
-                cost = abs(a1 - vec_a[x2]) + abs(b1 - vec_b[x2])
-                if cost < best_cost:
-                    best_cost = cost
-                    best = d
+            if require:
+                # Only above-threshold pixels of D's sign are candidates: visit the runs of lo..hi, skipping
+                # the gaps blockwise. A run's pixels share their vector's ends: the last above-threshold pixel
+                # before the run and the first one after it (found beyond hi if need be). The scan goes
+                # left to right, i.e. by falling disparity for left-camera events, so their ties go to the
+                # later candidate.
+                xx = skip_below(stored, bound, other, slot, y, lo, 1, hi + 1, c2, threshold)
+                if not (xx == lo and lo > 0 and abs(stored[other, slot, y, lo - 1] * c2) >= threshold):
+                    prev, s_prev = last, s_last  # lo's run (if any) does not come from the left of lo
+                while xx <= hi:
+                    end = xx
+                    while end + 1 < width and abs(stored[other, slot, y, end + 1] * c2) >= threshold:
+                        end += 1
+                    nxt = skip_below(stored, bound, other, slot, y, end + 1, 1, width, c2, threshold)
+                    s_nxt = _sign(stored[other, slot, y, nxt] * c2) if nxt < width else 0
+                    for x2 in range(xx, min(end, hi) + 1):
+                        if _sign(stored[other, slot, y, x2] * c2) != s1:
+                            continue
+                        a2 = s_prev * (x2 - prev) if prev >= 0 else 0
+                        b2 = s_nxt * (nxt - x2) if nxt < width else 0
+                        cost = abs(a1 - a2) + abs(b1 - b2)
+                        if cost < best_cost or (cam == 0 and cost == best_cost and best >= 0):
+                            best_cost = cost
+                            best = x - x2 if cam == 0 else x2 - x
+                    prev, s_prev = end, _sign(stored[other, slot, y, end] * c2)  # the next run's left end
+                    xx = nxt
+            else:
+                # Every pixel of lo..hi is a candidate: its vectors in two passes (the same numbers as walking
+                # from each), left to right from the state above, then right to left from the mirror state.
+                step = 1 if cam == 1 else -1  # right-camera events look towards larger x, left towards smaller
+                for xx in range(max(0, lo - 1), min(width - 1, hi + 1) + 1):
+                    row[xx] = stored[other, slot, y, xx] * c2
+                for xx in range(lo, hi + 1):
+                    if abs(row[xx]) >= threshold:
+                        if xx == 0 or abs(row[xx - 1]) < threshold:
+                            prev, s_prev = last, s_last
+                        vec_a[xx] = s_prev * (xx - prev) if prev >= 0 else 0
+                        last, s_last = xx, _sign(row[xx])
+                    else:
+                        vec_a[xx] = s_last * (xx - last) if last >= 0 else 0
+                prev, s_prev, last, s_last = width, 0, width, 0
+                k = hi + 1
+                if k < width and abs(row[k]) >= threshold:
+                    last, s_last = k, _sign(row[k])
+                    while k < width and abs(stored[other, slot, y, k] * c2) >= threshold:
+                        k += 1
+                    k = skip_below(stored, bound, other, slot, y, k, 1, width, c2, threshold)
+                    if k < width:
+                        prev, s_prev = k, _sign(stored[other, slot, y, k] * c2)
+                else:
+                    k = skip_below(stored, bound, other, slot, y, k, 1, width, c2, threshold)
+                    if k < width:
+                        last, s_last = k, _sign(stored[other, slot, y, k] * c2)
+                for xx in range(hi, lo - 1, -1):
+                    if abs(row[xx]) >= threshold:
+                        if xx == width - 1 or abs(row[xx + 1]) < threshold:
+                            prev, s_prev = last, s_last
+                        vec_b[xx] = s_prev * (prev - xx) if prev < width else 0
+                        last, s_last = xx, _sign(row[xx])
+                    else:
+                        vec_b[xx] = s_last * (last - xx) if last < width else 0
+                for d in range(max_d + 1):
+                    x2 = x + step * d
+                    if x2 < lo or x2 > hi:
+                        break
+                    cost = abs(a1 - vec_a[x2]) + abs(b1 - vec_b[x2])
+                    if cost < best_cost:
+                        best_cost = cost
+                        best = d
             if best >= 0:
                 out_cam[n] = cam
                 out_index[n] = i
                 out_disparity[n] = best
                 n += 1
-        splat(stored, scale, clock, cam, slot, x, y, 1.0 if p > 0 else -1.0, kernel)
+        splat_bounded(stored, scale, clock, bound, cam, slot, x, y, 1.0 if p > 0 else -1.0, kernel)
     return n
 
 
@@ -161,7 +209,7 @@ class EventVectorMatcher(MergedEventMatcher):
 
     def _run_kernel(self, columns, thresholds, out_cam, out_index, out_disparity, out_values) -> int:
         prm, bank = self.params, self._bank
-        return int(_event_vector_kernel(*columns, bank.stored, bank.scale, bank.clock, bank.slot_of_p, bank.kernel,
-                                        *bank.decay_args, thresholds,
+        return int(_event_vector_kernel(*columns, bank.stored, bank.scale, bank.clock, self._bound, bank.slot_of_p,
+                                        bank.kernel, *bank.decay_args, thresholds,
                                         bool(prm.require_candidate_threshold), int(prm.max_disparity),
                                         float(prm.max_cost), out_cam, out_index, out_disparity, *out_values))

@@ -175,6 +175,82 @@ def splat(stored, scale, clock, cam, slot, x, y, sign, kernel):
     clock[cam, 1] = 1
 
 
+# ----------------------------------------------------------------------------------------------------------
+# Block bounds: for each row of a frame and each block of BOUND_BLOCK columns, a number >= |stored| of all its
+# pixels (in stored units, so that decay ticks leave it valid). A block whose bound * scale is below a threshold
+# holds no pixel at or above it: multiplying by the positive scale rounds monotonically, so
+# |stored| <= bound implies |stored * scale| <= bound * scale in float64 too. The matchers that search a row
+# for above-threshold pixels (event-vector) or for patches with content skip such blocks without reading
+# them, and the result stays the same bit for bit. Bounds only grow between rebuilds, so they may be loose
+# where opposite events cancelled, never too small.
+
+#: log2 of the columns per block of :func:`block_bounds` (16 columns: two cache lines of float64).
+BOUND_SHIFT = 4
+
+
+def block_bounds(stored: np.ndarray) -> np.ndarray:
+    """Zero block bounds for frames ``stored`` (n_cameras, n_frames, H, W) that are all zero.
+
+    Returns
+    -------
+    (n_cameras, n_frames, H, ceil(W / 2**BOUND_SHIFT)) float64 ndarray
+    """
+    n_cameras, n_frames, height, width = stored.shape
+    return np.zeros((n_cameras, n_frames, height, (width + (1 << BOUND_SHIFT) - 1) >> BOUND_SHIFT))
+
+
+@njit(cache=True)
+def rebuild_bounds(bound, stored, cam):
+    """Set camera ``cam``'s block bounds to the exact maxima of |stored| (after its values were rescaled)."""
+    frames = stored[cam]
+    for f in range(frames.shape[0]):
+        for yy in range(frames.shape[1]):
+            for b in range(bound.shape[3]):
+                m = 0.0
+                for xx in range(b << BOUND_SHIFT, min(frames.shape[2], (b + 1) << BOUND_SHIFT)):
+                    m = max(m, abs(frames[f, yy, xx]))
+                bound[cam, f, yy, b] = m
+
+
+@njit(cache=True, inline="always")
+def advance_bounded(stored, scale, clock, bound, cam, t, decay, period):
+    """:func:`advance`, keeping camera ``cam``'s block bounds valid: a renormalisation or a reset rescales the
+    stored values (the scale jumps up), after which the bounds are rebuilt."""
+    before = scale[cam]
+    advance(stored, scale, clock, cam, t, decay, period)
+    if scale[cam] > before:
+        rebuild_bounds(bound, stored, cam)
+
+
+@njit(cache=True, inline="always")
+def splat_bounded(stored, scale, clock, bound, cam, slot, x, y, sign, kernel):
+    """:func:`splat`, then raise the block bounds of the pixels it changed to their new |stored|."""
+    splat(stored, scale, clock, cam, slot, x, y, sign, kernel)
+    r = kernel.shape[0] // 2
+    for yy in range(max(0, y - r), min(stored.shape[2], y + r + 1)):
+        for xx in range(max(0, x - r), min(stored.shape[3], x + r + 1)):
+            v = abs(stored[cam, slot, yy, xx])
+            b = xx >> BOUND_SHIFT
+            if v > bound[cam, slot, yy, b]:
+                bound[cam, slot, yy, b] = v
+
+
+@njit(cache=True, inline="always")
+def skip_below(stored, bound, cam, slot, y, k, step, end, c, threshold):
+    """From column ``k`` (included) in direction ``step`` (+1 or -1) of row ``y`` of frame ``slot``, the first
+    column whose value ``|stored * c|`` is >= ``threshold``, or ``end`` (-1 or the width) if none; blocks whose
+    bound says that they hold none are skipped whole."""
+    while k != end:
+        b = k >> BOUND_SHIFT
+        if bound[cam, slot, y, b] * c < threshold:
+            k = (b << BOUND_SHIFT) - 1 if step < 0 else min(end, (b + 1) << BOUND_SHIFT)
+            continue
+        if abs(stored[cam, slot, y, k] * c) >= threshold:
+            return k
+        k += step
+    return end
+
+
 @njit(cache=True)
 def process_events(stored, scale, clock, cam, t, x, y, p, slot_of_p, kernel, decay, period, read_after, out):
     """Feed one camera's events through its frames, recording the value at each event's pixel.
