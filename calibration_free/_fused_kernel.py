@@ -53,16 +53,31 @@ def window_masks(x, y, p, last_left, t_recent, path_radius, counts, active, rece
     """
     _, h, w = last_left.shape
     counts[:] = 0
-    active[:] = False
     for i in range(x.size):
         counts[p[i], y[i], x[i]] += 1
+    # Dilation of the event pixels by a (2r+1)^2 square, separably: a row pass, then a column pass over it.
+    rows = np.zeros((h, w), np.bool_)
     for yy in range(h):
-        for xx in range(w):
-            recent[yy, xx] = last_left[0, yy, xx] >= t_recent or last_left[1, yy, xx] >= t_recent
+        reach = -1  # the last column the most recent event pixel of this row reaches
+        for xx in range(min(path_radius, w)):
             if counts[0, yy, xx] + counts[1, yy, xx] > 0:
-                for y2 in range(max(yy - path_radius, 0), min(yy + path_radius + 1, h)):
-                    for x2 in range(max(xx - path_radius, 0), min(xx + path_radius + 1, w)):
-                        active[y2, x2] = True
+                reach = xx + path_radius
+        for xx in range(w):
+            ahead = xx + path_radius
+            if ahead < w and counts[0, yy, ahead] + counts[1, yy, ahead] > 0:
+                reach = ahead + path_radius
+            rows[yy, xx] = reach >= xx
+            recent[yy, xx] = last_left[0, yy, xx] >= t_recent or last_left[1, yy, xx] >= t_recent
+    for xx in range(w):
+        reach = -1
+        for yy in range(min(path_radius, h)):
+            if rows[yy, xx]:
+                reach = yy + path_radius
+        for yy in range(h):
+            ahead = yy + path_radius
+            if ahead < h and rows[ahead, xx]:
+                reach = ahead + path_radius
+            active[yy, xx] = reach >= yy
 
 
 @njit(cache=True, nogil=True)
