@@ -271,7 +271,7 @@ def _pixel_cost(fl, right_rev, yy, xx, pr, row_tol, temporal_weight, out):
 
 @njit(cache=True, nogil=True)
 def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2, paths, temporal_weight, lr_tol,
-                   subpixel, min_neighbours, max_uncertainty, fill_radius, work, rowbuf):
+                   subpixel, min_neighbours, max_uncertainty, fill_radius, work, rowbuf, planes):
     """Match one window's normalised features; return the answers at the left camera's event pixels.
 
     Parameters
@@ -294,6 +294,9 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
     rowbuf : (4, W, max_d + 1) float64 ndarray
         Scratch: the backward row path's current and previous vector (``rowbuf[0:2, 0]``) and the backward
         column path's current and previous row (``rowbuf[2:4]``).
+    planes : tuple of ndarrays
+        Scratch kept between windows: ``(right_rev, index, consistent)``, (H, 2, W + max_d + 1) float64 zeros,
+        (H, W) int64, (H, W) float64 all NaN (left so on return).
 
     Returns
     -------
@@ -303,7 +306,7 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
     _, h, w = fl.shape
     nd = max_d + 1
     # Compact storage of the active pixels, raster order; each row's pixels are a contiguous range.
-    index = np.empty((h, w), np.int64)
+    right_rev, index, consistent_d = planes
     row_start = np.empty(h + 1, np.int64)
     slot_start = np.empty(h + 1, np.int64)  # output slots: the anchors, raster order
     n = 0
@@ -329,8 +332,8 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
         for xx in range(w):
             if index[yy, xx] >= 0:
                 ax[index[yy, xx]] = xx
-    # The right features mirrored along the row, zero beyond the left edge (see _pixel_cost).
-    right_rev = np.zeros((h, 2, w + nd))
+    # The right features mirrored along the row, zero beyond the left edge (see _pixel_cost; the zeros were
+    # written when the array was made).
     for yy in range(h):
         for c in range(2):
             for xx in range(w):
@@ -424,14 +427,16 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
             if neighbours < min_neighbours:
                 continue
             s = total[k]
+            # The first least disparity (argmin's), then the least more than 1 px away from it.
+            low = _min4(s)
             best = 0
-            for d in range(1, nd):
-                if s[d] < s[best]:
-                    best = d
+            while s[best] != low:
+                best += 1
             second = np.inf
-            for d in range(nd):
-                if abs(d - best) > 1 and s[d] < second:
-                    second = s[d]
+            if best >= 2:
+                second = _min4(s[:best - 1])
+            if best + 2 < nd:
+                second = min(second, _min4(s[best + 2:]))
             ratio = 1.0 if second == 0.0 else s[best] / second
             consistent = True
             if lr_tol >= 0:
@@ -469,7 +474,6 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
     m = out_x.size
     # Inconsistent winners take the median of the consistent answers around them (when there are any).
     keep = np.zeros(m, np.bool_)
-    consistent_d = np.full((h, w), np.nan)
     for i in range(m):
         if out_ok[i]:
             consistent_d[out_y[i], out_x[i]] = out_d[i]
@@ -487,4 +491,6 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
                 srt = np.sort(vals[:c])
                 out_d[i] = srt[c // 2] if c % 2 else (srt[c // 2 - 1] + srt[c // 2]) / 2.0
         keep[i] = out_u[i] <= max_uncertainty
+    for i in range(m):
+        consistent_d[out_y[i], out_x[i]] = np.nan
     return out_x[keep], out_y[keep], out_p[keep], out_d[keep], out_u[keep]

@@ -16,8 +16,12 @@ Design, part by part, with the reason for each (bench/results/fused.md measures 
    Gaussian (thesis eq. 3.6) in its cheapest form, done once per image rather than once per disparity.
 3. **Signal level** (:func:`calibration_free.fused_signal.signal_level`): each camera's features are
    divided by a robust level of the window (the 90th percentile of its non-zero values), so that costs and
-   penalties mean the same at any event density and for two sensors of different sensitivity. One function,
-   to be swapped for the project's adaptive signal level (issue 12) when it lands.
+   penalties mean the same at any event density and for two sensors of different sensitivity. Every value the
+   matcher compares (``p1``, ``p2``, ``temporal_weight``) is thus in units of the level: it has no absolute
+   threshold for :mod:`cvstereo.signal_level` to replace. That module's causal one-second level would steady the
+   level of sparse windows, but its quantile over 25 windows' values cost 1.5 ms a window (2arms-50cm, the
+   anchors' values only, load 10), as much as a third of the whole window's matching; it is worth adopting
+   once that estimate is incremental.
 4. **Cost**: the L1 distance of the two cameras' feature vectors at ``(x, y)`` and ``(x - d, y + dy)``, the
    least over ``|dy| <= row_tolerance``: the thesis' event-time matcher's row tolerance, because real rigs
    are off by about a row (thesis 3.2; the simulator's rig by one); :mod:`cvstereo.rigcorrect` corrects
@@ -114,6 +118,7 @@ class Scratch:
         self.active = np.empty((h, w), np.bool_)
         self.recent = np.empty((h, w), np.bool_)
         self.rowbuf = np.empty((4, w, n_disparities))
+        self.planes = (np.zeros((h, 2, w + n_disparities)), np.empty((h, w), np.int64), np.full((h, w), np.nan))
         self.work = np.empty((3, 0, n_disparities))
 
     def work_for(self, n_active: int) -> np.ndarray:
@@ -182,7 +187,7 @@ class FusedMatcher(FrameMatcher):
             buf.features[0], buf.features[1], buf.counts, buf.active, buf.recent,
             state.prior_for(window.t_end, prm.window_us), prm.max_disparity, prm.row_tolerance, prm.p1, prm.p2,
             prm.sgm_paths, prm.temporal_weight, prm.lr_tolerance, prm.subpixel, prm.min_neighbours,
-            prm.max_uncertainty, prm.fill_radius, work, buf.rowbuf)
+            prm.max_uncertainty, prm.fill_radius, work, buf.rowbuf, buf.planes)
         state.remember(window.t_end, x, y, disp)
         self._uncertainty.append(unc)
         if x.size == 0:

@@ -1,8 +1,9 @@
 """The signal level of the fused matcher: one camera's features of a window, normalised (design part 3 of
 :mod:`calibration_free.fused`).
 
-One function, shared by the kernel path and the reference, so that the project's adaptive signal level
-(issue 12) can replace it in one place.
+One function, shared by the kernel path and the reference, so that a change of the level (e.g. to the causal one
+of :mod:`cvstereo.signal_level`, see design part 3 of :mod:`calibration_free.fused` for why not yet) is made in one
+place.
 """
 
 from __future__ import annotations
