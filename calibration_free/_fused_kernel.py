@@ -1,10 +1,26 @@
 """The numba kernels of the fused matcher (:mod:`calibration_free.fused` describes the method).
 
-Two kernels per window, with the signal-level normalisation (plain numpy, shared with the reference) between
-them: :func:`surface_features` (time surfaces of one camera, summed over the support square) and
-:func:`match_features` (cost, semi-global aggregation, winner, left-right check, sub-pixel, uncertainty).
-Every floating-point expression is written in the same order as in :mod:`calibration_free.reference.fused`,
-so that both give bit-identical matches (tests/test_fused.py).
+Per window: :func:`window_masks` (the left camera's event counts, the active pixels, the noise filter's
+recent pixels), :func:`surface_features` (time surfaces of one camera, summed over the support square),
+the signal level (:mod:`calibration_free.fused_signal`: :func:`nonzero_values` gathers what it needs,
+:func:`divide` applies it) and :func:`match_features` (cost, semi-global aggregation, winner, left-right check,
+sub-pixel, uncertainty). Every floating-point expression is evaluated in the same order as in
+:mod:`calibration_free.reference.fused`, so that both give bit-identical matches (tests/test_fused.py).
+
+Where the time goes, and why the kernels are shaped as they are (2arms-50cm, 128x128, 48 disparities: about
+6000 active pixels a window; a 346x260 recording at 1 M ev/s: 32000 and 174 disparities):
+
+* The cost and the paths of a window are (active pixels x disparities) arrays of several MB, more than the
+  caches hold, so memory traffic, not arithmetic, sets the pace. Hence one pass per direction that computes
+  the cost and the forward paths together, a backward pass that keeps its row path in one vector and its
+  column path in two rows, and sums the four paths in place; the minimum of each path vector is kept as it
+  is written instead of being searched again by the next step.
+* The left-right check reads, for each anchor, one disparity of many different pixels of its row: it runs as
+  soon as the backward pass has finished the row, while the row's sums are in the cache.
+* The cost reads the right camera's row backwards (disparity 0, 1, ... is column x, x - 1, ...): a mirrored
+  copy of the right features makes those loops contiguous and branch-free, so they vectorise.
+* Sums that skip zeros are exact (``a + 0.0 == a``): the support square is scattered from the non-zero
+  surface values only.
 """
 
 from __future__ import annotations
@@ -17,8 +33,56 @@ NEVER = np.int64(-(2**62))
 
 
 @njit(cache=True, nogil=True)
-def surface_features(t, x, y, p, last, t_end, tau, radius):
-    """Update a camera's last-event times with a window's events; return its support-summed time surfaces.
+def window_masks(x, y, p, last_left, t_recent, path_radius, counts, active, recent):
+    """The left camera's per-pixel inputs of a window, written into caller-owned arrays.
+
+    Parameters
+    ----------
+    x, y, p : (N,) arrays
+        The left camera's events of the window.
+    last_left : (2, H, W) int64 ndarray
+        The left camera's last event times, already updated with the window.
+    t_recent : int
+        Pixels whose last event is at or after this time are *recent* (noise filter).
+    path_radius : int
+        Active pixels: within this Chebyshev distance of an event of the window.
+    counts : (2, H, W) int64 ndarray
+        Out: event counts per polarity.
+    active, recent : (H, W) bool ndarrays
+        Out.
+    """
+    _, h, w = last_left.shape
+    counts[:] = 0
+    for i in range(x.size):
+        counts[p[i], y[i], x[i]] += 1
+    # Dilation of the event pixels by a (2r+1)^2 square, separably: a row pass, then a column pass over it.
+    rows = np.zeros((h, w), np.bool_)
+    for yy in range(h):
+        reach = -1  # the last column the most recent event pixel of this row reaches
+        for xx in range(min(path_radius, w)):
+            if counts[0, yy, xx] + counts[1, yy, xx] > 0:
+                reach = xx + path_radius
+        for xx in range(w):
+            ahead = xx + path_radius
+            if ahead < w and counts[0, yy, ahead] + counts[1, yy, ahead] > 0:
+                reach = ahead + path_radius
+            rows[yy, xx] = reach >= xx
+            recent[yy, xx] = last_left[0, yy, xx] >= t_recent or last_left[1, yy, xx] >= t_recent
+    for xx in range(w):
+        reach = -1
+        for yy in range(min(path_radius, h)):
+            if rows[yy, xx]:
+                reach = yy + path_radius
+        for yy in range(h):
+            ahead = yy + path_radius
+            if ahead < h and rows[ahead, xx]:
+                reach = ahead + path_radius
+            active[yy, xx] = reach >= yy
+
+
+@njit(cache=True, nogil=True)
+def surface_features(t, x, y, p, last, t_end, tau, radius, ts, rows, out):
+    """Update a camera's last-event times with a window's events; write its support-summed time surfaces.
 
     Parameters
     ----------
@@ -28,71 +92,186 @@ def surface_features(t, x, y, p, last, t_end, tau, radius):
         Last event time per polarity and pixel (:data:`NEVER` if none), updated in place.
     t_end, tau, radius : int
         Window end, decay time (us) and support half side (px).
-
-    Returns
-    -------
-    (2, H, W) float64 ndarray
-        ``sum over the (2r+1)^2 square of max(0, 1 - (t_end - last) / tau)``, per polarity.
+    ts, rows : (2, H, W) float64 ndarrays
+        Scratch.
+    out : (2, H, W) float64 ndarray
+        Out: ``sum over the (2r+1)^2 square of max(0, 1 - (t_end - last) / tau)``, per polarity.
     """
     for i in range(t.size):
         pi, yi, xi = p[i], y[i], x[i]
         if t[i] > last[pi, yi, xi]:
             last[pi, yi, xi] = t[i]
     _, h, w = last.shape
-    ts = np.zeros((2, h, w))
+    surf = out if radius == 0 else ts
     for c in range(2):
         for yy in range(h):
             for xx in range(w):
                 age = t_end - last[c, yy, xx]
-                if age < tau:
-                    ts[c, yy, xx] = 1.0 - float(age) / float(tau)
+                surf[c, yy, xx] = 1.0 - float(age) / float(tau) if age < tau else 0.0
     if radius == 0:
-        return ts
-    # Separable: sums along the row first, then of those along the column (the reference's order).
-    rows = np.zeros((2, h, w))
+        return
+    # Separable: sums along the row first, then of those along the column (the reference's order). Each sum
+    # receives its terms in ascending order, as the reference adds them, and the zeros it skips change nothing.
+    rows[:] = 0.0
     for c in range(2):
         for yy in range(h):
-            for xx in range(w):
-                acc = 0.0
-                for x2 in range(max(xx - radius, 0), min(xx + radius + 1, w)):
-                    acc += ts[c, yy, x2]
-                rows[c, yy, xx] = acc
-    out = np.zeros((2, h, w))
+            for x2 in range(w):
+                v = ts[c, yy, x2]
+                if v != 0.0:
+                    for xx in range(max(x2 - radius, 0), min(x2 + radius + 1, w)):
+                        rows[c, yy, xx] += v
+    out[:] = 0.0
     for c in range(2):
-        for yy in range(h):
+        for y2 in range(h):
             for xx in range(w):
-                acc = 0.0
-                for y2 in range(max(yy - radius, 0), min(yy + radius + 1, h)):
-                    acc += rows[c, y2, xx]
-                out[c, yy, xx] = acc
-    return out
+                v = rows[c, y2, xx]
+                if v != 0.0:
+                    for yy in range(max(y2 - radius, 0), min(y2 + radius + 1, h)):
+                        out[c, yy, xx] += v
+
+
+@njit(cache=True, nogil=True)
+def nonzero_values(features, buf):
+    """Copy the positive values of ``features`` into ``buf`` (raster order); return how many there are."""
+    flat = features.ravel()
+    n = 0
+    for i in range(flat.size):
+        if flat[i] > 0.0:
+            buf[n] = flat[i]
+            n += 1
+    return n
+
+
+@njit(cache=True, nogil=True)
+def percentile(values, q):
+    """``np.percentile(values, q)`` (method "linear") of a non-empty float64 vector, bit for bit.
+
+    NumPy's steps, in its floating-point order: virtual index ``(n - 1) * (q / 100)``, the two order
+    statistics around it (found by a partial sort, O(n) instead of a full sort), and its interpolation
+    between them from the nearer end (``b - (b - a) * (1 - g)`` when ``g >= 0.5``). Called per camera and
+    window, where NumPy's own call costs more than the kernels around it.
+    """
+    n = values.size
+    virtual = (n - 1) * (q / 100.0)
+    if virtual >= n - 1:
+        return values.max()
+    below = int(np.floor(virtual))
+    part = np.partition(values, below)
+    a = part[below]
+    b = part[below + 1:].min()
+    g = virtual - float(below)
+    diff = b - a
+    if g >= 0.5:
+        return b - diff * (1.0 - g)
+    return a + diff * g
+
+
+@njit(cache=True, nogil=True)
+def divide(features, level):
+    """``features /= level`` in place (zeros stay zero)."""
+    flat = features.ravel()
+    for i in range(flat.size):
+        if flat[i] != 0.0:
+            flat[i] = flat[i] / level
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _path_step(cost, k, prev, q, out, p1, p2):
-    """One semi-global step from pixel q to pixel k along a path (rows of the compact arrays):
-    ``out[k, d] = cost[k, d] + min(prev[q, d], prev[q, d+-1] + p1, min(prev[q]) + p2) - min(prev[q])``.
+def _min4(v):
+    """``min(v)`` of a non-empty vector, with four running minima: a single one is a chain of dependent
+    instructions that takes several cycles per element, four overlap (the minimum is exact in any order)."""
+    nd = v.size
+    m0 = m1 = m2 = m3 = v[0]
+    d = 0
+    while d + 4 <= nd:
+        m0 = min(m0, v[d])
+        m1 = min(m1, v[d + 1])
+        m2 = min(m2, v[d + 2])
+        m3 = min(m3, v[d + 3])
+        d += 4
+    while d < nd:
+        m0 = min(m0, v[d])
+        d += 1
+    return min(min(m0, m1), min(m2, m3))
 
-    Branch-free in the inner loop (the minima are exact in any order, so this equals the reference)."""
-    nd = cost.shape[1]
-    mn = prev[q, 0]
-    for d in range(1, nd):
-        mn = min(mn, prev[q, d])
+
+@njit(cache=True, nogil=True, inline="always")
+def _path_step(cost, prev, mn, out, p1, p2):
+    """One semi-global step along a path into vector ``out``; returns ``min(out)``.
+
+    ``out[d] = cost[d] + min(prev[d], prev[d+-1] + p1, mn + p2) - mn`` with ``mn = min(prev)`` (Hirschmüller
+    2008, eq. 13). The minima are exact in any order, so this equals the reference; the loop does four
+    disparities at a time with four running minima of ``out`` (see :func:`_min4`)."""
+    nd = cost.size
     jump = mn + p2
     if nd == 1:
-        out[k, 0] = cost[k, 0] + (min(prev[q, 0], jump) - mn)
-        return
-    out[k, 0] = cost[k, 0] + (min(min(prev[q, 0], prev[q, 1] + p1), jump) - mn)
-    for d in range(1, nd - 1):
-        m = min(min(prev[q, d], jump), min(prev[q, d - 1], prev[q, d + 1]) + p1)
-        out[k, d] = cost[k, d] + (m - mn)
+        v = cost[0] + (min(prev[0], jump) - mn)
+        out[0] = v
+        return v
+    v = cost[0] + (min(min(prev[0], prev[1] + p1), jump) - mn)
+    out[0] = v
+    m0 = m1 = m2 = m3 = v
     last = nd - 1
-    out[k, last] = cost[k, last] + (min(min(prev[q, last], prev[q, last - 1] + p1), jump) - mn)
+    d = 1
+    while d + 4 <= last:
+        a0 = cost[d] + (min(min(prev[d], jump), min(prev[d - 1], prev[d + 1]) + p1) - mn)
+        a1 = cost[d + 1] + (min(min(prev[d + 1], jump), min(prev[d], prev[d + 2]) + p1) - mn)
+        a2 = cost[d + 2] + (min(min(prev[d + 2], jump), min(prev[d + 1], prev[d + 3]) + p1) - mn)
+        a3 = cost[d + 3] + (min(min(prev[d + 3], jump), min(prev[d + 2], prev[d + 4]) + p1) - mn)
+        out[d] = a0
+        out[d + 1] = a1
+        out[d + 2] = a2
+        out[d + 3] = a3
+        m0 = min(m0, a0)
+        m1 = min(m1, a1)
+        m2 = min(m2, a2)
+        m3 = min(m3, a3)
+        d += 4
+    while d < last:
+        a0 = cost[d] + (min(min(prev[d], jump), min(prev[d - 1], prev[d + 1]) + p1) - mn)
+        out[d] = a0
+        m0 = min(m0, a0)
+        d += 1
+    v = cost[last] + (min(min(prev[last], prev[last - 1] + p1), jump) - mn)
+    out[last] = v
+    return min(min(min(m0, m1), min(m2, m3)), v)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _copy(src, dst):
+    """``dst[:] = src``; returns ``min(src)``."""
+    for d in range(src.size):
+        dst[d] = src[d]
+    return _min4(src)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _pixel_cost(fl, right_rev, yy, xx, pr, row_tol, temporal_weight, out):
+    """Cost of every disparity at left pixel (xx, yy) into ``out``; returns its minimum.
+
+    ``right_rev[y, c, j]`` is the right feature at column ``W - 1 - j`` (zero for ``j >= W``, beyond the left
+    edge), so that disparities 0, 1, ... read it forwards from ``j = W - 1 - xx``: contiguous loops without
+    branches, which the compiler turns into vector instructions. The least over the tolerated rows is exact in
+    any order, so this equals the reference's ``np.minimum`` over rows."""
+    h = fl.shape[1]
+    nd = out.size
+    l0, l1 = fl[0, yy, xx], fl[1, yy, xx]
+    j0 = right_rev.shape[2] - nd - 1 - xx
+    for d in range(nd):
+        out[d] = np.inf
+    for y2 in range(max(yy - row_tol, 0), min(yy + row_tol + 1, h)):
+        r0 = right_rev[y2, 0, j0:j0 + nd]
+        r1 = right_rev[y2, 1, j0:j0 + nd]
+        for d in range(nd):
+            out[d] = min(out[d], abs(l0 - r0[d]) + abs(l1 - r1[d]))
+    if temporal_weight > 0.0 and not np.isnan(pr):
+        for d in range(nd):
+            out[d] = out[d] + temporal_weight * min(abs(d - pr), 2.0)
+    return _min4(out)
 
 
 @njit(cache=True, nogil=True)
 def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2, paths, temporal_weight, lr_tol,
-                   subpixel, min_neighbours, max_uncertainty, fill_radius, work):
+                   subpixel, min_neighbours, max_uncertainty, fill_radius, work, rowbuf, planes):
     """Match one window's normalised features; return the answers at the left camera's event pixels.
 
     Parameters
@@ -109,9 +288,15 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
         Disparity of the previous window per pixel, NaN where none (temporal coherence).
     max_d, row_tol, p1, p2, paths, temporal_weight, lr_tol, subpixel, min_neighbours, max_uncertainty, fill_radius
         :class:`~calibration_free.fused_params.FusedParams` fields.
-    work : (5, n, max_d + 1) float64 ndarray
-        Scratch space for at least the n active pixels (kept by the caller: fresh pages cost more than the
-        arithmetic).
+    work : (3, n, max_d + 1) float64 ndarray
+        Scratch for at least the n active pixels: cost, row path from the left (then the sum of the paths),
+        column path from above (kept by the caller: fresh pages cost more than the arithmetic).
+    rowbuf : (4, W, max_d + 1) float64 ndarray
+        Scratch: the backward row path's current and previous vector (``rowbuf[0:2, 0]``) and the backward
+        column path's current and previous row (``rowbuf[2:4]``).
+    planes : tuple of ndarrays
+        Scratch kept between windows: ``(right_rev, index, consistent)``, (H, 2, W + max_d + 1) float64 zeros,
+        (H, W) int64, (H, W) float64 all NaN (left so on return).
 
     Returns
     -------
@@ -120,94 +305,120 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
     """
     _, h, w = fl.shape
     nd = max_d + 1
-    # Compact storage of the active pixels, raster order.
-    index = np.full((h, w), -1, np.int64)
+    # Compact storage of the active pixels, raster order; each row's pixels are a contiguous range.
+    right_rev, index, consistent_d = planes
+    row_start = np.empty(h + 1, np.int64)
+    slot_start = np.empty(h + 1, np.int64)  # output slots: the anchors, raster order
     n = 0
+    n_anchor = 0
     for yy in range(h):
+        row_start[yy] = n
+        slot_start[yy] = n_anchor
         for xx in range(w):
             if active[yy, xx]:
                 index[yy, xx] = n
                 n += 1
-    ay = np.empty(n, np.int64)
+                if counts[0, yy, xx] + counts[1, yy, xx] > 0:
+                    n_anchor += 1
+            else:
+                index[yy, xx] = -1
+    row_start[h] = n
+    slot_start[h] = n_anchor
+    if n_anchor == 0:
+        none = np.empty(0, np.int64)
+        return none, none.copy(), none.copy(), np.empty(0), np.empty(0)
     ax = np.empty(n, np.int64)
-    cost = work[0, :n]
     for yy in range(h):
         for xx in range(w):
-            k = index[yy, xx]
-            if k < 0:
+            if index[yy, xx] >= 0:
+                ax[index[yy, xx]] = xx
+    # The right features mirrored along the row, zero beyond the left edge (see _pixel_cost; the zeros were
+    # written when the array was made).
+    for yy in range(h):
+        for c in range(2):
+            for xx in range(w):
+                right_rev[yy, c, w - 1 - xx] = fr[c, yy, xx]
+    cost = work[0, :n]
+    total = work[1, :n] if paths > 0 else cost
+    col_fwd = work[2, :n]
+    cost_min = np.empty(n)
+    row_min = np.empty(n)
+    col_min = np.empty(n)
+    # Forward pass (top to bottom, left to right): cost, the row path from the left, the column path from above.
+    for yy in range(h):
+        for k in range(row_start[yy], row_start[yy + 1]):
+            xx = ax[k]
+            cost_min[k] = _pixel_cost(fl, right_rev, yy, xx, prior[yy, xx], row_tol, temporal_weight, cost[k])
+            if paths == 0:
                 continue
-            ay[k] = yy
-            ax[k] = xx
-            pr = prior[yy, xx]
-            for d in range(nd):
-                xr = xx - d
-                c = np.inf
-                for y2 in range(max(yy - row_tol, 0), min(yy + row_tol + 1, h)):
-                    r0 = fr[0, y2, xr] if xr >= 0 else 0.0
-                    r1 = fr[1, y2, xr] if xr >= 0 else 0.0
-                    c2 = abs(fl[0, yy, xx] - r0) + abs(fl[1, yy, xx] - r1)
-                    if c2 < c:
-                        c = c2
-                if temporal_weight > 0.0 and not np.isnan(pr):
-                    c = c + temporal_weight * min(abs(d - pr), 2.0)
-                cost[k, d] = c
-    if paths == 0:
-        total = cost
-    else:
-        # Forward raster pass: paths from the left (and from above); backward pass: from the right (and below).
-        l_a = work[1, :n]
-        l_b = work[2, :n]
-        tmp_v = work[3, :n]
-        tmp_w = work[4, :n]
-        for k in range(n):
-            yy, xx = ay[k], ax[k]
-            q = index[yy, xx - 1] if xx > 0 else -1
-            if q >= 0:
-                _path_step(cost, k, l_a, q, l_a, p1, p2)
+            if xx > 0 and index[yy, xx - 1] >= 0:
+                row_min[k] = _path_step(cost[k], total[k - 1], row_min[k - 1], total[k], p1, p2)
             else:
-                l_a[k, :] = cost[k]
+                row_min[k] = _copy(cost[k], total[k])
             if paths == 4:
                 q = index[yy - 1, xx] if yy > 0 else -1
                 if q >= 0:
-                    _path_step(cost, k, tmp_v, q, tmp_v, p1, p2)
+                    col_min[k] = _path_step(cost[k], col_fwd[q], col_min[q], col_fwd[k], p1, p2)
                 else:
-                    tmp_v[k, :] = cost[k]
-        for k in range(n - 1, -1, -1):
-            yy, xx = ay[k], ax[k]
-            q = index[yy, xx + 1] if xx < w - 1 else -1
-            if q >= 0:
-                _path_step(cost, k, l_b, q, l_b, p1, p2)
-            else:
-                l_b[k, :] = cost[k]
-            if paths == 4:
-                q = index[yy + 1, xx] if yy < h - 1 else -1
-                if q >= 0:
-                    _path_step(cost, k, tmp_w, q, tmp_w, p1, p2)
+                    col_min[k] = _copy(cost[k], col_fwd[k])
+    # Backward pass (bottom to top, right to left): the row path from the right in one vector, the column path
+    # from below in two rows; the paths summed in place, ((left + right) + above) + below, as the reference
+    # does; then the row's answers, while its sums are in the cache.
+    row_bwd = rowbuf[0:2, 0]
+    col_rows = rowbuf[2:4]
+    col_rows_min = np.empty((2, w))
+    out_x = np.empty(n_anchor, np.int64)
+    out_y = np.empty(n_anchor, np.int64)
+    out_p = np.empty(n_anchor, np.int64)
+    out_d = np.empty(n_anchor)
+    out_u = np.empty(n_anchor)
+    out_ok = np.empty(n_anchor, np.bool_)
+    out_has = np.zeros(n_anchor, np.bool_)
+    cur = 0
+    for yy in range(h - 1, -1, -1):
+        k0, k1 = row_start[yy], row_start[yy + 1]
+        if k0 == k1:
+            continue
+        if paths > 0:
+            below = 1 - cur  # the column path of row yy + 1, where it was active
+            rb = 0
+            rb_min = 0.0
+            for k in range(k1 - 1, k0 - 1, -1):
+                xx = ax[k]
+                if xx < w - 1 and index[yy, xx + 1] >= 0:
+                    rb_min = _path_step(cost[k], row_bwd[1 - rb], rb_min, row_bwd[rb], p1, p2)
                 else:
-                    tmp_w[k, :] = cost[k]
-        total = l_a  # summed in place: the forward paths are no longer needed
-        for k in range(n):
-            for d in range(nd):
-                s = l_a[k, d] + l_b[k, d]
+                    rb_min = _copy(cost[k], row_bwd[rb])
+                fwd = total[k]
                 if paths == 4:
-                    s = s + tmp_v[k, d]
-                    s = s + tmp_w[k, d]
-                total[k, d] = s
-    out_x = np.empty(n, np.int64)
-    out_y = np.empty(n, np.int64)
-    out_p = np.empty(n, np.int64)
-    out_d = np.empty(n)
-    out_u = np.empty(n)
-    out_ok = np.empty(n, np.bool_)
-    consistent_d = np.full((h, w), np.nan)
-    m = 0
-    for yy in range(h):
-        for xx in range(w):
+                    if yy < h - 1 and index[yy + 1, xx] >= 0:
+                        col_rows_min[cur, xx] = _path_step(cost[k], col_rows[below, xx], col_rows_min[below, xx],
+                                                           col_rows[cur, xx], p1, p2)
+                    else:
+                        col_rows_min[cur, xx] = _copy(cost[k], col_rows[cur, xx])
+                    up = col_fwd[k]
+                    down = col_rows[cur, xx]
+                    r = row_bwd[rb]
+                    for d in range(nd):
+                        s = fwd[d] + r[d]
+                        s = s + up[d]
+                        s = s + down[d]
+                        fwd[d] = s
+                else:
+                    r = row_bwd[rb]
+                    for d in range(nd):
+                        fwd[d] = fwd[d] + r[d]
+                rb = 1 - rb
+            cur = 1 - cur
+        if slot_start[yy] == slot_start[yy + 1]:
+            continue
+        slot = slot_start[yy]
+        for k in range(k0, k1):
+            xx = ax[k]
             if counts[0, yy, xx] + counts[1, yy, xx] == 0:
                 continue
-            k = index[yy, xx]
-            if k < 0:
-                continue
+            i = slot
+            slot += 1
             neighbours = 0
             for y2 in range(max(yy - 1, 0), min(yy + 2, h)):
                 for x2 in range(max(xx - 1, 0), min(xx + 2, w)):
@@ -216,17 +427,20 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
             if neighbours < min_neighbours:
                 continue
             s = total[k]
+            # The first least disparity (argmin's), then the least more than 1 px away from it.
+            low = _min4(s)
             best = 0
-            for d in range(1, nd):
-                if s[d] < s[best]:
-                    best = d
+            while s[best] != low:
+                best += 1
             second = np.inf
-            for d in range(nd):
-                if abs(d - best) > 1 and s[d] < second:
-                    second = s[d]
+            if best >= 2:
+                second = _min4(s[:best - 1])
+            if best + 2 < nd:
+                second = min(second, _min4(s[best + 2:]))
             ratio = 1.0 if second == 0.0 else s[best] / second
             consistent = True
             if lr_tol >= 0:
+                # The right pixel's own winner from the same sums; its row is still in the cache.
                 xr = xx - best
                 best_r = -1
                 if xr >= 0:
@@ -248,17 +462,21 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
                 if den > 0.0:
                     delta = (a - c) / (2.0 * den)
                     disp = disp + min(max(delta, -0.5), 0.5)
-            out_x[m] = xx
-            out_y[m] = yy
-            out_p[m] = 1 if counts[1, yy, xx] >= counts[0, yy, xx] else 0
-            out_d[m] = disp
-            out_u[m] = u
-            out_ok[m] = consistent
-            if consistent:
-                consistent_d[yy, xx] = disp
-            m += 1
+            out_x[i] = xx
+            out_y[i] = yy
+            out_p[i] = 1 if counts[1, yy, xx] >= counts[0, yy, xx] else 0
+            out_d[i] = disp
+            out_u[i] = u
+            out_ok[i] = consistent
+            out_has[i] = True
+    out_x, out_y, out_p = out_x[out_has], out_y[out_has], out_p[out_has]
+    out_d, out_u, out_ok = out_d[out_has], out_u[out_has], out_ok[out_has]
+    m = out_x.size
     # Inconsistent winners take the median of the consistent answers around them (when there are any).
     keep = np.zeros(m, np.bool_)
+    for i in range(m):
+        if out_ok[i]:
+            consistent_d[out_y[i], out_x[i]] = out_d[i]
     vals = np.empty((2 * fill_radius + 1) ** 2)
     for i in range(m):
         if not out_ok[i] and fill_radius > 0:
@@ -273,4 +491,6 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
                 srt = np.sort(vals[:c])
                 out_d[i] = srt[c // 2] if c % 2 else (srt[c // 2 - 1] + srt[c // 2]) / 2.0
         keep[i] = out_u[i] <= max_uncertainty
-    return out_x[:m][keep], out_y[:m][keep], out_p[:m][keep], out_d[:m][keep], out_u[:m][keep]
+    for i in range(m):
+        consistent_d[out_y[i], out_x[i]] = np.nan
+    return out_x[keep], out_y[keep], out_p[keep], out_d[keep], out_u[keep]

@@ -16,8 +16,12 @@ Design, part by part, with the reason for each (bench/results/fused.md measures 
    Gaussian (thesis eq. 3.6) in its cheapest form, done once per image rather than once per disparity.
 3. **Signal level** (:func:`calibration_free.fused_signal.signal_level`): each camera's features are
    divided by a robust level of the window (the 90th percentile of its non-zero values), so that costs and
-   penalties mean the same at any event density and for two sensors of different sensitivity. One function,
-   to be swapped for the project's adaptive signal level (issue 12) when it lands.
+   penalties mean the same at any event density and for two sensors of different sensitivity. Every value the
+   matcher compares (``p1``, ``p2``, ``temporal_weight``) is thus in units of the level: it has no absolute
+   threshold for :mod:`cvstereo.signal_level` to replace. That module's causal one-second level would steady the
+   level of sparse windows, but its quantile over 25 windows' values cost 1.5 ms a window (2arms-50cm, the
+   anchors' values only, load 10), as much as a third of the whole window's matching; it is worth adopting
+   once that estimate is incremental.
 4. **Cost**: the L1 distance of the two cameras' feature vectors at ``(x, y)`` and ``(x - d, y + dy)``, the
    least over ``|dy| <= row_tolerance``: the thesis' event-time matcher's row tolerance, because real rigs
    are off by about a row (thesis 3.2; the simulator's rig by one); :mod:`cvstereo.rigcorrect` corrects
@@ -55,12 +59,11 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-import cv2
 import numpy as np
 
-from calibration_free._fused_kernel import NEVER, match_features, surface_features
+from calibration_free._fused_kernel import NEVER, divide, match_features, nonzero_values, surface_features, window_masks
 from calibration_free.fused_params import FusedParams
-from calibration_free.fused_signal import signal_level
+from calibration_free.fused_signal import level_of
 from cvstereo.matches import empty_matches, make_matches
 from cvstereo.windows import FrameMatcher, Window
 
@@ -78,26 +81,51 @@ class WindowState:
         self.last = np.full((2, 2, h, w), NEVER, dtype=np.int64)  # camera, polarity, row, column
         self.prior = np.full((h, w), np.nan)
         self.prior_end: int | None = None
+        self._no_prior = np.full((h, w), np.nan)  # never written: the prior after a gap
+        self._prior_at = (np.zeros(0, np.int64), np.zeros(0, np.int64))  # the pixels that hold one
 
     def prior_for(self, t_end: int, window_us: int) -> np.ndarray:
         """The previous window's disparities if it is the window just before ``t_end``, else all NaN."""
         if self.prior_end == t_end - window_us:
             return self.prior
-        return np.full_like(self.prior, np.nan)
+        return self._no_prior
 
     def remember(self, t_end: int, x: np.ndarray, y: np.ndarray, disparity: np.ndarray) -> None:
         """Keep this window's answers as the next window's prior."""
-        self.prior = np.full_like(self.prior, np.nan)
+        self.prior[self._prior_at[1], self._prior_at[0]] = np.nan  # only the pixels set last time
         self.prior[y, x] = disparity
+        self._prior_at = (x, y)
         self.prior_end = t_end
 
 
-def left_counts(events: np.ndarray, resolution: tuple[int, int]) -> np.ndarray:
-    """(2, H, W) int64 event counts per polarity of one camera's window events."""
-    w, h = resolution
-    counts = np.zeros((2, h, w), dtype=np.int64)
-    np.add.at(counts, (events["p"].astype(np.intp), events["y"].astype(np.intp), events["x"].astype(np.intp)), 1)
-    return counts
+class Scratch:
+    """The per-window arrays of the kernels, kept between windows (fresh pages cost more than the arithmetic).
+
+    Parameters
+    ----------
+    resolution : (width, height)
+    n_disparities : int
+    """
+
+    def __init__(self, resolution: tuple[int, int], n_disparities: int):
+        w, h = resolution
+        self.nd = n_disparities
+        self.ts = np.empty((2, h, w))
+        self.rows = np.empty((2, h, w))
+        self.features = np.empty((2, 2, h, w))  # camera, polarity, row, column
+        self.values = np.empty(2 * h * w)
+        self.counts = np.empty((2, h, w), np.int64)
+        self.active = np.empty((h, w), np.bool_)
+        self.recent = np.empty((h, w), np.bool_)
+        self.rowbuf = np.empty((4, w, n_disparities))
+        self.planes = (np.zeros((h, 2, w + n_disparities)), np.empty((h, w), np.int64), np.full((h, w), np.nan))
+        self.work = np.empty((3, 0, n_disparities))
+
+    def work_for(self, n_active: int) -> np.ndarray:
+        """Cost and path storage for ``n_active`` pixels (grown by doubling, never shrunk)."""
+        if n_active > self.work.shape[1]:
+            self.work = np.empty((3, max(n_active, 2 * self.work.shape[1]), self.nd))
+        return self.work
 
 
 class FusedMatcher(FrameMatcher):
@@ -125,7 +153,7 @@ class FusedMatcher(FrameMatcher):
         super().__init__(params, resolution=resolution)
         self._state = WindowState(self.resolution)
         self._uncertainty: list[np.ndarray] = []
-        self._work = np.empty((5, 0, self.params.max_disparity + 1))
+        self._scratch = Scratch(self.resolution, self.params.max_disparity + 1)
 
     def anchor_cameras(self) -> tuple[int, ...]:
         return (0,)
@@ -143,23 +171,23 @@ class FusedMatcher(FrameMatcher):
         return np.concatenate(parts).astype(np.float32) if parts else np.zeros(0, np.float32)
 
     def match_window(self, window: Window) -> np.ndarray:
-        prm, state = self.params, self._state
-        features = []
+        prm, state, buf = self.params, self._state, self._scratch
         for cam, ev in enumerate((window.left, window.right)):
-            f = surface_features(ev["t"], ev["x"], ev["y"], ev["p"], state.last[cam], window.t_end,
-                                 prm.tau_us, prm.support_radius)
-            features.append(signal_level(f))
-        counts = left_counts(window.left, self.resolution)
-        side = 2 * prm.path_radius + 1
-        active = cv2.dilate((counts.sum(axis=0) > 0).astype(np.uint8), np.ones((side, side), np.uint8)) > 0
-        n_active = int(np.count_nonzero(active))
-        if n_active > self._work.shape[1]:
-            self._work = np.empty((5, max(n_active, 2 * self._work.shape[1]), prm.max_disparity + 1))
-        recent = (state.last[0] >= window.t_end - 2 * prm.window_us).any(axis=0)
+            f = buf.features[cam]
+            surface_features(ev["t"], ev["x"], ev["y"], ev["p"], state.last[cam], window.t_end, prm.tau_us,
+                             prm.support_radius, buf.ts, buf.rows, f)
+            n = nonzero_values(f, buf.values)
+            if n:
+                divide(f, level_of(buf.values[:n]))
+        left = window.left
+        window_masks(left["x"], left["y"], left["p"], state.last[0], window.t_end - 2 * prm.window_us,
+                     prm.path_radius, buf.counts, buf.active, buf.recent)
+        work = buf.work_for(int(np.count_nonzero(buf.active)))
         x, y, pol, disp, unc = match_features(
-            features[0], features[1], counts, active, recent, state.prior_for(window.t_end, prm.window_us),
-            prm.max_disparity, prm.row_tolerance, prm.p1, prm.p2, prm.sgm_paths, prm.temporal_weight, prm.lr_tolerance,
-            prm.subpixel, prm.min_neighbours, prm.max_uncertainty, prm.fill_radius, self._work)
+            buf.features[0], buf.features[1], buf.counts, buf.active, buf.recent,
+            state.prior_for(window.t_end, prm.window_us), prm.max_disparity, prm.row_tolerance, prm.p1, prm.p2,
+            prm.sgm_paths, prm.temporal_weight, prm.lr_tolerance, prm.subpixel, prm.min_neighbours,
+            prm.max_uncertainty, prm.fill_radius, work, buf.rowbuf, buf.planes)
         state.remember(window.t_end, x, y, disp)
         self._uncertainty.append(unc)
         if x.size == 0:

@@ -1,16 +1,26 @@
 """The signal level of the fused matcher: one camera's features of a window, normalised (design part 3 of
 :mod:`calibration_free.fused`).
 
-One function, shared by the kernel path and the reference, so that the project's adaptive signal level
-(issue 12) can replace it in one place.
+One function, shared by the kernel path and the reference, so that a change of the level (e.g. to the causal one
+of :mod:`cvstereo.signal_level`, see design part 3 of :mod:`calibration_free.fused` for why not yet) is made in one
+place.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from calibration_free._fused_kernel import percentile
+
 #: Percentile of the non-zero feature values taken as a window's signal level.
 LEVEL_PERCENTILE = 90.0
+
+
+def level_of(nonzero: np.ndarray) -> float:
+    """The signal level of a window from its non-zero feature values (in any order): their
+    :data:`LEVEL_PERCENTILE` percentile, NumPy's linear one, computed by the kernel's
+    :func:`~calibration_free._fused_kernel.percentile` (fast path and reference alike)."""
+    return float(percentile(nonzero, LEVEL_PERCENTILE))
 
 
 def signal_level(features: np.ndarray) -> np.ndarray:
@@ -36,4 +46,4 @@ def signal_level(features: np.ndarray) -> np.ndarray:
     nonzero = features[features > 0]
     if nonzero.size == 0:
         return features
-    return features / np.percentile(nonzero, LEVEL_PERCENTILE)
+    return features / level_of(nonzero)

@@ -16,26 +16,30 @@ from cvstereo.matches import validate_matches
 from cvstereo.registry import create_matcher
 
 
-def textured_pair(seed: int, *, windows: int = 4, shift: int = 5, size: tuple[int, int] = (40, 16), noise: int = 40):
+def textured_pair(seed: int, *, windows: int = 4, shift: int = 5, size: tuple[int, int] = (40, 16), noise: int = 40,
+                  jagged: bool = False):
     """Random vertical-ish texture sliding right, seen by the right camera ``shift`` px further left, with noise.
 
-    Returns left, right and the resolution.
+    ``jagged``: each row's edges are offset by their own 0..5 px, so that rows differ (a row offset between
+    the cameras then matters). Returns left, right and the resolution.
     """
     rng = np.random.default_rng(seed)
     w, h = size
     edges = rng.integers(shift + 2, w - 6, 6)
     pols = rng.integers(0, 2, 6)
+    row_offset = rng.integers(0, 6, h) if jagged else np.zeros(h, int)
     cams = [[], []]
     for k in range(windows * 8):  # 5 ms steps: each edge moves 1 px per step
         t0 = k * 5_000
         for e, p in zip(edges, pols, strict=True):
-            x = int(e + k // 4) % (w - 1)
             ys = np.flatnonzero(rng.random(h) < 0.7)
+            x = (e + k // 4 + row_offset[ys]) % (w - 1)
             t = t0 + rng.integers(0, 5_000, ys.size)
-            cams[0].append((t, np.full(ys.size, x), ys, np.full(ys.size, p)))
+            cams[0].append((t, x, ys, np.full(ys.size, p)))
             xr = x - shift
-            if xr >= 0:
-                cams[1].append((t + rng.integers(0, 300, ys.size), np.full(ys.size, xr), ys, np.full(ys.size, p)))
+            ok = xr >= 0
+            cams[1].append((t[ok] + rng.integers(0, 300, np.count_nonzero(ok)), xr[ok], ys[ok],
+                            np.full(np.count_nonzero(ok), p)))
     for cam in cams:
         cam.append((rng.integers(0, windows * 40_000, noise), rng.integers(0, w, noise), rng.integers(0, h, noise),
                     rng.integers(0, 2, noise)))
@@ -151,3 +155,41 @@ def test_registered_and_window_anchored():
 def test_bad_parameters_say_which(field, value, words):
     with pytest.raises(ValueError, match=words):
         FusedParams(**{field: value})
+
+
+@settings(max_examples=200, deadline=None)
+@given(values=st.lists(st.floats(1e-6, 1e6), min_size=1, max_size=300), q=st.sampled_from([0.0, 50.0, 90.0, 100.0]),
+       rounded=st.booleans())
+def test_kernel_percentile_is_numpys(values, q, rounded):
+    from calibration_free._fused_kernel import percentile
+
+    v = np.round(np.array(values), 0 if rounded else 12)  # rounding makes ties, the partial sort's hard case
+    assert percentile(v.copy(), q) == np.percentile(v, q)
+
+
+@pytest.mark.parametrize(("rows", "time_us"), [(3, 0), (-4, 1500)])
+def test_match_applies_the_rig_correction(rows, time_us):
+    from cvstereo.pipeline import match
+    from cvstereo.recording import Recording
+
+    left, right, resolution = textured_pair(5, windows=6, noise=0, jagged=True)
+    # The rig's error: the right camera's rows shifted by `rows`, its clock late by `time_us` (events shifted
+    # off the sensor are lost, as they would be on the real rig).
+    y = right["y"].astype(int) + rows
+    on_sensor = (y >= 0) & (y < resolution[1])
+    shifted = right[on_sensor].copy()
+    shifted["y"] = y[on_sensor]
+    shifted["t"] = shifted["t"] + time_us
+    clean = Recording(left, right[on_sensor], resolution=resolution)
+    erred = Recording(left, shifted, resolution=resolution)
+    fixed = match(erred, method="fused", row_offset=-rows, time_offset_us=time_us)
+    assert fixed.meta["rig_correction"]["row_offset"] == -rows
+    assert fixed.meta["rig_correction"]["time_offset_us"] == time_us
+    # Corrected, the matcher sees the clean stream: the same matches and uncertainties.
+    plain = match(clean, method="fused")
+    np.testing.assert_array_equal(fixed.matches, plain.matches)
+    np.testing.assert_array_equal(fixed.arrays["uncertainty"], plain.arrays["uncertainty"])
+    assert np.mean(np.abs(plain.matches["disparity"] - 5.0) <= 1.0) > 0.95
+    # Uncorrected, rows 3-4 apart are beyond the row tolerance of 1: a third or more of the answers are wrong.
+    raw = match(erred, method="fused")
+    assert np.mean(np.abs(raw.matches["disparity"] - 5.0) <= 1.0) < 0.75
