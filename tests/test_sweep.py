@@ -209,3 +209,23 @@ def test_suite_spec_resolves_to_the_suite_recordings(monkeypatch, tmp_path):
     paths = [tmp_path / "a.npz", tmp_path / "b.npz"]
     monkeypatch.setattr(simulate, "suite_recordings", lambda name, progress=False: [("a", paths[0]), ("b", paths[1])])
     assert resolve_recordings(["suite:robustness"]) == [os.fspath(p) for p in paths]
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+def test_local_cluster_starts_while_another_program_holds_port_8787(clips, tmp_path):
+    """The scheduler's HTTP server takes a free port: a Dask dashboard elsewhere on 8787 is no warning (an
+    error under this suite's filterwarnings)."""
+    import socket
+
+    holder = socket.socket()
+    try:
+        holder.bind(("0.0.0.0", 8787))
+        holder.listen()
+    except OSError:
+        pass  # another program holds it already: the case this test is about
+    try:
+        result = run_sweep(_cells(clips[0][:1])[:2], tmp_path, workers=1)
+    finally:
+        holder.close()
+    assert result.failed == 0 and result.computed == 2

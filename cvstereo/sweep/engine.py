@@ -249,8 +249,11 @@ def _run_on_dask(todo, finished, *, workers: int | None, scheduler: str | None, 
     if scheduler is None:
         n = workers or os.cpu_count() or 1
         # One single-threaded process per worker: the matchers are single-threaded numba/numpy code, and
-        # processes keep each cell's memory apart. No dashboard: it needs bokeh and a free port.
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
+        # processes keep each cell's memory apart. No dashboard: it needs bokeh and a free port. The scheduler
+        # still serves /health on HTTP, by default on port 8787: on a free port instead (":0"), so that another
+        # cluster on the machine holding 8787 does not make it warn.
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                               scheduler_kwargs={"dashboard_address": ":0"})
         client = Client(cluster)
     else:
         client = Client(scheduler)
