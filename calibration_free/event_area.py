@@ -11,6 +11,11 @@ events within ``block // 2`` of the border are not matched, and candidates whose
 the search **[choice, as for frame-area]**. Variant ``no-gaussian``: single-pixel frame updates (eq. 4.1)
 with the threshold raised to 4.
 
+Search **[implementation, same result]**: the SAD of the patches' column sums bounds every candidate's SAD from
+below (triangle inequality; 5 terms instead of 25, computed for all candidates at once); the exact SAD is
+computed where that bound is least, then only for candidates whose bound does not exceed the best SAD so far
+(with a margin far beyond float rounding), so that the winner and its tie rule are the full search's.
+
 Both cameras' events are processed in one merged order (by time, left first at equal times), see
 :mod:`calibration_free.merge_order` and :mod:`calibration_free._event_common`. The reference implementation is
 :func:`calibration_free.reference.event_area.event_area_reference`.

@@ -12,6 +12,11 @@ the sign of D(x, y) count **[choice]**, without it every x2 does, as Algorithm 4
 the threshold has an empty run of its own: its vector points to the nearest above-threshold pixels). Cost
 ``|a1 - a2| + |b1 - b2|``; the least cost below ``max_cost`` wins, ties to the smallest disparity.
 
+Search **[implementation, same result]**: the walks through gaps skip 16-column blocks whose magnitude bound
+says that they hold no above-threshold pixel (:func:`cvstereo.dynamic_frames.skip_below`); the other row is read
+only over the candidate range and the walks out of its ends; with ``require_candidate_threshold`` only its runs
+of above-threshold pixels are visited (a run's pixels share the ends of their vectors).
+
 Both cameras' events are processed in one merged order (by time, left first at equal times), see
 :mod:`calibration_free.merge_order` and :mod:`calibration_free._event_common`. The reference implementation is
 :func:`calibration_free.reference.event_vector.event_vector_reference`.
