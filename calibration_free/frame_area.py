@@ -5,7 +5,9 @@ Per 40 ms window: signed frames as for the cluster matcher (Gaussian-filtered, o
 x ascending; a pixel with ``|value| >= threshold`` and no disparity yet gets the disparity whose 5x5 block in
 the other frame, on the same row and on the geometrically possible side, has the least sum of absolute
 differences (ties: the smaller disparity); the winner is written into the whole 5x5 neighbourhood of the
-disparity map, overwriting, so that those pixels are not searched again.
+disparity map, overwriting, so that those pixels are not searched again. With ``polarity="separate"`` (not
+the thesis': its frame is ``shared``) each camera has an OFF and an ON frame, and each pair is scanned and
+matched on its own, so that ON and OFF events of one window cannot cancel each other.
 
 The scan is one numba kernel (:func:`scan_sad`) that computes the SAD only for the pixels it actually searches
 (each search fills a whole block of the disparity map, so most above-threshold pixels are never searched).
@@ -126,11 +128,11 @@ class FrameAreaMatcher(FrameMatcher):
         """The signal-level diagnostics of the run so far (:meth:`cvstereo.signal_level.SignalLevel.diagnostics`)."""
         return self._level.diagnostics()
 
-    def _frame(self, counts: np.ndarray) -> np.ndarray:
-        (_, frame), = polarity_frames(counts, polarity="shared")
-        if self.params.gaussian:
-            frame = gaussian_filter(frame, sigma=self.params.kernel_sigma, kernel_size=self.params.kernel_size)
-        return frame
+    def _frames(self, counts: np.ndarray) -> list[tuple[int, np.ndarray]]:
+        """(channel, frame) per frame of the polarity mode (one for ``shared``): :func:`polarity_frames`."""
+        prm = self.params
+        return [(ch, gaussian_filter(f, sigma=prm.kernel_sigma, kernel_size=prm.kernel_size) if prm.gaussian else f)
+                for ch, f in polarity_frames(counts, polarity=prm.polarity)]
 
     def _counts(self, window: Window) -> tuple[np.ndarray, np.ndarray]:
         """ON/OFF counts of the reference and the other camera."""
@@ -138,30 +140,28 @@ class FrameAreaMatcher(FrameMatcher):
             (window.left, window.right)
         return polarity_counts(ref_ev, resolution=self.resolution), polarity_counts(oth_ev, resolution=self.resolution)
 
-    def _disparity_map(self, ref_counts: np.ndarray, oth_counts: np.ndarray, threshold: float):
-        prm = self.params
-        ref, oth = self._frame(ref_counts), self._frame(oth_counts)
-        disp = scan_sad(ref, oth, threshold=threshold, max_disparity=prm.max_disparity, block=prm.block,
-                        reference_camera=prm.reference_camera)
-        return disp, ref, oth
-
     def match_window(self, window: Window) -> np.ndarray:
         prm = self.params
         k = window.t_start // prm.level_window_us
         threshold = self._level.thresholds(k)[prm.reference_camera]  # from the windows before this one
         ref_cam = prm.reference_camera
         ref_counts, oth_counts = self._counts(window)
-        if not (window.right if ref_cam == 1 else window.left).size:
-            self._add_levels(k, None, self._frame(oth_counts), ref_counts, oth_counts)
-            return empty_matches()  # no reference events: nothing above threshold, no pixel to report at
-        disp, ref, oth = self._disparity_map(ref_counts, oth_counts, threshold)
-        self._add_levels(k, ref, oth, ref_counts, oth_counts)
-        y, x = np.nonzero(event_mask(ref_counts) & ~np.isnan(disp))
-        return make_matches(window.t_end, x, y, (ref[y, x] > 0).astype(np.int8), prm.reference_camera, disp[y, x])
+        has_ref = (window.right if ref_cam == 1 else window.left).size > 0
+        parts = []
+        # Each frame of the polarity mode is scanned and matched on its own (``shared``: the one frame).
+        for (ch, ref), (_, oth) in zip(self._frames(ref_counts), self._frames(oth_counts), strict=True):
+            self._add_levels(k, ch, ref if has_ref else None, oth, ref_counts, oth_counts)
+            if not has_ref:
+                continue  # no reference events: nothing above threshold, no pixel to report at
+            disp = scan_sad(ref, oth, threshold=threshold, max_disparity=prm.max_disparity, block=prm.block,
+                            reference_camera=ref_cam)
+            y, x = np.nonzero(event_mask(ref_counts, channel=ch) & ~np.isnan(disp))
+            parts.append(make_matches(window.t_end, x, y, (ref[y, x] > 0).astype(np.int8), ref_cam, disp[y, x]))
+        return np.concatenate(parts) if parts else empty_matches()
 
-    def _add_levels(self, k: int, ref, oth, ref_counts: np.ndarray, oth_counts: np.ndarray) -> None:
-        """Feed the signal level: |frame value| at each camera's pixels with events."""
+    def _add_levels(self, k: int, channel: int, ref, oth, ref_counts: np.ndarray, oth_counts: np.ndarray) -> None:
+        """Feed the signal level: |frame value| at each camera's pixels with events (of the frame's polarity)."""
         ref_cam = self.params.reference_camera
         if ref is not None:
-            self._level.add(k, ref_cam, ref[event_mask(ref_counts)])
-        self._level.add(k, 1 - ref_cam, oth[event_mask(oth_counts)])
+            self._level.add(k, ref_cam, ref[event_mask(ref_counts, channel=channel)])
+        self._level.add(k, 1 - ref_cam, oth[event_mask(oth_counts, channel=channel)])

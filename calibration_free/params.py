@@ -82,12 +82,17 @@ class FrameAreaParams(SignalLevelParams, WindowFrameParams):
         Largest disparity searched, px (the search also stops where the block would leave the sensor).
     reference_camera : {0, 1}
         The camera scanned (:mod:`cvstereo.params`), pixel by pixel; default 1 (right, the thesis' eDVS1).
+    polarity : {"shared", "separate", "on", "off"}
+        ``shared`` (the thesis): one signed frame per camera. ``separate``: an OFF and an ON frame per camera,
+        each scanned and matched on its own (:func:`cvstereo.frames.polarity_frames`), so that ON and OFF
+        events of one window cannot cancel (a fan's blades); ``on`` / ``off``: that polarity only.
     """
 
     threshold: float = 2.0
     block: int = 5
     max_disparity: int = 64
     reference_camera: Literal[0, 1] = 1
+    polarity: Polarity = "shared"
 
     def __post_init__(self):
         super().__post_init__()
@@ -103,6 +108,7 @@ class FrameAreaParams(SignalLevelParams, WindowFrameParams):
         if self.reference_camera not in (0, 1):
             raise ValueError(f"{where}: reference_camera must be 0 (left) or 1 (right), "
                              f"got {self.reference_camera}.")
+        check_polarity(self.polarity, where)
 
 
 @dataclass(frozen=True, kw_only=True)
