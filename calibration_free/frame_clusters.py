@@ -39,6 +39,7 @@ from cvstereo.frames import filtered_unit, gaussian_filter, stacked_frames
 from cvstereo.matches import empty_matches, make_matches
 from cvstereo.polarity import slot_of_p
 from cvstereo.signal_level import SignalLevel
+from cvstereo.support import supported
 from cvstereo.windows import FrameMatcher, Window
 
 
@@ -92,7 +93,8 @@ class FrameClusterMatcher(FrameMatcher):
         self._add_levels(k, window, stack, seen, gap)
         matches = make_matches(window.t_end, x, y, (sign > 0).view(np.int8), prm.anchor_camera, disparity)
         # One frame: the kernel already emits (y, x) order. Two (separate ON/OFF): a pixel may be in both.
-        return matches if n_frames == 1 else _pixel_order(matches)
+        matches = matches if n_frames == 1 else _pixel_order(matches)
+        return supported(matches, prm.min_support, width=self.resolution[0])
 
     def _stack(self, window: Window):
         """The window's (filtered) frames stacked, the anchor camera's pixels with events, the gap rows."""

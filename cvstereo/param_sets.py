@@ -60,13 +60,13 @@ ADAPTIVE: dict[str, AdaptiveDefaults] = {
         why="ON and OFF events in one frame cancel where both fall in a window (a fan's blades): on Fan_disp8 "
             "shared gave 631 estimates, 74 % within 1 px of 8, separate 8358, 99 %; separate also covered more "
             "of the density sweep (0.35 vs 0.23 at thresholds x3)",
-        params={**_RELATIVE, "threshold_scale": 0.5},
+        params={**_RELATIVE, "threshold_scale": 0.42, "min_support": 3},
     ),
     "frame-area": AdaptiveDefaults(
         variant="gaussian",
         why="filtered frames give the SAD smooth blocks; unfiltered ones covered a third as much of the density "
             "sweep (0.09 vs 0.42 at x1) and were half as often right on Fan_disp8",
-        params={**_RELATIVE, "threshold_scale": 0.8},
+        params={**_RELATIVE, "threshold_scale": 0.6, "polarity": "separate", "lr_check": True},
         variant_params={"no-gaussian": {"threshold_scale": 1.6}},
     ),
     "event-time": AdaptiveDefaults(
@@ -79,7 +79,7 @@ ADAPTIVE: dict[str, AdaptiveDefaults] = {
         variant="gaussian",
         why="the 3x3 update spreads each event over its neighbours, so a 5x5 block holds a signal after a few "
             "events; with single-pixel updates the density sweep and Fan_disp8 gave (almost) nothing",
-        params={**_RELATIVE, "threshold_scale": 0.69, "level_floor": 0.5},
+        params={**_RELATIVE, "threshold_scale": 0.69, "level_floor": 0.5, "cost_scale": 0.6},
         variant_params={"no-gaussian": {"threshold_scale": 1.5}},
     ),
     "event-vector": AdaptiveDefaults(
