@@ -24,8 +24,10 @@ Relative thresholds (``threshold_mode="relative"``, :mod:`cvstereo.signal_level`
 4 for single-pixel updates) becomes ``threshold_scale`` times the signal level of the event's camera (the 0.9
 quantile of the |D| its events read at their pixels over the last second), since D grows with the events per
 edge. The SAD needs no threshold: candidates are compared with each other (least SAD wins), and ``max_cost``
-(1000) is Algorithm 3's "no match yet" start value, which no 5x5 SAD reaches; block and disparity range are
-geometry; decay and its period are time.
+(1000) is Algorithm 3's "no match yet" start value, which no 5x5 SAD reaches; with ``cost_scale`` > 0 (not the
+thesis') the SAD must also stay below ``cost_scale * block**2`` times the threshold in force, a bound relative
+to the signal level like the threshold itself; block and disparity range are geometry; decay and its period
+are time.
 """
 
 from __future__ import annotations
@@ -137,7 +139,7 @@ def _event_area_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, slo
                 if bound[d] < bound[first]:
                     first = d
             best = -1
-            best_sad = max_cost
+            best_sad = max_cost[cam]
             for e in range(-1, last + 1):
                 d = first if e < 0 else e
                 if e == first or (e >= 0 and bound[d] > best_sad + 1e-9 * (total_abs + best_sad) + 1e-300):
@@ -186,5 +188,5 @@ class EventAreaMatcher(MergedEventMatcher):
         prm, bank = self.params, self._bank
         return int(_event_area_kernel(*columns, bank.stored, bank.scale, bank.clock, bank.slot_of_p, bank.kernel,
                                       *bank.decay_args, thresholds, prm.block // 2,
-                                      int(prm.max_disparity), float(prm.max_cost), out_cam, out_index,
+                                      int(prm.max_disparity), prm.max_costs(thresholds), out_cam, out_index,
                                       out_disparity, *out_values))

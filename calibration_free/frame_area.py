@@ -5,7 +5,11 @@ Per 40 ms window: signed frames as for the cluster matcher (Gaussian-filtered, o
 x ascending; a pixel with ``|value| >= threshold`` and no disparity yet gets the disparity whose 5x5 block in
 the other frame, on the same row and on the geometrically possible side, has the least sum of absolute
 differences (ties: the smaller disparity); the winner is written into the whole 5x5 neighbourhood of the
-disparity map, overwriting, so that those pixels are not searched again.
+disparity map, overwriting, so that those pixels are not searched again. With ``polarity="separate"`` (not
+the thesis': its frame is ``shared``) each camera has an OFF and an ON frame, and each pair is scanned and
+matched on its own, so that ON and OFF events of one window cannot cancel each other. With ``lr_check`` (not
+the thesis') the other camera's frame is scanned as well and a disparity stands only where both scans agree
+(:func:`lr_consistent`).
 
 The scan is one numba kernel (:func:`scan_sad`) that computes the SAD only for the pixels it actually searches
 (each search fills a whole block of the disparity map, so most above-threshold pixels are never searched). On
@@ -66,6 +70,44 @@ def scan_sad(reference: np.ndarray, other: np.ndarray, *, threshold: float, max_
     ys, xs = np.nonzero((np.abs(ref) >= threshold) & inner)
     step = 1 if reference_camera == 1 else -1
     return _scan_sad_kernel(ref, oth, ys, xs, int(max_disparity), r, step)
+
+
+def lr_consistent(disparity: np.ndarray, other_disparity: np.ndarray, *, reference_camera: int = 1,
+                  tolerance: float = 1.0) -> np.ndarray:
+    """Left-right check: where the other camera's scan agrees with the reference scan.
+
+    Parameters
+    ----------
+    disparity, other_disparity : (height, width) float ndarray
+        The reference camera's and the other camera's disparity maps (NaN: none), each scanned as reference.
+    reference_camera : {0, 1}, keyword-only
+    tolerance : float, keyword-only
+        Largest difference, px.
+
+    Returns
+    -------
+    (height, width) bool ndarray
+        True where the reference pixel ``(y, x)`` has a disparity d and the other map at the pixel d names
+        (``x + d`` when the reference is the right camera, ``x - d`` when it is the left one) holds a disparity
+        within ``tolerance`` of d.
+
+    Examples
+    --------
+    >>> nan = np.nan
+    >>> right = np.array([[2.0, 2.0, nan, nan]])
+    >>> left = np.array([[nan, nan, 2.0, 0.0]])                  # x_left = x_right + 2
+    >>> lr_consistent(right, left, reference_camera=1).tolist()
+    [[True, False, False, False]]
+    """
+    h, w = disparity.shape
+    y, x = np.nonzero(~np.isnan(disparity))
+    d = disparity[y, x]
+    xo = x + (np.rint(d).astype(np.int64) if reference_camera == 1 else -np.rint(d).astype(np.int64))
+    inside = (xo >= 0) & (xo < w)
+    ok = np.zeros((h, w), dtype=bool)
+    y, x, d, xo = y[inside], x[inside], d[inside], xo[inside]
+    ok[y, x] = np.abs(other_disparity[y, xo] - d) <= tolerance  # NaN (no disparity there) compares False
+    return ok
 
 
 @numba.njit(cache=True, nogil=True)
@@ -226,11 +268,11 @@ class FrameAreaMatcher(FrameMatcher):
         """The signal-level diagnostics of the run so far (:meth:`cvstereo.signal_level.SignalLevel.diagnostics`)."""
         return self._level.diagnostics()
 
-    def _frame(self, counts: np.ndarray) -> np.ndarray:
-        (_, frame), = polarity_frames(counts, polarity="shared")
-        if self.params.gaussian:
-            frame = gaussian_filter(frame, sigma=self.params.kernel_sigma, kernel_size=self.params.kernel_size)
-        return frame
+    def _frames(self, counts: np.ndarray) -> list[tuple[int, np.ndarray]]:
+        """(channel, frame) per frame of the polarity mode (one for ``shared``): :func:`polarity_frames`."""
+        prm = self.params
+        return [(ch, gaussian_filter(f, sigma=prm.kernel_sigma, kernel_size=prm.kernel_size) if prm.gaussian else f)
+                for ch, f in polarity_frames(counts, polarity=prm.polarity)]
 
     def _counts(self, window: Window) -> tuple[np.ndarray, np.ndarray]:
         """ON/OFF counts of the reference and the other camera."""
@@ -238,28 +280,33 @@ class FrameAreaMatcher(FrameMatcher):
             (window.left, window.right)
         return polarity_counts(ref_ev, resolution=self.resolution), polarity_counts(oth_ev, resolution=self.resolution)
 
-    def _disparity_map(self, ref_counts: np.ndarray, oth_counts: np.ndarray, threshold: float):
-        prm = self.params
-        ref, oth = self._frame(ref_counts), self._frame(oth_counts)
-        disp = scan_sad(ref, oth, threshold=threshold, max_disparity=prm.max_disparity, block=prm.block,
-                        reference_camera=prm.reference_camera)
-        return disp, ref, oth
-
     def match_window(self, window: Window) -> np.ndarray:
         prm = self.params
         k = window.t_start // prm.level_window_us
-        threshold = self._level.thresholds(k)[prm.reference_camera]  # from the windows before this one
-        if self._sparse is not None and threshold > 0:  # a threshold <= 0 searches pixels without events
-            return self._match_sparse(k, window, threshold)
+        thresholds = self._level.thresholds(k)  # from the windows before this one
+        if self._sparse is not None and thresholds[prm.reference_camera] > 0 and prm.polarity == "shared" \
+                and not prm.lr_check:  # the sparse scan: one shared frame, one direction, pixels with events
+            return self._match_sparse(k, window, thresholds[prm.reference_camera])
         ref_cam = prm.reference_camera
+        threshold = thresholds[ref_cam]
         ref_counts, oth_counts = self._counts(window)
-        if not (window.right if ref_cam == 1 else window.left).size:
-            self._add_levels(k, None, self._frame(oth_counts), ref_counts, oth_counts)
-            return empty_matches()  # no reference events: nothing above threshold, no pixel to report at
-        disp, ref, oth = self._disparity_map(ref_counts, oth_counts, threshold)
-        self._add_levels(k, ref, oth, ref_counts, oth_counts)
-        y, x = np.nonzero(event_mask(ref_counts) & ~np.isnan(disp))
-        return make_matches(window.t_end, x, y, (ref[y, x] > 0).astype(np.int8), prm.reference_camera, disp[y, x])
+        has_ref = (window.right if ref_cam == 1 else window.left).size > 0
+        parts = []
+        # Each frame of the polarity mode is scanned and matched on its own (``shared``: the one frame).
+        for (ch, ref), (_, oth) in zip(self._frames(ref_counts), self._frames(oth_counts), strict=True):
+            self._add_levels(k, ch, ref if has_ref else None, oth, ref_counts, oth_counts)
+            if not has_ref:
+                continue  # no reference events: nothing above threshold, no pixel to report at
+            disp = scan_sad(ref, oth, threshold=threshold, max_disparity=prm.max_disparity, block=prm.block,
+                            reference_camera=ref_cam)
+            keep = ~np.isnan(disp)
+            if prm.lr_check:
+                back = scan_sad(oth, ref, threshold=thresholds[1 - ref_cam], max_disparity=prm.max_disparity,
+                                block=prm.block, reference_camera=1 - ref_cam)
+                keep = lr_consistent(disp, back, reference_camera=ref_cam)
+            y, x = np.nonzero(event_mask(ref_counts, channel=ch) & keep)
+            parts.append(make_matches(window.t_end, x, y, (ref[y, x] > 0).astype(np.int8), ref_cam, disp[y, x]))
+        return np.concatenate(parts) if parts else empty_matches()
 
     def _match_sparse(self, k: int, window: Window, threshold: float) -> np.ndarray:
         """:meth:`match_window` on sparse frames (:mod:`cvstereo.sparse_frames`): the same matches and levels."""
@@ -281,9 +328,9 @@ class FrameAreaMatcher(FrameMatcher):
             sf.clear()
         return matches
 
-    def _add_levels(self, k: int, ref, oth, ref_counts: np.ndarray, oth_counts: np.ndarray) -> None:
-        """Feed the signal level: |frame value| at each camera's pixels with events."""
+    def _add_levels(self, k: int, channel: int, ref, oth, ref_counts: np.ndarray, oth_counts: np.ndarray) -> None:
+        """Feed the signal level: |frame value| at each camera's pixels with events (of the frame's polarity)."""
         ref_cam = self.params.reference_camera
         if ref is not None:
-            self._level.add(k, ref_cam, ref[event_mask(ref_counts)])
-        self._level.add(k, 1 - ref_cam, oth[event_mask(oth_counts)])
+            self._level.add(k, ref_cam, ref[event_mask(ref_counts, channel=channel)])
+        self._level.add(k, 1 - ref_cam, oth[event_mask(oth_counts, channel=channel)])

@@ -45,6 +45,7 @@ from cvstereo.matches import empty_matches, make_matches
 from cvstereo.polarity import slot_of_p
 from cvstereo.signal_level import SignalLevel
 from cvstereo.sparse_frames import SparseFrames, bit_positions
+from cvstereo.support import supported
 from cvstereo.windows import FrameMatcher, Window
 
 
@@ -104,7 +105,8 @@ class FrameClusterMatcher(FrameMatcher):
         self._add_levels(k, window, stack, seen, gap)
         matches = make_matches(window.t_end, x, y, (sign > 0).view(np.int8), prm.anchor_camera, disparity)
         # One frame: the kernel already emits (y, x) order. Two (separate ON/OFF): a pixel may be in both.
-        return matches if n_frames == 1 else _pixel_order(matches)
+        matches = matches if n_frames == 1 else _pixel_order(matches)
+        return supported(matches, prm.min_support, width=self.resolution[0])
 
     def _match_sparse(self, k: int, window: Window, threshold: np.ndarray) -> np.ndarray:
         """:meth:`match_window` on sparse frames (:mod:`cvstereo.sparse_frames`): the same matches and levels."""
@@ -126,7 +128,8 @@ class FrameClusterMatcher(FrameMatcher):
                 self._level.add(k, cam, sf.values_at_events(cam * frames, frames, ev.size))
         finally:
             sf.clear()
-        return matches if n_frames == 1 else _pixel_order(matches)
+        matches = matches if n_frames == 1 else _pixel_order(matches)
+        return supported(matches, prm.min_support, width=self.resolution[0])
 
     def _stack(self, window: Window):
         """The window's (filtered) frames stacked, the anchor camera's pixels with events, the gap rows."""

@@ -10,6 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar, Literal
 
+import numpy as np
+
 from cvstereo.dynamic_frames import DynamicFrameParams
 from cvstereo.polarity import Polarity, check_polarity
 from cvstereo.signal_level import SignalLevelParams
@@ -41,6 +43,9 @@ class FrameClusterParams(SignalLevelParams, WindowFrameParams):
         Pairs with disparity outside ``[0, max_disparity]`` are dropped, px.
     anchor_camera : {0, 1}
         Where the matches are reported (:mod:`cvstereo.params`): its cluster pixels; default 0 (left).
+    min_support : int
+        0 (the thesis): every match stands. Otherwise a match stands only with at least this many other matches
+        of its window within 2 px that agree on the disparity within 1 px (:mod:`cvstereo.support`).
     """
 
     polarity: Polarity = "shared"
@@ -48,6 +53,7 @@ class FrameClusterParams(SignalLevelParams, WindowFrameParams):
     width_tolerance: float = 0.3
     max_disparity: int = 64
     anchor_camera: Literal[0, 1] = 0
+    min_support: int = 0
 
     def __post_init__(self):
         super().__post_init__()
@@ -62,6 +68,9 @@ class FrameClusterParams(SignalLevelParams, WindowFrameParams):
             raise ValueError(f"{where}: max_disparity must be >= 0 (e.g. 64), got {self.max_disparity}.")
         if self.anchor_camera not in (0, 1):
             raise ValueError(f"{where}: anchor_camera must be 0 (left) or 1 (right), got {self.anchor_camera}.")
+        if int(self.min_support) != self.min_support or self.min_support < 0:
+            raise ValueError(f"{where}: min_support must be a whole number >= 0 (0: off, the thesis), "
+                             f"got {self.min_support}.")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -82,12 +91,22 @@ class FrameAreaParams(SignalLevelParams, WindowFrameParams):
         Largest disparity searched, px (the search also stops where the block would leave the sensor).
     reference_camera : {0, 1}
         The camera scanned (:mod:`cvstereo.params`), pixel by pixel; default 1 (right, the thesis' eDVS1).
+    polarity : {"shared", "separate", "on", "off"}
+        ``shared`` (the thesis): one signed frame per camera. ``separate``: an OFF and an ON frame per camera,
+        each scanned and matched on its own (:func:`cvstereo.frames.polarity_frames`), so that ON and OFF
+        events of one window cannot cancel (a fan's blades); ``on`` / ``off``: that polarity only.
+    lr_check : bool
+        False (the thesis): every scanned winner stands. True: the other camera's frame is scanned too, as the
+        reference, and a pixel keeps its disparity d only where the other scan's disparity at the pixel it
+        names (``x + d`` in the left frame, ``x - d`` in the right) lies within 1 px of d (left-right check).
     """
 
     threshold: float = 2.0
     block: int = 5
     max_disparity: int = 64
     reference_camera: Literal[0, 1] = 1
+    polarity: Polarity = "shared"
+    lr_check: bool = False
 
     def __post_init__(self):
         super().__post_init__()
@@ -103,6 +122,7 @@ class FrameAreaParams(SignalLevelParams, WindowFrameParams):
         if self.reference_camera not in (0, 1):
             raise ValueError(f"{where}: reference_camera must be 0 (left) or 1 (right), "
                              f"got {self.reference_camera}.")
+        check_polarity(self.polarity, where)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -164,6 +184,11 @@ class EventAreaParams(SignalLevelParams, DynamicFrameParams):
         Largest disparity searched.
     max_cost : float
         A match needs a SAD below this (Algorithm 3's initial minimum; old name: ``max_sad``).
+    cost_scale : float
+        0 (the thesis): ``max_cost`` alone bounds the SAD. Otherwise the SAD must also lie below ``cost_scale``
+        times the block's pixel count times the threshold in force for the event's camera
+        (:meth:`max_costs`): a bound on the mean difference per pixel relative to the signal level, since the
+        SAD of a wrong patch grows with the dynamic-frame values as the threshold does.
     """
 
     aliases: ClassVar[dict] = {"max_sad": "max_cost"}
@@ -172,14 +197,22 @@ class EventAreaParams(SignalLevelParams, DynamicFrameParams):
     block: int = 5
     max_disparity: int = 64
     max_cost: float = 1000.0
+    cost_scale: float = 0.0
 
     def __post_init__(self):
         super().__post_init__()
         if self.block < 1 or self.block % 2 == 0:
             raise ValueError(f"block must be odd and positive, got {self.block}.")
-        for name in ("threshold", "max_disparity"):
+        for name in ("threshold", "max_disparity", "cost_scale"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}.")
+
+    def max_costs(self, thresholds: np.ndarray) -> np.ndarray:
+        """The SAD bound of each camera's events, given the (2,) thresholds in force (see ``cost_scale``)."""
+        costs = np.full(2, float(self.max_cost))
+        if self.cost_scale > 0:
+            costs = np.minimum(costs, self.cost_scale * self.block * self.block * np.asarray(thresholds, float))
+        return costs
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -28,14 +28,16 @@ from cvstereo.registry import matcher_class
 #: method -> its reference, the parameters drawn beside the variant (a dict value sets several at once), and
 #: overrides that make random streams reach the thresholds (per variant).
 CASES = {
-    "frame": (frame_clusters_reference, {"anchor_camera": [0, 1], "max_disparity": [64, 6],
+    "frame": (frame_clusters_reference, {"anchor_camera": [0, 1], "max_disparity": [64, 6], "min_support": [0, 3],
                                          "filter": [{"gaussian": True}, {"gaussian": False, "threshold": 2.0}]},
               {}),
-    "frame-area": (frame_area_reference, {"reference_camera": [0, 1], "max_disparity": [64, 9]},
+    "frame-area": (frame_area_reference, {"reference_camera": [0, 1], "max_disparity": [64, 9],
+                                          "polarity": ["shared", "separate", "on"], "lr_check": [False, True]},
                    {"no-gaussian": {"threshold": 3.0}}),
     "event-time": (event_time_reference, {"reference_camera": [0, 1], "restrict_side": [True, False],
                                           "max_disparity": [12]}, {}),
-    "event-area": (event_area_reference, {"polarity": ["shared", "separate", "on"], "max_disparity": [20]},
+    "event-area": (event_area_reference, {"polarity": ["shared", "separate", "on"], "max_disparity": [20],
+                                          "cost_scale": [0.0, 0.6]},
                    {"no-gaussian": {"threshold": 2.0}}),
     "event-vector": (event_vector_reference, {"require_candidate_threshold": [True, False],
                                               "polarity": ["shared", "separate"], "max_disparity": [20]}, {}),

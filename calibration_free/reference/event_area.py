@@ -34,7 +34,7 @@ def event_area_reference(left: np.ndarray, right: np.ndarray, params: EventAreaP
         if not (abs(own.value(slot, x, y)) >= thresholds[cam] and half <= x < width - half and
                 half <= y < height - half):
             return None
-        minimum = prm.max_cost
+        minimum = prm.max_costs(thresholds)[cam]
         disparity = None
         for d in range(prm.max_disparity + 1):
             x2 = x + d if cam == 1 else x - d  # right camera: towards larger x; left: smaller

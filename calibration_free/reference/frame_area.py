@@ -10,11 +10,13 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from calibration_free.frame_area import lr_consistent
 from calibration_free.params import FrameAreaParams
 from calibration_free.reference.windows import values_at_events, window_events
 from cvstereo.events import DEFAULT_RESOLUTION
 from cvstereo.frames import filtered_unit, gaussian_filter, signed_frame
 from cvstereo.matches import empty_matches, make_matches
+from cvstereo.polarity import frame_signs
 from cvstereo.signal_level import SignalLevel
 
 
@@ -122,21 +124,34 @@ def frame_area_reference(left: np.ndarray, right: np.ndarray, params: FrameAreaP
     parts = []
     for t_end, ev_l, ev_r in window_events(left, right, prm.window_us, every=True):
         k = (t_end - prm.window_us) // prm.level_window_us
-        threshold = level.thresholds(k)[prm.reference_camera]
+        thresholds = level.thresholds(k)
+        threshold = thresholds[prm.reference_camera]
         ref_ev, oth_ev = (ev_r, ev_l) if prm.reference_camera == 1 else (ev_l, ev_r)
-        ref, oth = (signed_frame(ev, resolution=resolution) for ev in (ref_ev, oth_ev))
-        if prm.gaussian:
-            ref, oth = (gaussian_filter(f, sigma=prm.kernel_sigma, kernel_size=prm.kernel_size) for f in (ref, oth))
-        # The signal level sees each camera's values at its pixels with events.
-        level.add(k, prm.reference_camera, values_at_events(ref, ref_ev))
-        level.add(k, 1 - prm.reference_camera, values_at_events(oth, oth_ev))
-        if not (ev_l.size and ev_r.size):
-            continue
-        volume = sad_volume(ref, oth, max_disparity=prm.max_disparity, block=prm.block,
-                            reference_camera=prm.reference_camera)
-        disp = scan_disparity_map(ref, volume, threshold=threshold, block=prm.block)
-        seen = np.zeros(ref.shape, bool)
-        seen[ref_ev["y"], ref_ev["x"]] = True
-        y, x = np.nonzero(seen & ~np.isnan(disp))
-        parts.append(make_matches(t_end, x, y, (ref[y, x] > 0).astype(np.int8), prm.reference_camera, disp[y, x]))
+        for signs in frame_signs(prm.polarity):  # each frame of the polarity mode on its own
+            # This frame's events (p = 1 ON, 0 OFF), and their signed frame.
+            sel_ref, sel_oth = (ev[np.isin(ev["p"], [int(s > 0) for s in signs])] for ev in (ref_ev, oth_ev))
+            ref, oth = (signed_frame(ev, resolution=resolution, signs=signs) for ev in (sel_ref, sel_oth))
+            if prm.gaussian:
+                ref, oth = (gaussian_filter(f, sigma=prm.kernel_sigma, kernel_size=prm.kernel_size)
+                            for f in (ref, oth))
+            # The signal level sees each camera's values at its pixels with events (of the frame's polarity).
+            level.add(k, prm.reference_camera, values_at_events(ref, sel_ref))
+            level.add(k, 1 - prm.reference_camera, values_at_events(oth, sel_oth))
+            if not (ev_l.size and ev_r.size):
+                continue
+            volume = sad_volume(ref, oth, max_disparity=prm.max_disparity, block=prm.block,
+                                reference_camera=prm.reference_camera)
+            disp = scan_disparity_map(ref, volume, threshold=threshold, block=prm.block)
+            keep = ~np.isnan(disp)
+            if prm.lr_check:  # the other camera scanned as the reference, and both maps compared
+                back_volume = sad_volume(oth, ref, max_disparity=prm.max_disparity, block=prm.block,
+                                         reference_camera=1 - prm.reference_camera)
+                back = scan_disparity_map(oth, back_volume, threshold=thresholds[1 - prm.reference_camera],
+                                          block=prm.block)
+                keep = lr_consistent(disp, back, reference_camera=prm.reference_camera)
+            seen = np.zeros(ref.shape, bool)
+            seen[sel_ref["y"], sel_ref["x"]] = True
+            y, x = np.nonzero(seen & keep)
+            parts.append(make_matches(t_end, x, y, (ref[y, x] > 0).astype(np.int8), prm.reference_camera,
+                                      disp[y, x]))
     return np.concatenate(parts) if parts else empty_matches()

@@ -21,6 +21,7 @@ from cvstereo.frames import filtered_unit, gaussian_filter, signed_frame
 from cvstereo.matches import empty_matches, make_matches
 from cvstereo.polarity import frame_signs
 from cvstereo.signal_level import SignalLevel
+from cvstereo.support import supported
 
 
 class Runs(NamedTuple):
@@ -204,5 +205,5 @@ def frame_clusters_reference(left: np.ndarray, right: np.ndarray, params: FrameC
         rows.sort()
         if rows:
             y, x, p, d = zip(*rows, strict=True)
-            parts.append(make_matches(t_end, x, y, p, prm.anchor_camera, d))
+            parts.append(supported(make_matches(t_end, x, y, p, prm.anchor_camera, d), prm.min_support, width=width))
     return np.concatenate(parts) if parts else empty_matches()
