@@ -9,14 +9,14 @@ disparity map, overwriting, so that those pixels are not searched again. With ``
 the thesis': its frame is ``shared``) each camera has an OFF and an ON frame, and each pair is scanned and
 matched on its own, so that ON and OFF events of one window cannot cancel each other. With ``lr_check`` (not
 the thesis') the other camera's frame is scanned as well and a disparity stands only where both scans agree
-(:func:`lr_consistent`).
+(:func:`cvstereo.support.lr_consistent`).
 
 The scan is one numba kernel (:func:`scan_sad`) that computes the SAD only for the pixels it actually searches
 (each search fills a whole block of the disparity map, so most above-threshold pixels are never searched). On
 sparse frames (:mod:`cvstereo.sparse_frames`) the matcher uses :func:`_scan_sparse`, which also skips the
 disparities whose block in the other frame is empty (but the first: all of them give the same SAD) and stops a
 sum once it reaches the best so far, with the same result; the dense path stays for the cases the sparse frames
-do not reproduce (another kernel size, thresholds <= 0).
+do not reproduce (another kernel size, thresholds <= 0) and for ``separate`` frames and ``lr_check``.
 Its readable twin, a full cost volume from OpenCV kernels (``cv2.absdiff`` and an unnormalised
 ``cv2.boxFilter`` per disparity) and the scan over it, is :mod:`calibration_free.reference.frame_area`.
 
@@ -39,6 +39,7 @@ from cvstereo.frames import event_mask, filtered_unit, gaussian_filter, polarity
 from cvstereo.matches import empty_matches, make_matches
 from cvstereo.signal_level import SignalLevel
 from cvstereo.sparse_frames import SparseFrames, band_of_rows, bit_positions
+from cvstereo.support import lr_consistent
 from cvstereo.windows import FrameMatcher, Window
 
 
@@ -70,44 +71,6 @@ def scan_sad(reference: np.ndarray, other: np.ndarray, *, threshold: float, max_
     ys, xs = np.nonzero((np.abs(ref) >= threshold) & inner)
     step = 1 if reference_camera == 1 else -1
     return _scan_sad_kernel(ref, oth, ys, xs, int(max_disparity), r, step)
-
-
-def lr_consistent(disparity: np.ndarray, other_disparity: np.ndarray, *, reference_camera: int = 1,
-                  tolerance: float = 1.0) -> np.ndarray:
-    """Left-right check: where the other camera's scan agrees with the reference scan.
-
-    Parameters
-    ----------
-    disparity, other_disparity : (height, width) float ndarray
-        The reference camera's and the other camera's disparity maps (NaN: none), each scanned as reference.
-    reference_camera : {0, 1}, keyword-only
-    tolerance : float, keyword-only
-        Largest difference, px.
-
-    Returns
-    -------
-    (height, width) bool ndarray
-        True where the reference pixel ``(y, x)`` has a disparity d and the other map at the pixel d names
-        (``x + d`` when the reference is the right camera, ``x - d`` when it is the left one) holds a disparity
-        within ``tolerance`` of d.
-
-    Examples
-    --------
-    >>> nan = np.nan
-    >>> right = np.array([[2.0, 2.0, nan, nan]])
-    >>> left = np.array([[nan, nan, 2.0, 0.0]])                  # x_left = x_right + 2
-    >>> lr_consistent(right, left, reference_camera=1).tolist()
-    [[True, False, False, False]]
-    """
-    h, w = disparity.shape
-    y, x = np.nonzero(~np.isnan(disparity))
-    d = disparity[y, x]
-    xo = x + (np.rint(d).astype(np.int64) if reference_camera == 1 else -np.rint(d).astype(np.int64))
-    inside = (xo >= 0) & (xo < w)
-    ok = np.zeros((h, w), dtype=bool)
-    y, x, d, xo = y[inside], x[inside], d[inside], xo[inside]
-    ok[y, x] = np.abs(other_disparity[y, xo] - d) <= tolerance  # NaN (no disparity there) compares False
-    return ok
 
 
 @numba.njit(cache=True, nogil=True)

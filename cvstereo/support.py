@@ -1,4 +1,6 @@
-"""Neighbour support of matches: how many other matches of the same window nearby agree on the disparity.
+"""Consistency checks of matches that the thesis does not make: neighbour support and the left-right check.
+
+**Neighbour support**: how many other matches of the same window nearby agree on the disparity.
 
 A correct match on an edge has neighbours on that edge with (nearly) the same disparity; a wrong one (two
 unrelated clusters that happen to look alike, a noise event) mostly stands alone. Counting, for each match,
@@ -10,6 +12,10 @@ from 3 in 10,000 matches to none on most recordings, keeping 94 % of the matches
 Both constants are geometry (pixels of the sensor, pixels of disparity), not signal: they stay absolute.
 The count is a pure function of one window's matches, so a streaming matcher and its whole-stream reference
 give the same result when both apply it per window.
+
+**Left-right check** (:func:`lr_consistent`): a disparity found scanning one camera's frame stands only where
+scanning the other camera's frame finds (nearly) the same disparity at the pixel it names. Its tolerance
+(1 px) is geometry too. Both fast paths and references call these functions, so they agree by construction.
 
 >>> import numpy as np
 >>> x = np.array([10, 11, 12, 40]); y = np.array([5, 5, 6, 5]); d = np.array([3.0, 3.0, 3.5, 3.0])
@@ -98,3 +104,41 @@ def supported(matches: np.ndarray, min_support: int, *, width: int) -> np.ndarra
         return matches
     counts = support_counts(matches["x"], matches["y"], matches["disparity"], width=width)
     return matches[counts >= min_support]
+
+
+def lr_consistent(disparity: np.ndarray, other_disparity: np.ndarray, *, reference_camera: int = 1,
+                  tolerance: float = 1.0) -> np.ndarray:
+    """Left-right check: where the other camera's scan agrees with the reference scan.
+
+    Parameters
+    ----------
+    disparity, other_disparity : (height, width) float ndarray
+        The reference camera's and the other camera's disparity maps (NaN: none), each scanned as reference.
+    reference_camera : {0, 1}, keyword-only
+    tolerance : float, keyword-only
+        Largest difference, px.
+
+    Returns
+    -------
+    (height, width) bool ndarray
+        True where the reference pixel ``(y, x)`` has a disparity d and the other map at the pixel d names
+        (``x + d`` when the reference is the right camera, ``x - d`` when it is the left one) holds a disparity
+        within ``tolerance`` of d.
+
+    Examples
+    --------
+    >>> nan = np.nan
+    >>> right = np.array([[2.0, 2.0, nan, nan]])
+    >>> left = np.array([[nan, nan, 2.0, 0.0]])                  # x_left = x_right + 2
+    >>> lr_consistent(right, left, reference_camera=1).tolist()
+    [[True, False, False, False]]
+    """
+    h, w = disparity.shape
+    y, x = np.nonzero(~np.isnan(disparity))
+    d = disparity[y, x]
+    xo = x + (np.rint(d).astype(np.int64) if reference_camera == 1 else -np.rint(d).astype(np.int64))
+    inside = (xo >= 0) & (xo < w)
+    ok = np.zeros((h, w), dtype=bool)
+    y, x, d, xo = y[inside], x[inside], d[inside], xo[inside]
+    ok[y, x] = np.abs(other_disparity[y, xo] - d) <= tolerance  # NaN (no disparity there) compares False
+    return ok

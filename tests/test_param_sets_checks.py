@@ -6,10 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calibration_free.frame_area import lr_consistent
 from calibration_free.params import EventAreaParams, FrameAreaParams, FrameClusterParams
 from cvstereo.matches import make_matches
-from cvstereo.support import support_counts, supported
+from cvstereo.support import lr_consistent, support_counts, supported
 
 
 def _brute_support(x, y, d, radius=2, tolerance=1.0):

@@ -10,7 +10,6 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from calibration_free.frame_area import lr_consistent
 from calibration_free.params import FrameAreaParams
 from calibration_free.reference.windows import values_at_events, window_events
 from cvstereo.events import DEFAULT_RESOLUTION
@@ -18,6 +17,7 @@ from cvstereo.frames import filtered_unit, gaussian_filter, signed_frame
 from cvstereo.matches import empty_matches, make_matches
 from cvstereo.polarity import frame_signs
 from cvstereo.signal_level import SignalLevel
+from cvstereo.support import lr_consistent
 
 
 def sad_volume(reference: np.ndarray, other: np.ndarray, *, max_disparity: int, block: int = 5,
