@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from _event_scenes import feed_cut, random_pair, simulated_clip
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from calibration_free.reference.event_area import event_area_reference
@@ -122,8 +122,10 @@ def test_fast_equals_reference_across_packet_cuts(method, variant, mode, data, s
     expected = reference(left, right, params, resolution=resolution)
     cuts = np.random.default_rng(seed).choice(np.concatenate([left["t"], right["t"]]), n_cuts)
     got = feed_cut(cls(params, resolution=resolution), left, right, cuts)
-    # A shared ON/OFF frame of independent random streams may stay below the event-time threshold.
-    assert expected.size > 0 or (method == "event-time" and params.polarity == "shared")
+    # A shared ON/OFF frame of independent random streams may stay below the event-time threshold; and a
+    # drawn relative threshold (with the adaptive checks) can leave a blob scene without a match: such a draw
+    # proves nothing, the next one is taken (the simulated-clip test below always has matches).
+    assume(expected.size > 0 or (method == "event-time" and params.polarity == "shared"))
     np.testing.assert_array_equal(got, expected)
     validate_matches(got)
 
