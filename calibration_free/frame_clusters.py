@@ -193,6 +193,29 @@ def _row_clusters(stack, r, threshold, clusters, camera):  # pragma: no cover - 
     return n
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _same_signs(sign, n):  # pragma: no cover - compiled
+    """Step 4: the two rows' first ``n`` clusters have the same signs in the same order."""
+    for i in range(n):
+        if sign[0, i] != sign[1, i]:
+            return False
+    return True
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _cluster_disparity(left, right, i, width_tolerance, max_disparity):  # pragma: no cover - compiled
+    """Steps 5-6 for the ``i``-th cluster pair: its disparity (centre difference), NaN where the widths differ
+    by more than the tolerance or the disparity is outside [0, max_disparity]."""
+    w_l = right[0, i] - left[0, i] + 1
+    w_r = right[1, i] - left[1, i] + 1
+    if abs(w_l - w_r) > width_tolerance * max(w_l, w_r) + WIDTH_EPS:
+        return np.nan
+    d = (left[0, i] + right[0, i] - left[1, i] - right[1, i]) / 2.0
+    if d < 0 or d > max_disparity:
+        return np.nan
+    return d
+
+
 @numba.njit(cache=True, nogil=True)
 def _match_stacked_rows(stack, seen, n_channels, height, pitch, threshold_left, threshold_right, width_tolerance,
                         max_disparity, anchor_camera):  # pragma: no cover - compiled
@@ -222,20 +245,11 @@ def _match_stacked_rows(stack, seen, n_channels, height, pitch, threshold_left, 
             n_r = _row_clusters(stack, (n_channels + c) * pitch + y, threshold_right, clusters, 1)
             if n_r != n_l:
                 continue  # unequal cluster counts: the row is not matched
-            same_order = True
-            for i in range(n_l):
-                if sign[0, i] != sign[1, i]:
-                    same_order = False
-                    break
-            if not same_order:
+            if not _same_signs(sign, n_l):
                 continue
             for i in range(n_l):
-                w_l = right[0, i] - left[0, i] + 1
-                w_r = right[1, i] - left[1, i] + 1
-                if abs(w_l - w_r) > width_tolerance * max(w_l, w_r) + WIDTH_EPS:
-                    continue
-                d = (left[0, i] + right[0, i] - left[1, i] - right[1, i]) / 2.0
-                if d < 0 or d > max_disparity:
+                d = _cluster_disparity(left, right, i, width_tolerance, max_disparity)
+                if d != d:  # NaN: widths disagree or d out of range
                     continue
                 for x in range(left[anchor_camera, i], right[anchor_camera, i] + 1):
                     if seen[c * height + y, x]:
@@ -300,20 +314,11 @@ def _match_sparse_rows(values, support, touched, n_channels, threshold_left, thr
             n_r = _bit_row_clusters(values, support, n_channels + c, y, threshold_right, clusters, 1)
             if n_r != n_l:
                 continue
-            same_order = True
-            for i in range(n_l):
-                if sign[0, i] != sign[1, i]:
-                    same_order = False
-                    break
-            if not same_order:
+            if not _same_signs(sign, n_l):
                 continue
             for i in range(n_l):
-                w_l = right[0, i] - left[0, i] + 1
-                w_r = right[1, i] - left[1, i] + 1
-                if abs(w_l - w_r) > width_tolerance * max(w_l, w_r) + WIDTH_EPS:
-                    continue
-                d = (left[0, i] + right[0, i] - left[1, i] - right[1, i]) / 2.0
-                if d < 0 or d > max_disparity:
+                d = _cluster_disparity(left, right, i, width_tolerance, max_disparity)
+                if d != d:  # NaN: widths disagree or d out of range
                     continue
                 for x in range(left[anchor_camera, i], right[anchor_camera, i] + 1):
                     if touched[seen, y, x >> 6] & (np.uint64(1) << np.uint64(x & 63)):

@@ -26,11 +26,29 @@ scanning the other camera's frame finds (nearly) the same disparity at the pixel
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 #: Neighbours lie within this many pixels in x and in y (a 5x5 square around the match).
 SUPPORT_RADIUS_PX = 2
 #: A neighbour supports a match when their disparities differ by at most this, px.
 SUPPORT_TOLERANCE_PX = 1.0
+
+
+@njit(cache=True, nogil=True)
+def _count_support(key, d, keys, start, per_key, order, radius, pitch, tolerance, counts):  # pragma: no cover
+    """The loop of :func:`support_counts`, compiled: matches grouped by pixel (``keys`` sorted, the matches of
+    ``keys[u]`` are ``order[start[u]:start[u] + per_key[u]]``); each match looks up the rows of the square around it."""
+    for i in range(key.size):
+        for dy in range(-radius, radius + 1):
+            # Padded rows keep the pixels of one row of the square at consecutive keys: one search a row.
+            low = key[i] + dy * pitch - radius
+            u = np.searchsorted(keys, low)
+            while u < keys.size and keys[u] <= low + 2 * radius:
+                for j in range(start[u], start[u] + per_key[u]):
+                    other = order[j]
+                    if other != i and abs(d[other] - d[i]) <= tolerance:
+                        counts[i] += 1
+                u += 1
 
 
 def support_counts(x: np.ndarray, y: np.ndarray, disparity: np.ndarray, *, width: int,
@@ -66,20 +84,7 @@ def support_counts(x: np.ndarray, y: np.ndarray, disparity: np.ndarray, *, width
     key = (y + radius) * pitch + (x + radius)
     order = np.argsort(key, kind="stable")
     keys, start, per_key = np.unique(key[order], return_index=True, return_counts=True)
-    own_rank = np.empty(n, dtype=np.int64)  # the match's place among the matches of its pixel
-    own_rank[order] = np.arange(n) - np.repeat(start, per_key)
-    for dy in range(-radius, radius + 1):
-        for dx in range(-radius, radius + 1):
-            pos = np.searchsorted(keys, key + dy * pitch + dx)
-            pos_c = np.minimum(pos, keys.size - 1)
-            found = (pos < keys.size) & (keys[pos_c] == key + dy * pitch + dx)
-            for j in range(int(per_key.max())):
-                has = found & (per_key[pos_c] > j)
-                other = order[start[pos_c[has]] + j]
-                agree = np.abs(d[other] - d[has]) <= tolerance
-                if dy == 0 and dx == 0:
-                    agree &= own_rank[has] != j  # not the match itself
-                counts[np.flatnonzero(has)[agree]] += 1
+    _count_support(key, d, keys, start, per_key, order, int(radius), pitch, float(tolerance), counts)
     return counts
 
 
