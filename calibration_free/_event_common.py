@@ -18,6 +18,7 @@ import abc
 
 import numpy as np
 
+from calibration_free.merge_order import merged_stream
 from cvstereo.dynamic_frames import FrameBank, block_bounds, dynamic_unit, event_columns
 from cvstereo.events import empty_events
 from cvstereo.matcher import StreamMatcher
@@ -73,10 +74,10 @@ class MergedEventMatcher(StreamMatcher):
         return self._level.diagnostics()
 
     @abc.abstractmethod
-    def _run_kernel(self, columns: tuple, thresholds: np.ndarray, out_cam: np.ndarray, out_index: np.ndarray,
+    def _run_kernel(self, stream: np.ndarray, thresholds: np.ndarray, out_cam: np.ndarray, out_index: np.ndarray,
                     out_disparity: np.ndarray, out_values: tuple[np.ndarray, np.ndarray]) -> int:
-        """Run the merged events (``columns`` = t, x, y, p of left, then of right) through the numba kernel with
-        the thresholds of each camera; write one row per match into the outputs, each event's |D| before its
+        """Run the merged events (``stream``: :func:`calibration_free.merge_order.merged_stream`) through the
+        kernel with the thresholds of each camera; write one row per match into the outputs, each event's |D| before its
         update into ``out_values`` (left, right; NaN where its polarity is dropped) and return the number of
         matches."""
 
@@ -101,8 +102,8 @@ class MergedEventMatcher(StreamMatcher):
         out_disparity = np.empty(n)
         values = (np.full(left.size, np.nan), np.full(right.size, np.nan))
         thresholds = self._level.thresholds(k)
-        m = self._run_kernel((*event_columns(left), *event_columns(right)), thresholds, out_cam, out_index,
-                             out_disparity, values)
+        stream = merged_stream(*event_columns(left), *event_columns(right), self._bank.slot_of_p)
+        m = self._run_kernel(stream, thresholds, out_cam, out_index, out_disparity, values)
         for cam in (0, 1):
             self._level.add(k, cam, values[cam])
         return matches_at((left, right), out_cam[:m], out_index[:m], out_disparity[:m])

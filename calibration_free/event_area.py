@@ -38,15 +38,15 @@ import numpy as np
 from numba import njit
 
 from calibration_free._event_common import MergedEventMatcher
-from calibration_free.merge_order import left_is_next_jit
 from calibration_free.params import EventAreaParams
 from cvstereo.dynamic_frames import advance, splat
 
 
 @njit(cache=True)
-def _event_area_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, slot_of_p, kernel, decay, period,
-                       thresholds, half, max_d, max_cost, out_cam, out_index, out_disparity, values_l, values_r):
-    """Process both cameras' events in merged order; one output row per matched event; returns the count."""
+def _event_area_kernel(stream, stored, scale, clock, kernel, decay, period, thresholds, half, max_d, max_cost, out_cam,
+                       out_index, out_disparity, values_l, values_r):
+    """Process the merged stream (:func:`calibration_free.merge_order.merged_stream`); one output row per matched
+    event; returns the count."""
     height = stored.shape[2]
     width = stored.shape[3]
     size = 2 * half + 1
@@ -56,21 +56,10 @@ def _event_area_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, slo
     band_col = np.empty(n_d + 2 * half)
     band_abs = np.empty(n_d + 2 * half)
     bound = np.empty(n_d)
-    nl = tl.shape[0]
-    nr = tr.shape[0]
-    il = 0
-    ir = 0
     n = 0
-    while il < nl or ir < nr:
-        if left_is_next_jit(il, nl, ir, nr, tl, tr):
-            cam, i, t, x, y, p = 0, il, tl[il], xl[il], yl[il], pl[il]
-            il += 1
-        else:
-            cam, i, t, x, y, p = 1, ir, tr[ir], xr[ir], yr[ir], pr[ir]
-            ir += 1
-        slot = slot_of_p[1 if p > 0 else 0]
-        if slot < 0:
-            continue
+    for k in range(stream.shape[1]):
+        cam, i, t, x, y, p, slot = stream[0, k], stream[1, k], stream[2, k], stream[3, k], stream[4, k], \
+            stream[5, k], stream[6, k]
         other = 1 - cam
         advance(stored, scale, clock, cam, t, decay, period)
         advance(stored, scale, clock, other, t, decay, period)
@@ -184,9 +173,9 @@ class EventAreaMatcher(MergedEventMatcher):
     anchor = "event"
     method = "event-area"
 
-    def _run_kernel(self, columns, thresholds, out_cam, out_index, out_disparity, out_values) -> int:
+    def _run_kernel(self, stream, thresholds, out_cam, out_index, out_disparity, out_values) -> int:
         prm, bank = self.params, self._bank
-        return int(_event_area_kernel(*columns, bank.stored, bank.scale, bank.clock, bank.slot_of_p, bank.kernel,
+        return int(_event_area_kernel(stream, bank.stored, bank.scale, bank.clock, bank.kernel,
                                       *bank.decay_args, thresholds, prm.block // 2,
                                       int(prm.max_disparity), prm.max_costs(thresholds), out_cam, out_index,
                                       out_disparity, *out_values))

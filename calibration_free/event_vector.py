@@ -37,7 +37,6 @@ import numpy as np
 from numba import njit
 
 from calibration_free._event_common import MergedEventMatcher
-from calibration_free.merge_order import left_is_next_jit
 from calibration_free.params import EventVectorParams
 from cvstereo.dynamic_frames import advance_bounded, skip_below, splat_bounded
 
@@ -48,28 +47,18 @@ def _sign(v):
 
 
 @njit(cache=True)
-def _event_vector_kernel(tl, xl, yl, pl, tr, xr, yr, pr, stored, scale, clock, bound, slot_of_p, kernel, decay, period,
-                         thresholds, require, max_d, max_cost, out_cam, out_index, out_disparity, values_l, values_r):
-    """Process both cameras' events in merged order; one output row per matched event; returns the count."""
+def _event_vector_kernel(stream, stored, scale, clock, bound, kernel, decay, period, thresholds, require, max_d,
+                         max_cost, out_cam, out_index, out_disparity, values_l, values_r):
+    """Process the merged stream (:func:`calibration_free.merge_order.merged_stream`); one output row per matched
+    event; returns the count."""
     width = stored.shape[3]
     row = np.empty(width)
     vec_a = np.empty(width, dtype=np.int64)
     vec_b = np.empty(width, dtype=np.int64)
-    nl = tl.shape[0]
-    nr = tr.shape[0]
-    il = 0
-    ir = 0
     n = 0
-    while il < nl or ir < nr:
-        if left_is_next_jit(il, nl, ir, nr, tl, tr):
-            cam, i, t, x, y, p = 0, il, tl[il], xl[il], yl[il], pl[il]
-            il += 1
-        else:
-            cam, i, t, x, y, p = 1, ir, tr[ir], xr[ir], yr[ir], pr[ir]
-            ir += 1
-        slot = slot_of_p[1 if p > 0 else 0]
-        if slot < 0:
-            continue
+    for k in range(stream.shape[1]):
+        cam, i, t, x, y, p, slot = stream[0, k], stream[1, k], stream[2, k], stream[3, k], stream[4, k], \
+            stream[5, k], stream[6, k]
         other = 1 - cam
         advance_bounded(stored, scale, clock, bound, cam, t, decay, period)
         advance_bounded(stored, scale, clock, bound, other, t, decay, period)
@@ -212,9 +201,9 @@ class EventVectorMatcher(MergedEventMatcher):
     Params = EventVectorParams
     variants: ClassVar[dict[str, dict]] = {"default": {}}
 
-    def _run_kernel(self, columns, thresholds, out_cam, out_index, out_disparity, out_values) -> int:
+    def _run_kernel(self, stream, thresholds, out_cam, out_index, out_disparity, out_values) -> int:
         prm, bank = self.params, self._bank
-        return int(_event_vector_kernel(*columns, bank.stored, bank.scale, bank.clock, self._bound, bank.slot_of_p,
+        return int(_event_vector_kernel(stream, bank.stored, bank.scale, bank.clock, self._bound,
                                         bank.kernel, *bank.decay_args, thresholds,
                                         bool(prm.require_candidate_threshold), int(prm.max_disparity),
                                         float(prm.max_cost), out_cam, out_index, out_disparity, *out_values))

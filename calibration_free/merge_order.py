@@ -3,8 +3,8 @@
 Event-area and event-vector compare an event's own dynamic frame with the other camera's frame as it stands
 at the event's time, so both cameras' events are processed in one merged order: by time, and at equal times
 the left camera's events first, each camera's events in their array order **[choice]**.
-:func:`left_is_next` is that rule; the numba kernels call :func:`left_is_next_jit`, the same function
-compiled, and the references walk :func:`merged_events`.
+:func:`left_is_next` is that rule; the numba kernels walk :func:`merged_stream` (built by
+:func:`left_is_next_jit`, the same function compiled), and the references walk :func:`merged_events`.
 """
 
 from __future__ import annotations
@@ -57,3 +57,36 @@ def merged_events(left: np.ndarray, right: np.ndarray) -> Iterator[tuple[int, in
         else:
             yield 1, j, right[j]
             j += 1
+
+
+@njit(cache=True)
+def merged_stream(tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p):  # pragma: no cover - compiled
+    """Both cameras' events as one stream in the merged order, the kernels' input.
+
+    Parameters
+    ----------
+    tl, xl, yl, pl, tr, xr, yr, pr : int64 ndarray
+        Columns of the left and the right camera's events (:func:`cvstereo.dynamic_frames.event_columns`).
+    slot_of_p : (2,) int64 ndarray
+        Frame slot of p = 0 (OFF) and p = 1 (ON); -1 where the polarity mode drops it.
+
+    Returns
+    -------
+    (7, M) int64 ndarray
+        Rows camera, index into that camera's array, t, x, y, p, slot, for the M events whose polarity is kept.
+    """
+    nl, nr = tl.shape[0], tr.shape[0]
+    out = np.empty((7, nl + nr), np.int64)
+    il = ir = m = 0
+    while il < nl or ir < nr:
+        if left_is_next_jit(il, nl, ir, nr, tl, tr):
+            cam, i, t, x, y, p = 0, il, tl[il], xl[il], yl[il], pl[il]
+            il += 1
+        else:
+            cam, i, t, x, y, p = 1, ir, tr[ir], xr[ir], yr[ir], pr[ir]
+            ir += 1
+        slot = slot_of_p[1 if p > 0 else 0]
+        if slot >= 0:
+            out[0, m], out[1, m], out[2, m], out[3, m], out[4, m], out[5, m], out[6, m] = cam, i, t, x, y, p, slot
+            m += 1
+    return out[:, :m]
