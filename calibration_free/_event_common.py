@@ -17,6 +17,7 @@ from __future__ import annotations
 import abc
 
 import numpy as np
+from numba import njit
 
 from calibration_free.merge_order import merged_stream
 from cvstereo.dynamic_frames import FrameBank, block_bounds, dynamic_unit, event_columns
@@ -52,6 +53,18 @@ def matches_at(events: tuple[np.ndarray, np.ndarray], cam: np.ndarray, index: np
     out["camera"] = cam
     out["disparity"] = disparity
     return out
+
+
+@njit(cache=True, inline="always")
+def emit_match(out_cam, out_index, out_disparity, n, cam, i, disparity):  # pragma: no cover - compiled
+    """Write the ``n``-th match of a kernel's output (the event ``i`` of camera ``cam``) where ``disparity`` >= 0
+    (a negative one: the event found no match); the count of matches after it."""
+    if disparity < 0:
+        return n
+    out_cam[n] = cam
+    out_index[n] = i
+    out_disparity[n] = disparity
+    return n + 1
 
 
 class MergedEventMatcher(StreamMatcher):

@@ -37,7 +37,7 @@ from typing import ClassVar
 import numpy as np
 from numba import njit
 
-from calibration_free._event_common import MergedEventMatcher
+from calibration_free._event_common import MergedEventMatcher, emit_match
 from calibration_free.params import EventAreaParams
 from cvstereo.dynamic_frames import advance, splat
 
@@ -143,11 +143,7 @@ def _event_area_kernel(stream, stored, scale, clock, kernel, decay, period, thre
                 if sad < best_sad or (sad == best_sad and d < best):  # ties keep the smaller disparity
                     best_sad = sad
                     best = d
-            if best >= 0:
-                out_cam[n] = cam
-                out_index[n] = i
-                out_disparity[n] = best
-                n += 1
+            n = emit_match(out_cam, out_index, out_disparity, n, cam, i, best)
         splat(stored, scale, clock, cam, slot, x, y, 1.0 if p > 0 else -1.0, kernel)
     return n
 

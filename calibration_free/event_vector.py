@@ -36,7 +36,7 @@ from typing import ClassVar
 import numpy as np
 from numba import njit
 
-from calibration_free._event_common import MergedEventMatcher
+from calibration_free._event_common import MergedEventMatcher, emit_match
 from calibration_free.params import EventVectorParams
 from cvstereo.dynamic_frames import advance_bounded, skip_below, splat_bounded
 
@@ -173,11 +173,7 @@ def _event_vector_kernel(stream, stored, scale, clock, bound, kernel, decay, per
                     if cost < best_cost:
                         best_cost = cost
                         best = d
-            if best >= 0:
-                out_cam[n] = cam
-                out_index[n] = i
-                out_disparity[n] = best
-                n += 1
+            n = emit_match(out_cam, out_index, out_disparity, n, cam, i, best)
         splat_bounded(stored, scale, clock, bound, cam, slot, x, y, 1.0 if p > 0 else -1.0, kernel)
     return n
 

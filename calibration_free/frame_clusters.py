@@ -194,6 +194,14 @@ def _row_clusters(stack, r, threshold, clusters, camera):  # pragma: no cover - 
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
+def _row_match_buffers(capacity, width):  # pragma: no cover - compiled
+    """Outputs x, y, sign, disparity for ``capacity`` pixels, and the clusters of the left (0) and right (1)
+    camera's row: sign, left and right edge, at most ``width`` a row."""
+    return (np.empty(capacity, np.int64), np.empty(capacity, np.int64), np.empty(capacity, np.int8),
+            np.empty(capacity, np.float64), np.empty((3, 2, width), np.int64))
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
 def _same_signs(sign, n):  # pragma: no cover - compiled
     """Step 4: the two rows' first ``n`` clusters have the same signs in the same order."""
     for i in range(n):
@@ -229,12 +237,7 @@ def _match_stacked_rows(stack, seen, n_channels, height, pitch, threshold_left, 
     """
     width = stack.shape[1]
     capacity = n_channels * height * width
-    out_x = np.empty(capacity, np.int64)
-    out_y = np.empty(capacity, np.int64)
-    out_sign = np.empty(capacity, np.int8)
-    out_d = np.empty(capacity, np.float64)
-    # Clusters of the left (0) and right (1) camera's row: sign, left and right edge; at most ``width`` a row.
-    clusters = np.empty((3, 2, width), np.int64)
+    out_x, out_y, out_sign, out_d, clusters = _row_match_buffers(capacity, width)
     sign, left, right = clusters[0], clusters[1], clusters[2]
     n = 0
     for c in range(n_channels):
@@ -298,11 +301,7 @@ def _match_sparse_rows(values, support, touched, n_channels, threshold_left, thr
     camera's channels, then the right camera's); ``capacity``: the anchor camera's events, at least the number
     of pixels reported."""
     height, width = values.shape[1], values.shape[2]
-    out_x = np.empty(capacity, np.int64)
-    out_y = np.empty(capacity, np.int64)
-    out_sign = np.empty(capacity, np.int8)
-    out_d = np.empty(capacity, np.float64)
-    clusters = np.empty((3, 2, width), np.int64)
+    out_x, out_y, out_sign, out_d, clusters = _row_match_buffers(capacity, width)
     sign, left, right = clusters[0], clusters[1], clusters[2]
     n = 0
     for c in range(n_channels):

@@ -90,3 +90,4 @@ def merged_stream(tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p):  # pragma: no cove
             out[0, m], out[1, m], out[2, m], out[3, m], out[4, m], out[5, m], out[6, m] = cam, i, t, x, y, p, slot
             m += 1
     return out[:, :m]
+
