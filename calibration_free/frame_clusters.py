@@ -202,15 +202,6 @@ def _row_match_buffers(capacity, width):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _same_signs(sign, n):  # pragma: no cover - compiled
-    """Step 4: the two rows' first ``n`` clusters have the same signs in the same order."""
-    for i in range(n):
-        if sign[0, i] != sign[1, i]:
-            return False
-    return True
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
 def _cluster_disparity(left, right, i, width_tolerance, max_disparity):  # pragma: no cover - compiled
     """Steps 5-6 for the ``i``-th cluster pair: its disparity (centre difference), NaN where the widths differ
     by more than the tolerance or the disparity is outside [0, max_disparity]."""
@@ -222,6 +213,38 @@ def _cluster_disparity(left, right, i, width_tolerance, max_disparity):  # pragm
     if d < 0 or d > max_disparity:
         return np.nan
     return d
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _accepted_clusters(clusters, n_l, n_r, width_tolerance, max_disparity, accepted_i,
+                       accepted_d):  # pragma: no cover - compiled
+    """Steps 4-6 for one row pair (``n_l`` left and ``n_r`` right clusters in ``clusters``): the clusters whose
+    disparity stands, written into ``accepted_i`` / ``accepted_d``; returns their number. None unless both rows
+    have as many clusters with the same signs in the same order."""
+    sign, left, right = clusters[0], clusters[1], clusters[2]
+    if n_r != n_l:
+        return 0
+    for i in range(n_l):
+        if sign[0, i] != sign[1, i]:
+            return 0
+    m = 0
+    for i in range(n_l):
+        d = _cluster_disparity(left, right, i, width_tolerance, max_disparity)
+        if d == d:  # not NaN
+            accepted_i[m] = i
+            accepted_d[m] = d
+            m += 1
+    return m
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _emit_pixel(out_x, out_y, out_sign, out_d, n, x, y, sign, d):  # pragma: no cover - compiled
+    """Write the ``n``-th reported pixel; the count after it."""
+    out_x[n] = x
+    out_y[n] = y
+    out_sign[n] = sign
+    out_d[n] = d
+    return n + 1
 
 
 @numba.njit(cache=True, nogil=True)
@@ -239,6 +262,7 @@ def _match_stacked_rows(stack, seen, n_channels, height, pitch, threshold_left, 
     capacity = n_channels * height * width
     out_x, out_y, out_sign, out_d, clusters = _row_match_buffers(capacity, width)
     sign, left, right = clusters[0], clusters[1], clusters[2]
+    acc_i, acc_d = np.empty(width, np.int64), np.empty(width, np.float64)  # a row's accepted clusters
     n = 0
     for c in range(n_channels):
         for y in range(height):
@@ -246,21 +270,11 @@ def _match_stacked_rows(stack, seen, n_channels, height, pitch, threshold_left, 
             if n_l == 0:
                 continue
             n_r = _row_clusters(stack, (n_channels + c) * pitch + y, threshold_right, clusters, 1)
-            if n_r != n_l:
-                continue  # unequal cluster counts: the row is not matched
-            if not _same_signs(sign, n_l):
-                continue
-            for i in range(n_l):
-                d = _cluster_disparity(left, right, i, width_tolerance, max_disparity)
-                if d != d:  # NaN: widths disagree or d out of range
-                    continue
+            for a in range(_accepted_clusters(clusters, n_l, n_r, width_tolerance, max_disparity, acc_i, acc_d)):
+                i = acc_i[a]
                 for x in range(left[anchor_camera, i], right[anchor_camera, i] + 1):
                     if seen[c * height + y, x]:
-                        out_x[n] = x
-                        out_y[n] = y
-                        out_sign[n] = sign[0, i]
-                        out_d[n] = d
-                        n += 1
+                        n = _emit_pixel(out_x, out_y, out_sign, out_d, n, x, y, sign[0, i], acc_d[a])
     return out_x[:n], out_y[:n], out_sign[:n], out_d[:n]
 
 
@@ -303,6 +317,7 @@ def _match_sparse_rows(values, support, touched, n_channels, threshold_left, thr
     height, width = values.shape[1], values.shape[2]
     out_x, out_y, out_sign, out_d, clusters = _row_match_buffers(capacity, width)
     sign, left, right = clusters[0], clusters[1], clusters[2]
+    acc_i, acc_d = np.empty(width, np.int64), np.empty(width, np.float64)  # a row's accepted clusters
     n = 0
     for c in range(n_channels):
         seen = anchor_camera * n_channels + c
@@ -311,21 +326,11 @@ def _match_sparse_rows(values, support, touched, n_channels, threshold_left, thr
             if n_l == 0:
                 continue
             n_r = _bit_row_clusters(values, support, n_channels + c, y, threshold_right, clusters, 1)
-            if n_r != n_l:
-                continue
-            if not _same_signs(sign, n_l):
-                continue
-            for i in range(n_l):
-                d = _cluster_disparity(left, right, i, width_tolerance, max_disparity)
-                if d != d:  # NaN: widths disagree or d out of range
-                    continue
+            for a in range(_accepted_clusters(clusters, n_l, n_r, width_tolerance, max_disparity, acc_i, acc_d)):
+                i = acc_i[a]
                 for x in range(left[anchor_camera, i], right[anchor_camera, i] + 1):
                     if touched[seen, y, x >> 6] & (np.uint64(1) << np.uint64(x & 63)):
-                        out_x[n] = x
-                        out_y[n] = y
-                        out_sign[n] = sign[0, i]
-                        out_d[n] = d
-                        n += 1
+                        n = _emit_pixel(out_x, out_y, out_sign, out_d, n, x, y, sign[0, i], acc_d[a])
     return out_x[:n], out_y[:n], out_sign[:n], out_d[:n]
 
 def _pixel_order(matches: np.ndarray) -> np.ndarray:
