@@ -1,11 +1,9 @@
-"""The numba kernels of the fused matcher (:mod:`calibration_free.fused` describes the method).
+"""The matching kernel of the fused matcher (:mod:`calibration_free.fused` describes the method).
 
-Per window: :func:`window_masks` (the left camera's event counts, the active pixels, the noise filter's
-recent pixels), :func:`surface_features` (time surfaces of one camera, summed over the support square),
-the signal level (:mod:`calibration_free.fused_signal`: :func:`nonzero_values` gathers what it needs,
-:func:`divide` applies it) and :func:`match_features` (cost, semi-global aggregation, winner, left-right check,
-sub-pixel, uncertainty). Every floating-point expression is evaluated in the same order as in
-:mod:`calibration_free.reference.fused`, so that both give bit-identical matches (tests/test_fused.py).
+Per window, on the features of :mod:`calibration_free._fused_features`: :func:`match_features` (cost,
+semi-global aggregation, winner, left-right check, sub-pixel, uncertainty). Every floating-point expression
+is evaluated in the same order as in :mod:`calibration_free.reference.fused`, so that both give bit-identical
+matches (tests/test_fused.py).
 
 Where the time goes, and why the kernels are shaped as they are (2arms-50cm, 128x128, 48 disparities: about
 6000 active pixels a window; a 346x260 recording at 1 M ev/s: 32000 and 174 disparities):
@@ -27,152 +25,6 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
-
-#: "Never saw an event" in the last-event-time arrays.
-NEVER = np.int64(-(2**62))
-
-
-@njit(cache=True, nogil=True)
-def window_masks(x, y, p, last_left, t_recent, path_radius, counts, active, recent):
-    """The left camera's per-pixel inputs of a window, written into caller-owned arrays.
-
-    Parameters
-    ----------
-    x, y, p : (N,) arrays
-        The left camera's events of the window.
-    last_left : (2, H, W) int64 ndarray
-        The left camera's last event times, already updated with the window.
-    t_recent : int
-        Pixels whose last event is at or after this time are *recent* (noise filter).
-    path_radius : int
-        Active pixels: within this Chebyshev distance of an event of the window.
-    counts : (2, H, W) int64 ndarray
-        Out: event counts per polarity.
-    active, recent : (H, W) bool ndarrays
-        Out.
-    """
-    _, h, w = last_left.shape
-    counts[:] = 0
-    for i in range(x.size):
-        counts[p[i], y[i], x[i]] += 1
-    # Dilation of the event pixels by a (2r+1)^2 square, separably: a row pass, then a column pass over it.
-    rows = np.zeros((h, w), np.bool_)
-    for yy in range(h):
-        reach = -1  # the last column the most recent event pixel of this row reaches
-        for xx in range(min(path_radius, w)):
-            if counts[0, yy, xx] + counts[1, yy, xx] > 0:
-                reach = xx + path_radius
-        for xx in range(w):
-            ahead = xx + path_radius
-            if ahead < w and counts[0, yy, ahead] + counts[1, yy, ahead] > 0:
-                reach = ahead + path_radius
-            rows[yy, xx] = reach >= xx
-            recent[yy, xx] = last_left[0, yy, xx] >= t_recent or last_left[1, yy, xx] >= t_recent
-    for xx in range(w):
-        reach = -1
-        for yy in range(min(path_radius, h)):
-            if rows[yy, xx]:
-                reach = yy + path_radius
-        for yy in range(h):
-            ahead = yy + path_radius
-            if ahead < h and rows[ahead, xx]:
-                reach = ahead + path_radius
-            active[yy, xx] = reach >= yy
-
-
-@njit(cache=True, nogil=True)
-def surface_features(t, x, y, p, last, t_end, tau, radius, ts, rows, out):
-    """Update a camera's last-event times with a window's events; write its support-summed time surfaces.
-
-    Parameters
-    ----------
-    t, x, y, p : (N,) arrays
-        The camera's events of the window.
-    last : (2, H, W) int64 ndarray
-        Last event time per polarity and pixel (:data:`NEVER` if none), updated in place.
-    t_end, tau, radius : int
-        Window end, decay time (us) and support half side (px).
-    ts, rows : (2, H, W) float64 ndarrays
-        Scratch.
-    out : (2, H, W) float64 ndarray
-        Out: ``sum over the (2r+1)^2 square of max(0, 1 - (t_end - last) / tau)``, per polarity.
-    """
-    for i in range(t.size):
-        pi, yi, xi = p[i], y[i], x[i]
-        if t[i] > last[pi, yi, xi]:
-            last[pi, yi, xi] = t[i]
-    _, h, w = last.shape
-    surf = out if radius == 0 else ts
-    for c in range(2):
-        for yy in range(h):
-            for xx in range(w):
-                age = t_end - last[c, yy, xx]
-                surf[c, yy, xx] = 1.0 - float(age) / float(tau) if age < tau else 0.0
-    if radius == 0:
-        return
-    # Separable: sums along the row first, then of those along the column (the reference's order). Each sum
-    # receives its terms in ascending order, as the reference adds them, and the zeros it skips change nothing.
-    rows[:] = 0.0
-    for c in range(2):
-        for yy in range(h):
-            for x2 in range(w):
-                v = ts[c, yy, x2]
-                if v != 0.0:
-                    for xx in range(max(x2 - radius, 0), min(x2 + radius + 1, w)):
-                        rows[c, yy, xx] += v
-    out[:] = 0.0
-    for c in range(2):
-        for y2 in range(h):
-            for xx in range(w):
-                v = rows[c, y2, xx]
-                if v != 0.0:
-                    for yy in range(max(y2 - radius, 0), min(y2 + radius + 1, h)):
-                        out[c, yy, xx] += v
-
-
-@njit(cache=True, nogil=True)
-def nonzero_values(features, buf):
-    """Copy the positive values of ``features`` into ``buf`` (raster order); return how many there are."""
-    flat = features.ravel()
-    n = 0
-    for i in range(flat.size):
-        if flat[i] > 0.0:
-            buf[n] = flat[i]
-            n += 1
-    return n
-
-
-@njit(cache=True, nogil=True)
-def percentile(values, q):
-    """``np.percentile(values, q)`` (method "linear") of a non-empty float64 vector, bit for bit.
-
-    NumPy's steps, in its floating-point order: virtual index ``(n - 1) * (q / 100)``, the two order
-    statistics around it (found by a partial sort, O(n) instead of a full sort), and its interpolation
-    between them from the nearer end (``b - (b - a) * (1 - g)`` when ``g >= 0.5``). Called per camera and
-    window, where NumPy's own call costs more than the kernels around it.
-    """
-    n = values.size
-    virtual = (n - 1) * (q / 100.0)
-    if virtual >= n - 1:
-        return values.max()
-    below = int(np.floor(virtual))
-    part = np.partition(values, below)
-    a = part[below]
-    b = part[below + 1:].min()
-    g = virtual - float(below)
-    diff = b - a
-    if g >= 0.5:
-        return b - diff * (1.0 - g)
-    return a + diff * g
-
-
-@njit(cache=True, nogil=True)
-def divide(features, level):
-    """``features /= level`` in place (zeros stay zero)."""
-    flat = features.ravel()
-    for i in range(flat.size):
-        if flat[i] != 0.0:
-            flat[i] = flat[i] / level
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -51,8 +51,8 @@ Design, part by part, with the reason for each (bench/results/fused.md measures 
     an event in the last two windows. Isolated events are mostly noise; the thesis' event matchers owe
     their low false rate to the same kind of local support.
 
-The numba kernels are in :mod:`calibration_free._fused_kernel`; the plain reference in
-:mod:`calibration_free.reference.fused` gives identical matches (tests/test_fused.py).
+The numba kernels are in :mod:`calibration_free._fused_features` and :mod:`calibration_free._fused_kernel`;
+the plain reference in :mod:`calibration_free.reference.fused` gives identical matches (tests/test_fused.py).
 """
 
 from __future__ import annotations
@@ -61,7 +61,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from calibration_free._fused_kernel import NEVER, divide, match_features, nonzero_values, surface_features, window_masks
+from calibration_free._fused_features import NEVER, divide, nonzero_values, surface_features, window_masks
+from calibration_free._fused_kernel import match_features
 from calibration_free.fused_params import FusedParams
 from calibration_free.fused_signal import level_of
 from cvstereo.matches import empty_matches, make_matches

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calibration_free._fused_kernel import percentile
+from calibration_free._fused_features import percentile
 
 #: Percentile of the non-zero feature values taken as a window's signal level.
 LEVEL_PERCENTILE = 90.0
@@ -19,7 +19,7 @@ LEVEL_PERCENTILE = 90.0
 def level_of(nonzero: np.ndarray) -> float:
     """The signal level of a window from its non-zero feature values (in any order): their
     :data:`LEVEL_PERCENTILE` percentile, NumPy's linear one, computed by the kernel's
-    :func:`~calibration_free._fused_kernel.percentile` (fast path and reference alike)."""
+    :func:`~calibration_free._fused_features.percentile` (fast path and reference alike)."""
     return float(percentile(nonzero, LEVEL_PERCENTILE))
 
 

@@ -161,7 +161,7 @@ def test_bad_parameters_say_which(field, value, words):
 @given(values=st.lists(st.floats(1e-6, 1e6), min_size=1, max_size=300), q=st.sampled_from([0.0, 50.0, 90.0, 100.0]),
        rounded=st.booleans())
 def test_kernel_percentile_is_numpys(values, q, rounded):
-    from calibration_free._fused_kernel import percentile
+    from calibration_free._fused_features import percentile
 
     v = np.round(np.array(values), 0 if rounded else 12)  # rounding makes ties, the partial sort's hard case
     assert percentile(v.copy(), q) == np.percentile(v, q)

@@ -1,9 +1,10 @@
 """Reference fused matcher (:mod:`calibration_free.fused` gives the design): whole windows in numpy.
 
-Readable twin of :mod:`calibration_free._fused_kernel`: the time surfaces as whole arrays, the support square
-as a sum of shifted copies, the cost as a dense ``(H, W, D)`` volume (inf outside the active pixels), the
-semi-global paths one pixel at a time over numpy vectors of disparities. Every floating-point expression is
-evaluated in the kernel's order, so that the matches are bit-identical; it is slow, for short inputs.
+Readable twin of :mod:`calibration_free._fused_features` and :mod:`calibration_free._fused_kernel`: the time
+surfaces as whole arrays, the support square as a sum of shifted copies, the cost as a dense ``(H, W, D)``
+volume (inf outside the active pixels), the semi-global paths one pixel at a time over numpy vectors of
+disparities. Every floating-point expression is evaluated in the kernel's order, so that the matches are
+bit-identical; it is slow, for short inputs.
 """
 
 from __future__ import annotations
