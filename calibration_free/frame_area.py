@@ -15,8 +15,9 @@ The scan is one numba kernel (:func:`scan_sad`) that computes the SAD only for t
 (each search fills a whole block of the disparity map, so most above-threshold pixels are never searched). On
 sparse frames (:mod:`cvstereo.sparse_frames`) the matcher uses :func:`_scan_sparse`, which also skips the
 disparities whose block in the other frame is empty (but the first: all of them give the same SAD) and stops a
-sum once it reaches the best so far, with the same result; the dense path stays for the cases the sparse frames
-do not reproduce (another kernel size, thresholds <= 0) and for ``separate`` frames and ``lr_check``.
+sum once it reaches the best so far, with the same result, for every polarity mode (each frame pair its own
+planes) and ``lr_check`` (both scans sparse); the dense path stays for the cases the sparse frames do not
+reproduce (another kernel size, thresholds <= 0).
 Its readable twin, a full cost volume from OpenCV kernels (``cv2.absdiff`` and an unnormalised
 ``cv2.boxFilter`` per disparity) and the scan over it, is :mod:`calibration_free.reference.frame_area`.
 
@@ -37,6 +38,7 @@ import numpy as np
 from calibration_free.params import FrameAreaParams
 from cvstereo.frames import event_mask, filtered_unit, gaussian_filter, polarity_counts, polarity_frames
 from cvstereo.matches import empty_matches, make_matches
+from cvstereo.polarity import slot_of_p
 from cvstereo.signal_level import SignalLevel
 from cvstereo.sparse_frames import SparseFrames, band_of_rows, bit_positions
 from cvstereo.support import lr_consistent
@@ -103,14 +105,10 @@ def _scan_sad_kernel(ref, oth, ys, xs, max_disparity, r, step):  # pragma: no co
     return disp
 
 
-#: Frame slot of an event of each polarity: one frame of both (``shared``).
-_SHARED = np.zeros(2, np.int64)
-
-
 @numba.njit(cache=True, nogil=True)
-def _scan_sparse(values, support, touched, ref_plane, threshold, max_disparity, r, step, capacity, done, disp,
-                 searched):  # pragma: no cover - compiled
-    """Algorithm 2 on sparse planes (reference ``ref_plane``, the other ``1 - ref_plane``), with the matches.
+def _search_sparse(values, support, ref_plane, oth_plane, threshold, max_disparity, r, step, done, disp,
+                   searched):  # pragma: no cover - compiled
+    """Algorithm 2 on sparse planes (reference ``ref_plane``, the other ``oth_plane``): the disparity map.
 
     The result of :func:`_scan_sad_kernel`, searched in the same order with the same float64 sums, but
     - a block of the other frame that holds no support pixel is all zeros, so its SAD is the same number for
@@ -118,14 +116,12 @@ def _scan_sparse(values, support, touched, ref_plane, threshold, max_disparity, 
       skipped;
     - a sum stops once it reaches the best so far: its terms are >= 0 and rounding is monotonic, so it could
       only end >= best, and only a strictly smaller sum wins.
-    ``done`` and ``disp`` are (height, width) buffers, all False / any on entry (``done`` is cleared again on
-    return), ``searched`` a (2, height * width) buffer.
-    Returns x, y, p (1 where the reference value is > 0) and the disparity of the reference pixels with events
-    that got one, row by row, x ascending.
+    Writes ``disp`` and ``done`` ((height, width) buffers, ``done`` all False on entry) where the scan wrote the
+    map, and the searched pixels into ``searched`` (2, height * width); returns their number (:func:`_unmark`).
     """
     _, h, w = values.shape
     ref = values[ref_plane]
-    oth = values[1 - ref_plane]
+    oth = values[oth_plane]
     n_words = support.shape[2]
     searched_y, searched_x = searched[0], searched[1]
     n_searched = 0
@@ -138,7 +134,7 @@ def _scan_sparse(values, support, touched, ref_plane, threshold, max_disparity, 
                 if x < r or x >= w - r or done[y, x] or not abs(np.float64(ref[y, x])) >= threshold:
                     continue
                 if band.size == 0:
-                    band = band_of_rows(support[1 - ref_plane], y, r, w)
+                    band = band_of_rows(support[oth_plane], y, r, w)
                 best = np.inf
                 best_d = 0
                 zero_block_seen = False
@@ -168,26 +164,63 @@ def _scan_sparse(values, support, touched, ref_plane, threshold, max_disparity, 
                 searched_y[n_searched] = y
                 searched_x[n_searched] = x
                 n_searched += 1
+    return n_searched
+
+
+@numba.njit(cache=True, nogil=True)
+def _unmark(done, searched, n_searched, r):  # pragma: no cover - compiled
+    """``done`` = False again in the blocks of the first ``n_searched`` searched pixels (all False then)."""
+    for s in range(n_searched):
+        for j in range(searched[0, s] - r, searched[0, s] + r + 1):
+            for k in range(searched[1, s] - r, searched[1, s] + r + 1):
+                done[j, k] = False
+
+
+@numba.njit(cache=True, nogil=True)
+def _scan_sparse(values, support, touched, ref_plane, oth_plane, threshold, back_threshold, lr_check,
+                 max_disparity, r, step, capacity, done, disp, searched):  # pragma: no cover - compiled
+    """One frame pair's matches on sparse planes: the scan of ``ref_plane`` (:func:`_search_sparse`) and, with
+    ``lr_check``, the scan of ``oth_plane`` the other way (threshold ``back_threshold``) and
+    :func:`cvstereo.support.lr_consistent` (tolerance 1 px) on the reference pixels with events.
+
+    ``done``, ``disp`` are (2, height, width) buffers (``done`` all False on entry and again on return),
+    ``searched`` a (2, 2, height * width) one: index 0 for the reference scan, 1 for the other camera's.
+    Returns x, y, p (1 where the reference value is > 0) and the disparity of the reference pixels with events
+    (``touched``) that got one (and passed the check), row by row, x ascending.
+    """
+    _, h, w = values.shape
+    n_ref = _search_sparse(values, support, ref_plane, oth_plane, threshold, max_disparity, r, step, done[0],
+                           disp[0], searched[0])
+    n_back = 0
+    if lr_check:
+        n_back = _search_sparse(values, support, oth_plane, ref_plane, back_threshold, max_disparity, r, -step,
+                                done[1], disp[1], searched[1])
+    ref = values[ref_plane]
     out_x = np.empty(capacity, np.int64)
     out_y = np.empty(capacity, np.int64)
     out_p = np.empty(capacity, np.int8)
     out_d = np.empty(capacity, np.float32)
     n = 0
+    n_words = touched.shape[2]
     for y in range(h):
         for i in range(n_words):
             word = touched[ref_plane, y, i]
             while word:
                 x, word = bit_positions(word, i)
-                if done[y, x]:
-                    out_x[n] = x
-                    out_y[n] = y
-                    out_p[n] = ref[y, x] > 0
-                    out_d[n] = disp[y, x]
-                    n += 1
-    for s in range(n_searched):
-        for j in range(searched_y[s] - r, searched_y[s] + r + 1):
-            for k in range(searched_x[s] - r, searched_x[s] + r + 1):
-                done[j, k] = False
+                if not done[0, y, x]:
+                    continue
+                d = disp[0, y, x]
+                if lr_check:  # the other scan at the pixel d names holds a disparity within 1 px (lr_consistent)
+                    xo = x + step * np.int64(np.rint(d))
+                    if xo < 0 or xo >= w or not done[1, y, xo] or not abs(disp[1, y, xo] - d) <= 1.0:
+                        continue
+                out_x[n] = x
+                out_y[n] = y
+                out_p[n] = ref[y, x] > 0
+                out_d[n] = d
+                n += 1
+    _unmark(done[0], searched[0], n_ref, r)
+    _unmark(done[1], searched[1], n_back, r)
     return out_x[:n], out_y[:n], out_p[:n], out_d[:n]
 
 
@@ -217,11 +250,12 @@ class FrameAreaMatcher(FrameMatcher):
         self._level = SignalLevel(prm, absolute=prm.threshold, unit=filtered_unit(prm),
                                   value_name="filtered value" if prm.gaussian else "frame value")
         h, w = self.resolution[1], self.resolution[0]
-        # Buffers of the sparse scan, reused: searched pixels' blocks, their disparity, the searched pixels.
-        self._done, self._disp = np.zeros((h, w), np.bool_), np.zeros((h, w), np.float32)
-        self._searched = np.empty((2, h * w), np.int64)
-        sparse = SparseFrames(2, resolution=self.resolution, gaussian=prm.gaussian, kernel_sigma=prm.kernel_sigma,
-                              kernel_size=prm.kernel_size)
+        # Buffers of the sparse scan, reused, per direction (the reference camera's scan, the other camera's for
+        # lr_check): searched pixels' blocks, their disparity, the searched pixels.
+        self._done, self._disp = np.zeros((2, h, w), np.bool_), np.zeros((2, h, w), np.float32)
+        self._searched = np.empty((2, 2, h * w), np.int64)
+        sparse = SparseFrames(2 * slot_of_p(prm.polarity)[0], resolution=self.resolution, gaussian=prm.gaussian,
+                              kernel_sigma=prm.kernel_sigma, kernel_size=prm.kernel_size)
         self._sparse = sparse if sparse.exact else None  # None: dense frames (cv2's filter), e.g. other kernels
 
     def anchor_cameras(self) -> tuple[int, ...]:
@@ -247,9 +281,10 @@ class FrameAreaMatcher(FrameMatcher):
         prm = self.params
         k = window.t_start // prm.level_window_us
         thresholds = self._level.thresholds(k)  # from the windows before this one
-        if self._sparse is not None and thresholds[prm.reference_camera] > 0 and prm.polarity == "shared" \
-                and not prm.lr_check:  # the sparse scan: one shared frame, one direction, pixels with events
-            return self._match_sparse(k, window, thresholds[prm.reference_camera])
+        # The sparse scan searches only pixels near events: every threshold a scan uses must be > 0.
+        scanned = thresholds if prm.lr_check else thresholds[prm.reference_camera]
+        if self._sparse is not None and np.min(scanned) > 0:
+            return self._match_sparse(k, window, thresholds)
         ref_cam = prm.reference_camera
         threshold = thresholds[ref_cam]
         ref_counts, oth_counts = self._counts(window)
@@ -271,25 +306,32 @@ class FrameAreaMatcher(FrameMatcher):
             parts.append(make_matches(window.t_end, x, y, (ref[y, x] > 0).astype(np.int8), ref_cam, disp[y, x]))
         return np.concatenate(parts) if parts else empty_matches()
 
-    def _match_sparse(self, k: int, window: Window, threshold: float) -> np.ndarray:
-        """:meth:`match_window` on sparse frames (:mod:`cvstereo.sparse_frames`): the same matches and levels."""
+    def _match_sparse(self, k: int, window: Window, thresholds: np.ndarray) -> np.ndarray:
+        """:meth:`match_window` on sparse frames (:mod:`cvstereo.sparse_frames`): the same matches and levels, fed
+        in the same order (per frame of the polarity mode: the reference camera's, then the other camera's)."""
         prm = self.params
         ref_cam = prm.reference_camera
         sf = self._sparse
-        sf.fill((window.left, window.right), _SHARED, 1)  # plane = camera
+        n_frames, channel_of = slot_of_p(prm.polarity)
+        sf.fill((window.left, window.right), channel_of, n_frames)  # plane = camera * n_frames + slot
         try:
-            ref_ev = window.right if ref_cam == 1 else window.left
-            matches = empty_matches()
-            if ref_ev.size:
-                x, y, p, disp = _scan_sparse(sf.values, sf.support, sf.touched, ref_cam, float(threshold),
-                                             int(prm.max_disparity), prm.block // 2, 1 if ref_cam == 1 else -1,
-                                             ref_ev.size, self._done, self._disp, self._searched)
-                matches = make_matches(window.t_end, x, y, p, ref_cam, disp)
-            for cam, ev in enumerate((window.left, window.right)):
-                self._level.add(k, cam, sf.values_at_events(cam, 1, ev.size))
+            ref_ev, oth_ev = (window.right, window.left) if ref_cam == 1 else (window.left, window.right)
+            parts = []
+            for slot in range(n_frames):
+                ref_plane, oth_plane = ref_cam * n_frames + slot, (1 - ref_cam) * n_frames + slot
+                if ref_ev.size:
+                    self._level.add(k, ref_cam, sf.values_at_events(ref_plane, 1, ref_ev.size))
+                self._level.add(k, 1 - ref_cam, sf.values_at_events(oth_plane, 1, oth_ev.size))
+                if not ref_ev.size:
+                    continue  # no reference events: nothing above threshold, no pixel to report at
+                x, y, p, disp = _scan_sparse(
+                    sf.values, sf.support, sf.touched, ref_plane, oth_plane, float(thresholds[ref_cam]),
+                    float(thresholds[1 - ref_cam]), bool(prm.lr_check), int(prm.max_disparity), prm.block // 2,
+                    1 if ref_cam == 1 else -1, ref_ev.size, self._done, self._disp, self._searched)
+                parts.append(make_matches(window.t_end, x, y, p, ref_cam, disp))
         finally:
             sf.clear()
-        return matches
+        return np.concatenate(parts) if parts else empty_matches()
 
     def _add_levels(self, k: int, channel: int, ref, oth, ref_counts: np.ndarray, oth_counts: np.ndarray) -> None:
         """Feed the signal level: |frame value| at each camera's pixels with events (of the frame's polarity)."""
