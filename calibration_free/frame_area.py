@@ -13,11 +13,13 @@ the thesis') the other camera's frame is scanned as well and a disparity stands 
 
 The scan is one numba kernel (:func:`scan_sad`) that computes the SAD only for the pixels it actually searches
 (each search fills a whole block of the disparity map, so most above-threshold pixels are never searched). On
-sparse frames (:mod:`cvstereo.sparse_frames`) the matcher uses :func:`_scan_sparse`, which also skips the
-disparities whose block in the other frame is empty (but the first: all of them give the same SAD) and stops a
-sum once it reaches the best so far, with the same result, for every polarity mode (each frame pair its own
-planes) and ``lr_check`` (both scans sparse); the dense path stays for the cases the sparse frames do not
-reproduce (another kernel size, thresholds <= 0).
+sparse frames (:mod:`cvstereo.sparse_frames`) the matcher uses :func:`_scan_sparse`, with the same result: it
+first replays the scan order without any SAD (which pixels are searched depends only on the threshold and the
+blocks written before), then searches only where a reported pixel keeps the disparity, skipping the
+disparities whose block in the other frame is empty (but the first: all of them give the same SAD) and
+stopping a sum once it reaches the best so far; it serves every polarity mode (each frame pair its own planes)
+and ``lr_check`` (both scans sparse). The dense path stays for the cases the sparse frames do not reproduce
+(another kernel size, thresholds <= 0).
 Its readable twin, a full cost volume from OpenCV kernels (``cv2.absdiff`` and an unnormalised
 ``cv2.boxFilter`` per disparity) and the scan over it, is :mod:`calibration_free.reference.frame_area`.
 
