@@ -9,7 +9,7 @@ from _event_scenes import feed_cut, random_pair
 
 from cvstereo.errors import EventFormatError
 from cvstereo.events import make_events
-from cvstereo.frames import gaussian_filter, stacked_frames
+from cvstereo.frames import gaussian_filter, signed_frame, stacked_frames
 from cvstereo.polarity import slot_of_p
 from cvstereo.registry import matcher_class
 from cvstereo.sparse_frames import SparseFrames, cv2_layout
@@ -123,6 +123,55 @@ def test_frame_area_sparse_path_equals_dense_path(variant, params):
     assert expected.size > 0
     np.testing.assert_array_equal(got, expected)
     assert sparse.diagnostics() == dense.diagnostics()
+
+
+@pytest.mark.parametrize("polarity", ["shared", "separate", "on", "off"])
+@pytest.mark.parametrize("lr_check", [False, True])
+@pytest.mark.parametrize("mode", [{}, {"threshold_mode": "relative", "level_window_us": 5_000, "level_warmup": 20}])
+@pytest.mark.parametrize("reference_camera", [1, 0])
+def test_frame_area_sparse_path_equals_dense_path_per_polarity_and_lr_check(polarity, lr_check, mode,
+                                                                           reference_camera):
+    """Every polarity mode (one frame pair per slot) and the left-right check on the sparse path: the dense
+    path's matches, and the same values fed to the signal level (its diagnostics)."""
+    left, right, resolution = _shifted_patches(11, width=90, height=30)
+    got, expected, sparse, dense = _dense_and_sparse(
+        "frame-area", "gaussian", left, right, resolution, [10_000, 25_000], threshold=1.5, polarity=polarity,
+        lr_check=lr_check, reference_camera=reference_camera, max_disparity=20, **mode)
+    assert expected.size > 0
+    if polarity in ("on", "off"):
+        assert (expected["p"] == (polarity == "on")).all()  # the other polarity's events are dropped
+    np.testing.assert_array_equal(got, expected)
+    assert sparse.diagnostics() == dense.diagnostics()
+
+
+def _rows(matches):
+    return set(zip(*(matches[f].tolist() for f in ("x", "y", "p", "disparity")), strict=True))
+
+
+def test_the_left_right_check_on_the_sparse_path_drops_unconfirmed_disparities():
+    """lr_check keeps a subset of the one-direction matches, drops some on this scene (noise pixels whose
+    back scan disagrees), and what it keeps agrees with the other camera's scan within 1 px (checked with the
+    reference's cost volume scan, not the fast kernels)."""
+    from calibration_free.reference.frame_area import sad_volume, scan_disparity_map
+    left, right, resolution = _shifted_patches(11, width=90, height=30, windows=1)
+    cls = matcher_class("frame-area")
+    runs = {}
+    for lr in (False, True):
+        m = cls(cls.make_params("gaussian", threshold=1.5, polarity="separate", lr_check=lr, max_disparity=20),
+                resolution=resolution)
+        if m._sparse is None:
+            pytest.skip("no sparse path on this machine")
+        runs[lr] = feed_cut(m, left, right, [])
+    one_way, checked = runs[False], runs[True]
+    assert _rows(checked) < _rows(one_way)  # a strict subset: the check dropped some
+    for p, signs in ((0, (-1,)), (1, (1,))):
+        frames = [gaussian_filter(signed_frame(cam, resolution=resolution, signs=signs)) for cam in (left, right)]
+        back = scan_disparity_map(frames[0], sad_volume(frames[0], frames[1], max_disparity=20, reference_camera=0),
+                                  threshold=1.5)
+        mine = checked[checked["p"] == p]
+        assert mine.size > 0
+        other = back[mine["y"], mine["x"] + mine["disparity"].astype(np.int64)]  # right x + d = left x
+        assert (np.abs(other - mine["disparity"]) <= 1).all()
 
 
 def test_a_threshold_of_zero_gives_the_references_result():
