@@ -163,16 +163,29 @@ def stacked_frames(cameras: Sequence[np.ndarray], *, polarity: Polarity = "share
     return stack, seen
 
 
+#: :func:`event_channel` of an event outside the sensor.
+OFF_SENSOR = -2
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def event_channel(x, y, p, i, channel_of, width, height):  # pragma: no cover - compiled
+    """The frame channel of event ``i`` (``channel_of[p]``: -1 where the polarity mode drops it), or
+    :data:`OFF_SENSOR` where it lies outside the ``width`` x ``height`` sensor."""
+    if x[i] < 0 or x[i] >= width or y[i] < 0 or y[i] >= height:
+        return OFF_SENSOR
+    return channel_of[p[i]]
+
+
 @numba.njit(cache=True, nogil=True)
 def _stack_events(x, y, p, channel_of, first_frame, pitch, height, width, stack, seen,
                   mark_seen):  # pragma: no cover - compiled
     """Add each event's sign into its frame of ``stack``; return the index of the first event off the sensor, or -1."""
     for i in range(x.size):
-        if x[i] < 0 or x[i] >= width or y[i] < 0 or y[i] >= height:
+        c = event_channel(x, y, p, i, channel_of, width, height)
+        if c == OFF_SENSOR:
             return i
-        c = channel_of[p[i]]
         if c < 0:
-            continue
+            continue  # a polarity the mode drops
         stack[(first_frame + c) * pitch + y[i], x[i]] += np.float32(1.0) if p[i] else np.float32(-1.0)
         if mark_seen:
             seen[c * height + y[i], x[i]] = True

@@ -32,7 +32,7 @@ from numba.cpython.unsafe.numbers import trailing_zeros
 from numba.extending import intrinsic
 
 from cvstereo.errors import EventFormatError
-from cvstereo.frames import frame_shape, gaussian_filter
+from cvstereo.frames import OFF_SENSOR, event_channel, frame_shape, gaussian_filter
 
 #: Kernel side the sparse Gaussian reproduces (the thesis' 5x5).
 SPARSE_KERNEL_SIZE = 5
@@ -176,11 +176,11 @@ def bit_positions(word, i):  # pragma: no cover - compiled
 def _accumulate(x, y, p, channel_of, first_plane, height, width, acc, touched):  # pragma: no cover - compiled
     """Add each event's sign into its plane and mark its pixel; the index of the first event off the sensor, or -1."""
     for i in range(x.size):
-        if x[i] < 0 or x[i] >= width or y[i] < 0 or y[i] >= height:
+        c = event_channel(x, y, p, i, channel_of, width, height)
+        if c == OFF_SENSOR:
             return i
-        c = channel_of[p[i]]
         if c < 0:
-            continue
+            continue  # a polarity the mode drops
         plane = first_plane + c
         acc[plane, y[i], x[i]] += np.float32(1.0) if p[i] else np.float32(-1.0)
         touched[plane, y[i], x[i] >> 6] |= np.uint64(1) << np.uint64(x[i] & 63)
