@@ -179,11 +179,10 @@ def _accumulate(x, y, p, channel_of, first_plane, height, width, acc, touched): 
         c = event_channel(x, y, p, i, channel_of, width, height)
         if c == OFF_SENSOR:
             return i
-        if c < 0:
-            continue  # a polarity the mode drops
-        plane = first_plane + c
-        acc[plane, y[i], x[i]] += np.float32(1.0) if p[i] else np.float32(-1.0)
-        touched[plane, y[i], x[i] >> 6] |= np.uint64(1) << np.uint64(x[i] & 63)
+        if c >= 0:  # (a negative channel: a polarity the mode drops)
+            plane = first_plane + c
+            acc[plane, y[i], x[i]] += np.float32(1.0) if p[i] else np.float32(-1.0)
+            touched[plane, y[i], x[i] >> 6] |= np.uint64(1) << np.uint64(x[i] & 63)
     return -1
 
 
