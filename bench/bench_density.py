@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import inspect
 import json
 import math
 import os
@@ -46,11 +45,6 @@ SECONDS = 3.0
 SEED = 7
 
 
-def match_takes_param_set() -> bool:
-    """Whether the installed :func:`calibration_free.match` has a named ``param_set`` parameter."""
-    return "param_set" in inspect.signature(match).parameters
-
-
 def density_rig(k: float) -> Rig:
     """The thesis' rig with both sensors' ON and OFF thresholds multiplied by ``k``."""
     def scaled(sensor):
@@ -62,8 +56,6 @@ def density_rig(k: float) -> Rig:
 
 def run_sweep(ks, param_set: str, methods, *, log=print) -> dict:
     """Simulate each k, run every method, evaluate; a JSON-ready dict."""
-    use_set = match_takes_param_set()
-    effective = param_set if use_set else "thesis"
     rows = {}
     for k in ks:
         start = time.perf_counter()
@@ -72,7 +64,7 @@ def run_sweep(ks, param_set: str, methods, *, log=print) -> dict:
         row = {"events": {"left": int(rec.left.size), "right": int(rec.right.size)}, "simulate_s": round(sim_s, 2),
                "methods": {}}
         for method in methods:
-            kwargs = {"param_set": param_set} if use_set and method in THESIS_METHODS else {}
+            kwargs = {"param_set": param_set} if method in THESIS_METHODS else {}
             result = match(rec, method=method, **kwargs)
             fig = evaluate(rec, result)
             row["methods"][method] = {"variant": result.meta.get("variant"), "coverage": fig["coverage"],
@@ -82,13 +74,7 @@ def run_sweep(ks, param_set: str, methods, *, log=print) -> dict:
                 f"coverage {format_figure('coverage', fig['coverage'])}, bad2 {format_figure('bad2', fig['bad2'])}, "
                 f"{fig['matches']} matches")
         rows[f"{k:g}"] = row
-    note = None
-    if not use_set:
-        note = ("the installed calibration_free.match() has no param_set parameter: today's matchers ran with "
-                "their thesis constants and default variants"
-                + ("" if param_set == "thesis" else f" (--param-set {param_set} was requested)"))
-    return {"param_set": effective, "requested": param_set, "match_takes_param_set": use_set, "note": note,
-            "rows": rows}
+    return {"param_set": param_set, "rows": rows}
 
 
 def _cell(name: str, value) -> str:
@@ -102,8 +88,6 @@ def section_markdown(run: dict, methods) -> str:
     first = next(iter(run["rows"].values()))["methods"]
     labels = [f"{m}/{first[m]['variant']}" if m in first else m for m in methods]
     parts = [f"## param_set = {run['param_set']}\n"]
-    if run.get("note"):
-        parts.append(f"Note: {run['note']}.\n")
     for figure in ("coverage", "bad2"):
         lines = [f"| {figure} | " + " | ".join(labels) + " | events L / R |",
                  "|---|" + "---:|" * (len(labels) + 1)]
@@ -157,9 +141,6 @@ def main(argv: list[str] | None = None) -> int:
     skipped = [m for m in wanted if m not in installed]
     if skipped:
         print(f"skipped (extra not installed): {', '.join(skipped)}")
-    if not match_takes_param_set():
-        print(f"note: calibration_free.match() has no param_set parameter; --param-set {args.param_set} "
-              "cannot be applied, running the thesis constants")
     load_start = os.getloadavg()[0]
     start = time.perf_counter()
     run = run_sweep(args.ks, args.param_set, methods)
