@@ -156,8 +156,9 @@ class StreamDecoder:
     hidden_wraps : int
         Timestamp wraps added from arrival times (pauses longer than a wrap).
     ambiguous_wraps : int
-        Arrival gaps whose wraps the arrival times could not decide (the reader was late by more than
-        a wrap); the fewest possible wraps were taken (see the module docstring for the recovery).
+        Arrival gaps (or late reads) whose wraps the arrival times could not decide: the reader ran late
+        by more than a wrap, or the OS held bytes back (see the module docstring for what was taken and
+        the recovery).
     ambiguous : list of tuple
         ``(event index, wraps taken, fewest, most)`` per ambiguous gap: from that event on, times may be off
         by whole wraps (the true count lies between the two bounds when the OS delivered the bytes in
