@@ -24,8 +24,7 @@ from cvstereo.sensors.detect import ProtocolMismatchError
 from cvstereo.sensors.journal import read_journal
 from cvstereo.sensors.protocol import ProtocolSettings
 from cvstereo.sensors.virtual import VirtualClock
-
-WRAP = 1 << 16
+from tests._wrap_checks import WRAP, assert_times_exact_or_flagged
 
 
 def camera(rng, seconds, rate, start_us=0, shift=0):
@@ -53,11 +52,23 @@ def assert_same_stream(got, want, shift):
         np.testing.assert_array_equal(got[f], want[f][:got.size])
 
 
-def assert_one_clock(rec, src, *, complete):
-    """Both cameras hold the source's events moved by one common shift (inter-camera timing kept)."""
+def assert_one_clock(rec, src, *, complete, ambiguous=0):
+    """Both cameras hold the source's events moved by one common shift (inter-camera timing kept).
+
+    ``ambiguous``: timestamp wraps record reported it could not decide (the host read late, a loaded
+    machine); then times may be off by whole wraps, and only by those.
+    """
     shift = int(rec.left["t"][0] - src.left["t"][0])
-    assert_same_stream(rec.left, src.left, shift)
-    assert_same_stream(rec.right, src.right, shift)  # same shift: the right camera still starts 0.5 s later
+    if ambiguous:
+        for got, want in ((rec.left, src.left), (rec.right, src.right)):
+            assert got.size and got.size <= want.size
+            err = got["t"] - (want["t"][:got.size] + shift)
+            np.testing.assert_array_equal(err % WRAP, 0)
+            for f in ("x", "y", "p"):
+                np.testing.assert_array_equal(got[f], want[f][:got.size])
+    else:
+        assert_same_stream(rec.left, src.left, shift)
+        assert_same_stream(rec.right, src.right, shift)  # same shift: the right camera still starts 0.5 s later
     if complete:
         assert rec.left.size == src.left.size and rec.right.size == src.right.size
 
@@ -66,6 +77,11 @@ def sent_counts(stderr):
     """(recorded, sent) per camera from record's report lines."""
     got = re.findall(r"^(left|right): (\d+) events \(the virtual board sent (\d+)\)", stderr, re.M)
     return {cam: (int(a), int(b)) for cam, a, b in got}
+
+
+def ambiguous_wraps(stderr):
+    """Timestamp wraps record reported as ambiguous, both cameras."""
+    return sum(int(n) for n in re.findall(r"^(?:left|right): .*?, (\d+) ambiguous timestamp wraps", stderr, re.M))
 
 
 def test_paced_board_with_long_pauses_gives_exact_times(rng):
@@ -94,15 +110,17 @@ def test_paced_board_with_long_pauses_gives_exact_times(rng):
         for cam, chunk in rig.poll(0):
             got[cam].append(chunk.events)
         wraps = [c.decoder.hidden_wraps for c in rig.cams]
+        ambiguous = [c.decoder.ambiguous for c in rig.cams]
     assert devs[0].lead_us == devs[1].lead_us  # one clock
     for cam, sent in ((0, left), (1, right)):
         out = np.concatenate(got[cam])
         assert out.size == sent.size
-        np.testing.assert_array_equal(np.diff(out["t"]), np.diff(sent["t"]))  # every inter-event time exact
-        np.testing.assert_array_equal(out["t"], sent["t"] + devs[cam].lead_us)  # and on the shared clock
+        # Every time exact on the shared clock, unless the reader ran late by more than a wrap at a pause (a
+        # loaded machine): the decoder must have counted that gap, and times after it are off by whole wraps.
+        assert_times_exact_or_flagged(out["t"], sent["t"] + devs[cam].lead_us, ambiguous[cam])
     # Sanity of the expectation itself: without the arrival times these pauses would have lost wraps.
     naive = sum(p // WRAP for p in pauses)
-    assert naive >= 9 and wraps[0] >= naive - 2
+    assert naive >= 9 and (wraps[0] >= naive - 2 or ambiguous[0])
 
 
 def test_seconds_keeps_every_event_and_the_inter_camera_timing(tmp_path, source, capsys):
@@ -155,7 +173,7 @@ def test_signal_keeps_every_event_received(tmp_path, source, sig):
     counts = sent_counts(err)
     assert counts["left"] == (rec.left.size, rec.left.size), err
     assert counts["right"] == (rec.right.size, rec.right.size), err
-    assert_one_clock(rec, src, complete=False)
+    assert_one_clock(rec, src, complete=False, ambiguous=ambiguous_wraps(err))
 
 
 def test_kill_9_then_from_journal_recovers_an_exact_prefix(tmp_path, source, capsys):

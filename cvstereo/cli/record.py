@@ -58,6 +58,9 @@ def _report(rig, devices, args) -> None:
         sent = f" (the virtual board sent {devices[i].sent_events})" if devices else ""
         print(f"{cam}: {s['events']} events{sent}, {s['protocol'] or 'no bytes to tell the protocol'}, "
               f"{s['corrupt_bytes']} corrupt bytes{share}, {s['silences']} silences"
+              + (f", {s['ambiguous_wraps']} ambiguous timestamp wraps (the host read late: times after them may"
+                 " be off by whole 65.536 ms wraps; record with --event-format E3 or E4 to avoid this)"
+                 if s.get("ambiguous_wraps") else "")
               + (f", {s['error']}" if s["error"] else ""), file=sys.stderr)
     if status["residual_offset_us"] is not None and args.clock == "align":
         print(f"clock: residual offset right - left ~ {status['residual_offset_us']} us (estimated)",

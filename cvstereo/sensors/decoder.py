@@ -24,8 +24,21 @@ short step. When the host's arrival time of the bytes is given (``host_t``), the
 a pause hid: an event cannot arrive before it happened, so its device time is at most its arrival time
 minus the smallest ``arrival - device time`` seen recently (the clock offset); the largest number of
 wraps within that bound is taken. This is only done after a gap in arrival times of half a wrap or more,
-so a continuous stream is never changed, and it is exact as long as the host reads the bytes less than
-about 60 ms after they arrive.
+so a continuous stream is never changed.
+
+That upper bound is only tight if the reader took the bytes as they came. A reader descheduled for more
+than a wrap (a loaded machine) reads a burst of bytes that waited in the OS buffer, and its read time no
+longer bounds the wraps from below. So the reader also passes ``after_t``, the host time of its last look
+that found the OS buffer empty: every byte read since arrived after it, and (device-to-host latency being
+under ``ARRIVAL_LATENCY_US``) the event happened no earlier than ``after_t - offset - latency``. Where the
+two bounds leave exactly one wrap count, it is taken. Where they leave several, the wraps cannot be known
+from the host: the decoder takes the fewest (the stream is taken to have run on without a pause); where they
+contradict each other (the OS held bytes back longer than any board does), it keeps the upper bound. Both
+are counted in :attr:`StreamDecoder.ambiguous_wraps` and listed in :attr:`StreamDecoder.ambiguous`.
+Recovery: events between two listed gaps keep exact relative times; after a listed gap the times may be off
+by whole wraps (so cut the recording there, or realign it on a known event). Streams that must stay exact
+under load should use a 24- or 32-bit format (``E3``/``E4``: a wrap every 16.8 s / 71.6 min), which no
+scheduling delay hides.
 
 Examples
 --------
@@ -43,6 +56,7 @@ from __future__ import annotations
 
 import functools
 import itertools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -73,6 +87,13 @@ ARRIVAL_SLACK_US = 2_000
 #: gap's wraps: a sender that stalled sends a catch-up burst of late events, and only the first event that
 #: comes to a waiting reader again is timely enough to veto a wrap the late ones seem to show.
 MAX_GAP_WITNESSES = 4096
+
+#: Longest the bytes of an event take from the board's clock to the host's OS buffer, us (UART FIFO, the USB
+#: adapter's latency timer, 16 ms by default on FTDI chips): bounds device time from below (``after_t``).
+ARRIVAL_LATENCY_US = 20_000
+
+#: Gaps with ambiguous wraps listed in :attr:`StreamDecoder.ambiguous` (the count goes on).
+MAX_AMBIGUOUS_LISTED = 1000
 
 #: How fast the clock-offset estimate may rise without a faster event confirming it (clock drift), per us.
 OFFSET_LEAK = 1e-4
@@ -134,6 +155,15 @@ class StreamDecoder:
         Bytes of the events returned so far.
     hidden_wraps : int
         Timestamp wraps added from arrival times (pauses longer than a wrap).
+    ambiguous_wraps : int
+        Arrival gaps (or late reads) whose wraps the arrival times could not decide: the reader ran late
+        by more than a wrap, or the OS held bytes back (see the module docstring for what was taken and
+        the recovery).
+    ambiguous : list of tuple
+        ``(event index, wraps taken, fewest, most)`` per ambiguous gap: from that event on, times may be off
+        by whole wraps (the true count lies between the two bounds when the OS delivered the bytes in
+        time). The index counts the events returned since the decoder was made (the first
+        ``MAX_AMBIGUOUS_LISTED`` gaps).
     """
 
     def __init__(self, settings: ProtocolSettings | None = None, *, confirm: int = DEFAULT_CONFIRM,
@@ -151,12 +181,15 @@ class StreamDecoder:
         self.byte_rate = float(byte_rate)
         self._sync = 0x80 if self.settings.sync_bit_set else 0
         self._buf = bytearray()
-        self._segs: list[list] = []  # [end offset in _buf, host arrival us, fresh] per piece of bytes held
+        # [end offset in _buf, host read us, fresh, host us before which none of it had arrived] per piece held
+        self._segs: list[list] = []
         self._searching = False
         self.corrupt_bytes = 0
         self.events_decoded = 0
         self.bytes_decoded = 0
         self.hidden_wraps = 0
+        self.ambiguous_wraps = 0
+        self.ambiguous: list[tuple[int, int, int, int]] = []
         self.tail_bytes = 0  # bytes of an incomplete last event at the end of the stream
         self.reset_time()
 
@@ -224,17 +257,21 @@ class StreamDecoder:
         return best if best is not None else (-1, m)
 
     # -- output -----------------------------------------------------------------------------------
-    def _arrivals(self, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-        """Latest possible arrival time (host us) of each event's first byte, and whether it came to a
-        waiting reader (``fresh``: a precise time); None if arrival times are unknown."""
-        if not self._segs or any(h is None for _, h, _ in self._segs):
+    def _arrivals(self, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """Latest and earliest possible arrival time (host us) of each event's first byte, and whether it
+        came to a waiting reader (``fresh``: a precise time); None if arrival times are unknown."""
+        if not self._segs or any(h is None for _, h, _, _ in self._segs):
             return None
-        seg_end = np.array([e for e, _, _ in self._segs], np.int64)
-        seg_t = np.array([h for _, h, _ in self._segs], np.float64)
-        seg_fresh = np.array([f for _, _, f in self._segs], bool)
+        seg_end = np.array([e for e, _, _, _ in self._segs], np.int64)
+        seg_t = np.array([h for _, h, _, _ in self._segs], np.float64)
+        seg_fresh = np.array([f for _, _, f, _ in self._segs], bool)
+        seg_lo = np.array([-np.inf if lo is None else lo for _, _, _, lo in self._segs], np.float64)
         idx = np.minimum(np.searchsorted(seg_end, starts, side="right"), seg_end.size - 1)
         # The bytes read after an event's first byte took at least this long to come over the link.
-        return seg_t[idx] - (seg_end[idx] - starts) / self.byte_rate * 1e6, seg_fresh[idx]
+        hi = seg_t[idx] - (seg_end[idx] - starts) / self.byte_rate * 1e6
+        # A fresh piece without a known empty look: its read time is taken as the arrival time (as before).
+        lo = np.where(np.isneginf(seg_lo[idx]) & seg_fresh[idx], hi, np.minimum(seg_lo[idx], hi))
+        return hi, seg_fresh[idx], lo
 
     def _times(self, sc: _Scan, host_t: int | None) -> np.ndarray:
         fmt = self.fmt
@@ -257,7 +294,31 @@ class StreamDecoder:
         self._last_raw = int(raw[-1])
         return t
 
-    def _add_hidden_wraps(self, t: np.ndarray, arr: np.ndarray, fresh: np.ndarray) -> np.ndarray:
+    def _ambiguous(self, i: int, taken: int, fewest: int, most: int) -> None:
+        self.ambiguous_wraps += 1
+        if len(self.ambiguous) < MAX_AMBIGUOUS_LISTED:
+            self.ambiguous.append((self.events_decoded + i, taken, fewest, most))
+
+    def _gap_wraps(self, t: np.ndarray, arr: np.ndarray, arr_lo: np.ndarray, off: float, i: int, nxt: int) -> int:
+        """Wraps hidden by the arrival gap before event ``i`` (the events up to ``nxt`` share them)."""
+        wrap = self.fmt.wrap
+        # Every event up to the next gap bounds the wraps: after a stall of the sender (events sent late in
+        # a burst) the burst's last events are timely again and veto a wrap.
+        most = int(float((arr[i:nxt] - off + ARRIVAL_SLACK_US - t[i:nxt]).min()) // wrap)
+        # ... and from below: each arrived after the reader's last look at an empty buffer.
+        early = float((arr_lo[i:nxt] - off - ARRIVAL_LATENCY_US - t[i:nxt]).max())
+        fewest = max(0, math.ceil(early / wrap)) if math.isfinite(early) else 0
+        if most <= 0 or fewest == most:
+            return max(most, 0)
+        # fewest < most: the reader was late by more than a wrap, the host cannot tell how many passed; take
+        # the fewest. fewest > most: bytes reached the reader later than any board sends them (the OS held
+        # them), so neither bound is sure; the hard one (an event cannot arrive before it happened) is kept.
+        # Either way the gap is counted, not guessed silently.
+        k = min(fewest, most)
+        self._ambiguous(i, k, min(fewest, most), max(fewest, most))
+        return k
+
+    def _add_hidden_wraps(self, t: np.ndarray, arr: np.ndarray, fresh: np.ndarray, arr_lo: np.ndarray) -> np.ndarray:
         wrap = self.fmt.wrap
         prev_arr = np.empty_like(arr)
         prev_arr[0] = arr[0] if self._last_arrival is None else self._last_arrival
@@ -267,19 +328,22 @@ class StreamDecoder:
         # tightest event up to the next gap, so a late read alone never adds a wrap.
         gaps = np.flatnonzero(arr - prev_arr >= wrap / 2)
         if self._offset is not None:
-            bounds = [*gaps.tolist(), arr.size]
-            for i, nxt in itertools.pairwise(bounds):
+            starts = sorted({0, *gaps.tolist()})
+            for i, nxt in itertools.pairwise([*starts, arr.size]):
                 off = self._offset + OFFSET_LEAK * (arr[i] - self._offset_at)
                 seen = (arr[:i] - t[:i])[fresh[:i]]
                 if seen.size:
                     off = min(off, float(seen.min()))
-                # Every event up to the next gap bounds the wraps: after a stall of the sender (events sent
-                # late in a burst) the burst's last events are timely again and veto a wrap.
-                slack = float((arr[i:nxt] - off + ARRIVAL_SLACK_US - t[i:nxt]).min())
-                k = int(slack // wrap)
+                k = self._gap_wraps(t, arr, arr_lo, off, i, nxt) if i in gaps else 0
                 if k > 0:
                     t[i:] += k * wrap
                     self.hidden_wraps += k
+                # A pause inside a late read leaves no gap in arrival times: if the run's last event may still
+                # be a wrap later than decoded (its read came that late), some wraps in the run are unknown.
+                if (not self.ambiguous or self.ambiguous[-1][0] != self.events_decoded + i) and nxt - i > 1:
+                    most = int((arr[nxt - 1] - off + ARRIVAL_SLACK_US - t[nxt - 1]) // wrap)
+                    if most > 0:
+                        self._ambiguous(i + 1, 0, 0, most)
         if fresh.any():
             off_now = float((arr - t)[fresh].min())
             if self._offset is None:
@@ -309,8 +373,8 @@ class StreamDecoder:
         self.bytes_decoded += int(sc.ends[-1] - sc.starts[0]) if m else 0
         return out
 
-    def decode(self, data: bytes, *, host_t: int | None = None, fresh: bool = True, final: bool = False,
-               release: bool = False) -> np.ndarray:
+    def decode(self, data: bytes, *, host_t: int | None = None, fresh: bool = True, after_t: int | None = None,
+               final: bool = False, release: bool = False) -> np.ndarray:
         """Decode the next bytes of the stream.
 
         Parameters
@@ -323,6 +387,11 @@ class StreamDecoder:
         fresh : bool, keyword-only
             The reader was waiting when ``data`` came (nothing was left unread before the read), so
             ``host_t`` is its arrival time and not just a bound; only fresh bytes reveal pauses.
+        after_t : int, optional, keyword-only
+            Host time (us) of the reader's last look that found no byte waiting (before ``data`` came): none
+            of ``data`` arrived earlier. Without it, fresh bytes are taken to have arrived at ``host_t``
+            and others at any time before; with it, a late reader's wraps are decided or counted as
+            ambiguous (:attr:`ambiguous_wraps`) instead of guessed.
         final : bool, keyword-only
             No more bytes will come: release held events and count trailing bytes as corrupt.
         release : bool, keyword-only
@@ -335,7 +404,7 @@ class StreamDecoder:
         """
         if data:
             self._buf += data
-            self._segs.append([len(self._buf), host_t, bool(fresh)])
+            self._segs.append([len(self._buf), host_t, bool(fresh), after_t])
         buf = self._view = np.frombuffer(bytes(self._buf), np.uint8)
         pos = 0
         parts = []
@@ -396,7 +465,7 @@ class StreamDecoder:
         got = self._arrivals(sc.starts)
         if got is None:
             return k
-        arr, fresh = got
+        arr, fresh, _ = got
         prev = np.empty_like(arr)
         prev[0] = arr[0] if self._last_arrival is None else self._last_arrival
         prev[1:] = arr[:-1]
@@ -410,7 +479,7 @@ class StreamDecoder:
 
     def _drop(self, pos: int) -> None:
         del self._buf[:pos]
-        self._segs = [[e - pos, h, f] for e, h, f in self._segs if e > pos]
+        self._segs = [[e - pos, h, f, lo] for e, h, f, lo in self._segs if e > pos]
 
     def flush(self, *, host_t: int | None = None, final: bool = True) -> np.ndarray:
         """Release the events held for confirmation.

@@ -99,7 +99,7 @@ class EDVS:
         self.auto_sync = auto_sync
         self.protocol: str | None = None
         self._probe = bytearray()
-        self._probe_times: list[tuple[int, int, bool]] = []
+        self._probe_times: list[tuple[int, int, bool, int | None]] = []
         self._probe_tried = 0
         self._epoch_us: int | None = None
         self.decoder = self._new_decoder(self.settings)
@@ -268,13 +268,14 @@ class EDVS:
             time.sleep(0.005)
         self.queue.put(chunk)
 
-    def _decode(self, data: bytes, now: int, *, fresh: bool = True, final: bool = False,
+    def _decode(self, data: bytes, now: int, *, fresh: bool = True, after: int | None = None, final: bool = False,
                 release: bool = False) -> None:
-        """Decode bytes (after the protocol is settled: until then they wait in the probe)."""
+        """Decode bytes (after the protocol is settled: until then they wait in the probe); ``after`` is the
+        host time of the last look that found the OS buffer empty (none of ``data`` had arrived then)."""
         if self.protocol is None:
             if data:
                 self._probe += data
-                self._probe_times.append((len(self._probe), now, fresh))
+                self._probe_times.append((len(self._probe), now, fresh, after))
             if len(self._probe) < max(DETECT_BYTES, 2 * self._probe_tried) and not (final or release):
                 return  # look again at twice the sample (detection is not free: linear in all)
             self._probe_tried = len(self._probe)
@@ -287,11 +288,12 @@ class EDVS:
                 self.decoder = self._new_decoder(settings)
             probe, times, self._probe, self._probe_times = bytes(self._probe), self._probe_times, bytearray(), []
             start = 0
-            for end, t, f in times:  # replay with the arrival time of each piece
-                self._decode(probe[start:end], t, fresh=f)
+            for end, t, f, a in times:  # replay with the arrival time of each piece
+                self._decode(probe[start:end], t, fresh=f, after=a)
                 start = end
             data = b""
-        ev = self.decoder.decode(data, host_t=now, fresh=fresh, final=final, release=release and not final)
+        ev = self.decoder.decode(data, host_t=now, fresh=fresh, after_t=after, final=final,
+                                 release=release and not final)
         if ev.size:
             self._put(Chunk(ev, now))
 
@@ -300,11 +302,17 @@ class EDVS:
         assert ser is not None
         held = False
         stop_at: float | None = None
+        empty_at: int | None = None  # host time before the last look that found no byte waiting
         try:
             while True:
                 if self._stop.is_set() and stop_at is None:
                     stop_at = time.monotonic()
+                # Taken before the look, so every byte read later arrived after it, however late this
+                # thread runs (a loaded machine): it bounds the device time from below (decoder: after_t).
+                before = host_us()
                 waiting = ser.in_waiting
+                if waiting == 0:
+                    empty_at = before
                 data = ser.read(max(1, min(waiting, 1 << 16)))
                 now = host_us()
                 if data:
@@ -312,7 +320,7 @@ class EDVS:
                     self.last_byte_us = now
                     if self.silent:
                         self.silent = False
-                    self._decode(data, now, fresh=waiting == 0)
+                    self._decode(data, now, fresh=waiting == 0, after=empty_at)
                     held = True
                     if stop_at is not None and time.monotonic() - stop_at > DRAIN_MAX_S:
                         break
@@ -345,6 +353,7 @@ class EDVS:
             "bytes": self.bytes_received,
             "events": self.decoder.events_decoded,
             "corrupt_bytes": self.decoder.corrupt_bytes,
+            "ambiguous_wraps": self.decoder.ambiguous_wraps,
             "protocol": self.protocol,
             "silences": self.silences,
             "silent": self.silent,

@@ -103,6 +103,7 @@ class VirtualEDVS:
         self._is_slave = False
         self._stream_start: float | None = None
         self.lead_us = 0  # device time at which scene time `time_origin_us` is stamped
+        self._await_master = False  # a slave streaming before the master's clock runs
         self._next = 0
         self._t_prev = 0
 
@@ -222,7 +223,15 @@ class VirtualEDVS:
         zero = self._zero
         if self._is_slave:
             # A slave counts on the master's clock (without a shared one: reset by the sync itself).
-            if self._clock is not None and self._clock.zero is not None:
+            if self._clock is not None:
+                if self._clock.zero is None:
+                    # The master's thread has not run its `!ETM+` yet (a loaded machine); a real slave's
+                    # counter follows the master's sync line, so wait for the master's zero, not our own.
+                    self._await_master = True
+                    self._stream_start = self._clock.start if self._clock.start is not None else now
+                    if self._clock.start is None:
+                        self._clock.start = now
+                    return
                 zero = self._clock.zero
         if zero is None:
             zero = now - self.clock_offset_us / 1e6 / self.speed  # free-running: `clock_offset_us` at E+
@@ -236,7 +245,11 @@ class VirtualEDVS:
 
     def _due_events(self, now: float, budget: int) -> bytes:
         """Encode the events due by ``now`` (at most ``budget`` bytes), with garbage at a boundary."""
-        if not self.streaming or now < self._stall_until or self._next >= self.events.size:
+        if self._await_master and self._clock is not None and self._clock.zero is not None:
+            self._await_master = False
+            self.lead_us = round((self._stream_start - self._clock.zero) * self.speed * 1e6)
+        if (not self.streaming or now < self._stall_until or self._next >= self.events.size
+                or self._await_master):
             with self._lock:
                 garbage, self._garbage = b"".join(self._garbage), []
             self.garbage_bytes += len(garbage)
