@@ -10,7 +10,7 @@ from cvstereo.cli import build_parser
 from cvstereo.cli._common import progress_wanted
 
 LONG = {"demo": [], "bench": [], "simulate": ["--preset", "1arm-50cm"], "match": ["r.npz", "-o", "m.npz"],
-        "sweep": ["r.npz", "-m", "frame", "-o", "out"]}
+        "sweep": ["r.npz", "-m", "frame", "-o", "out"], "rigcheck": ["r.npz"]}
 
 
 @pytest.mark.parametrize("command", LONG)

@@ -257,6 +257,18 @@ def test_real_files_left_retina_agrees_with_readme(tum_dir, name, left_retina):
 
 
 # ---------------------------------------------------------------------------------------------------------------
+def test_progress_names_each_stage_in_order_and_changes_nothing(patches):
+    from cvstereo.rigcheck.check import STAGES
+
+    rec = with_rig_errors(patches, rows=1, time_us=2500)
+    seen = []
+    report = check_rig(rec, progress=seen.append)
+    # The first, second and last two stages always run; the repeats only when needed; never out of order.
+    assert seen[:2] == list(STAGES[:2]) and seen[-2:] == list(STAGES[-2:])
+    assert [STAGES.index(name) for name in seen] == sorted(STAGES.index(name) for name in seen)
+    assert report.to_dict() == check_rig(rec).to_dict()
+
+
 # CLI
 
 
@@ -269,8 +281,9 @@ def test_cli_rigcheck_json_and_match_auto(patches, tmp_path):
 
     path = tmp_path / "swapped.npz"
     write_recording(path, with_rig_errors(patches.slice_time(0, 500_000), rows=2, time_us=2000, swap=True))
-    res = _cli("rigcheck", str(path), "--json")
+    res = _cli("rigcheck", str(path), "--json", "--progress")
     assert res.returncode == 0, res.stderr
+    assert "rigcheck" in res.stderr  # the bar, asked for although stderr is a pipe
     data = json.loads(res.stdout)
     assert data["swap"] is True and round(data["row_offset"]) == -2
     res = _cli("rigcheck", str(tmp_path / "missing.npz"))

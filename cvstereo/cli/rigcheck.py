@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from cvstereo.cli._common import add_recording_arguments, load_recording
+from cvstereo.cli._common import add_progress_option, add_recording_arguments, load_recording, progress_wanted
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
@@ -30,6 +30,7 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p.add_argument("--max-time-offset-ms", type=float, default=20.0, metavar="MS",
                    help="largest time offset searched")
     p.add_argument("--json", action="store_true", help="print the report as a JSON object")
+    add_progress_option(p)
     return p
 
 
@@ -38,7 +39,22 @@ def run(args: argparse.Namespace) -> int:
 
     params = RigCheckParams(max_disparity=args.max_disparity, max_row_offset=args.max_row_offset,
                             max_time_offset_us=round(args.max_time_offset_ms * 1000))
-    report = check_rig(load_recording(args), params)
+    recording = load_recording(args)
+    if progress_wanted(args):
+        from tqdm.auto import tqdm
+
+        from cvstereo.rigcheck.check import STAGES
+
+        # One step per stage; the two repeats are counted as done when check_rig skips them.
+        with tqdm(total=len(STAGES), unit="stage", desc="rigcheck", leave=False) as bar:
+            def stage(name: str) -> None:
+                bar.update(STAGES.index(name) - bar.n)
+                bar.set_postfix_str(name)
+
+            report = check_rig(recording, params, progress=stage)
+            bar.update(len(STAGES) - bar.n)
+    else:
+        report = check_rig(recording, params)
     if args.json:
         # to_dict gives null for a figure that could not be estimated: strict JSON, never a bare NaN.
         print(json.dumps(report.to_dict(), indent=2, allow_nan=False))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 
 import numpy as np
 
@@ -15,8 +16,12 @@ from cvstereo.rigcheck.stats import count_statistics
 from cvstereo.rigcheck.time_offset import time_offset
 from cvstereo.rigcorrect import RigCorrection
 
+#: The stages :func:`check_rig` reports to its ``progress`` callback, in order (the two repeats may be skipped).
+STAGES = ("row offset", "time offset", "row offset again", "time offset again", "side and disparity", "counts")
 
-def check_rig(recording: Recording, params: RigCheckParams | None = None, **overrides) -> RigReport:
+
+def check_rig(recording: Recording, params: RigCheckParams | None = None, *,
+              progress: Callable[[str], None] | None = None, **overrides) -> RigReport:
     """Estimate the rig's imperfections from the events of a recording.
 
     Parameters
@@ -25,6 +30,9 @@ def check_rig(recording: Recording, params: RigCheckParams | None = None, **over
         Both cameras, in the order believed (left first).
     params : RigCheckParams, optional
         Search ranges, windows and tuned constants (default: ``RigCheckParams()``).
+    progress : callable, optional, keyword-only
+        Called with the name of each stage of :data:`STAGES` as it starts (a stage that is not needed is
+        not called), e.g. to move a progress bar.
     **overrides
         Fields of :class:`RigCheckParams` to replace, e.g. ``max_disparity=32, max_seconds=6``.
 
@@ -65,12 +73,17 @@ def check_rig(recording: Recording, params: RigCheckParams | None = None, **over
     frame_opts = {"resolution": res, "max_row_offset": min(params.max_row_offset, height - 1),
                   "max_disparity": min(params.max_disparity, width - 1), "window_us": window_us,
                   "max_windows": params.max_windows, "n_bands": params.n_bands}
+    stage = progress or (lambda name: None)
+    stage(STAGES[0])
     rows = row_offsets(left, right, **frame_opts)
+    stage(STAGES[1])
     tau = time_offset(left, right, row=round(rows.offset), disparity=rows.disparity, resolution=res, params=params)
     rows2 = rows
     if abs(tau.offset_us) >= params.rows_again_share * window_us:
+        stage(STAGES[2])
         rows2 = row_offsets(left, _shifted(right, 0, tau.offset_us, res), **frame_opts)
     if round(rows2.offset) != round(rows.offset) or rows2.disparity != rows.disparity:
+        stage(STAGES[3])
         tau = time_offset(left, right, row=round(rows2.offset), disparity=rows2.disparity, resolution=res,
                           params=params)
     settings["time_offset_method"] = tau.method
@@ -78,6 +91,7 @@ def check_rig(recording: Recording, params: RigCheckParams | None = None, **over
     alternatives = tuple(float(a) for a in tau.alternatives_us)
 
     # 4. Side and disparities on the streams with both offsets removed (whole rows; time to the microsecond).
+    stage(STAGES[4])
     overlays = disparity_overlays(left, _shifted(right, row_offset, time_offset_us, res), resolution=res,
                                   max_disparity=params.max_disparity, window_us=window_us,
                                   max_windows=params.max_windows, block=params.block, min_ncc=params.min_ncc)
@@ -89,6 +103,7 @@ def check_rig(recording: Recording, params: RigCheckParams | None = None, **over
         row_offset, time_offset_us = -row_offset, -time_offset_us
         band_offsets = tuple(-b for b in band_offsets)
         alternatives = tuple(-a for a in alternatives)
+    stage(STAGES[5])
     counts = count_statistics(left, right, duration_s=max(recording.duration_s, 1e-6), resolution=res,
                               noise_window_us=params.noise_window_us, burst_window_us=params.burst_window_us)
     confident = [b for b, c in zip(band_offsets, rows2.band_confidences, strict=True) if c >= 0.3]
