@@ -39,3 +39,24 @@ def assert_same_events(a: np.ndarray, b: np.ndarray) -> None:
     """Equal event arrays (dtype and every field)."""
     assert a.dtype == b.dtype
     np.testing.assert_array_equal(a, b)
+
+
+def textured_blobs(seed: int = 0, windows: int = 4, *, disparity: int = 13, window_us: int = 40_000) -> Recording:
+    """Textured 5x4 blobs, three events a pixel, twelve a 40 ms window, seen by the right camera ``disparity``
+    px to the left: frame matchers find them; the truth is ``disparity`` for every event."""
+    rng = np.random.default_rng(seed)
+    xs, ys, ps, ts = [], [], [], []
+    for k in range(windows):
+        for _ in range(12):
+            yy, xx = np.mgrid[0:4, 0:5]
+            x0, y0 = rng.integers(20, 120), rng.integers(3, 120)
+            n = xx.size * 3
+            xs.append(np.repeat((xx + x0).ravel(), 3))
+            ys.append(np.repeat((yy + y0).ravel(), 3))
+            ps.append(np.full(n, rng.integers(0, 2)))
+            ts.append(rng.integers(k * window_us, (k + 1) * window_us, n))
+    x, y, p, t = (np.concatenate(a) for a in (xs, ys, ps, ts))
+    order = np.argsort(t, kind="stable")
+    x, y, p, t = x[order], y[order], p[order], t[order]
+    truth = np.full(t.size, disparity, np.float32)
+    return Recording(make_events(t, x, y, p), make_events(t, x - disparity, y, p), truth, truth.copy())

@@ -10,30 +10,15 @@ import pytest
 
 from calibration_free import METHODS, match
 from cvstereo.cli import main
-from cvstereo.events import make_events
 from cvstereo.io import read_matches, write_recording
-from cvstereo.recording import Recording
+from tests._io_helpers import textured_blobs
 
 W = 40_000
 
 
 @pytest.fixture(scope="module")
 def recording_file(tmp_path_factory):
-    rng = np.random.default_rng(0)
-    xs, ys, ps, ts = [], [], [], []
-    for k in range(4):  # four windows of textured blobs
-        for _ in range(12):
-            yy, xx = np.mgrid[0:4, 0:5]
-            x0, y0 = rng.integers(20, 120), rng.integers(3, 120)
-            n = xx.size * 3
-            xs.append(np.repeat((xx + x0).ravel(), 3))
-            ys.append(np.repeat((yy + y0).ravel(), 3))
-            ps.append(np.full(n, rng.integers(0, 2)))
-            ts.append(rng.integers(k * W, (k + 1) * W, n))
-    x, y, p, t = (np.concatenate(a) for a in (xs, ys, ps, ts))
-    order = np.argsort(t, kind="stable")
-    x, y, p, t = x[order], y[order], p[order], t[order]
-    rec = Recording(make_events(t, x, y, p), make_events(t, x - 13, y, p))
+    rec = textured_blobs(0, 4, disparity=13, window_us=W)  # four windows of textured blobs
     path = tmp_path_factory.mktemp("rec") / "blobs.npz"
     write_recording(path, rec)
     return path

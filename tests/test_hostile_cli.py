@@ -30,9 +30,9 @@ import numpy as np
 import pytest
 
 from cvstereo.cli import main
-from cvstereo.events import make_events
 from cvstereo.io import read_matches, read_recording, write_matches, write_recording
 from cvstereo.recording import Recording
+from tests._io_helpers import textured_blobs
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -44,22 +44,7 @@ DISPARITY = 13
 
 def _blobs(seed: int = 0, windows: int = 4) -> Recording:
     """Textured blobs seen by the right camera 13 px to the left: frame matchers find them; truth 13."""
-    rng = np.random.default_rng(seed)
-    xs, ys, ps, ts = [], [], [], []
-    for k in range(windows):
-        for _ in range(12):
-            yy, xx = np.mgrid[0:4, 0:5]
-            x0, y0 = rng.integers(20, 120), rng.integers(3, 120)
-            n = xx.size * 3
-            xs.append(np.repeat((xx + x0).ravel(), 3))
-            ys.append(np.repeat((yy + y0).ravel(), 3))
-            ps.append(np.full(n, rng.integers(0, 2)))
-            ts.append(rng.integers(k * W, (k + 1) * W, n))
-    x, y, p, t = (np.concatenate(a) for a in (xs, ys, ps, ts))
-    order = np.argsort(t, kind="stable")
-    x, y, p, t = x[order], y[order], p[order], t[order]
-    truth = np.full(t.size, DISPARITY, np.float32)
-    return Recording(make_events(t, x, y, p), make_events(t, x - DISPARITY, y, p), truth, truth.copy())
+    return textured_blobs(seed, windows, disparity=DISPARITY, window_us=W)
 
 
 def _with_meta(result, **changes):
