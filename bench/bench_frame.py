@@ -11,7 +11,7 @@ Targets (issue 4): frame-based >= 50x real time, frame-area >= 20x real time. Th
 
 Run::
 
-    .venv/bin/python bench/bench_frame.py            # best of 3 runs per matcher
+    .venv/bin/python bench/bench_frame.py            # runs until two agree within 10 % (at most 6) per matcher
     .venv/bin/python bench/bench_frame.py --repeats 5 --synthetic
 """
 
