@@ -50,6 +50,22 @@ def check_window_options(args: argparse.Namespace) -> None:
     require_range(args.window_ms, "--window-ms", gt=0, le=MAX_WINDOW_MS)
     require_range(getattr(args, "t_start_ms", None), "--t-start-ms", ge=0, le=MAX_TIME_MS)
 
+def check_window_inside(args: argparse.Namespace, recording) -> None:
+    """``--t-start-ms`` must show some of the recording: an empty window past its end is a typo, not a picture.
+
+    The window ``[t, t + --window-ms)`` (times on the recording's own clock, as ``cvstereo info`` prints them)
+    must overlap ``[first event, last event]``; the error names that span so that the user can pick a time.
+    """
+    t_start = _ms_to_us(getattr(args, "t_start_ms", None))
+    if t_start is None:
+        return
+    first, last = recording.t_start, recording.t_end
+    if t_start > last or t_start + _ms_to_us(args.window_ms) <= first:
+        raise ValueError(f"--t-start-ms {args.t_start_ms:g} shows no event: the recording's events lie between "
+                         f"{first / 1000:g} ms and {last / 1000:g} ms; pick a start in that span (or leave it out "
+                         "for the busiest window).")
+
+
 #: Picture kind (also its file name under ``all``) -> (needs matches, what it shows).
 KINDS: dict[str, tuple[bool, str]] = {
     "events": (False, "both cameras' events of one window, ON blue, OFF orange (thesis fig. 3.2)"),
@@ -123,6 +139,7 @@ def run(args: argparse.Namespace) -> int:
         outputs = [args.output]
     recording = load_recording(args, outputs=outputs)
     name_recording(recording, args.recording)
+    check_window_inside(args, recording)
     result = load_matches(args.matches) if args.matches is not None else None
     depth = picture_depth(args, recording, result)
     if args.kind != "all":
