@@ -208,7 +208,8 @@ class EventTimeMatcher(StreamMatcher):
         if not prm.paced:
             return int(prm.time_window_us)
         other = 1 - prm.reference_camera
-        return int(self._pace.relative(k, absolute=prm.time_window_us, scale=prm.time_window_scale)[other])
+        return int(self._pace.relative(k, absolute=prm.time_window_us, scale=prm.time_window_scale,
+                                       floor=prm.time_window_us)[other])
 
     def _take(self, cam: int, events: np.ndarray, k: int, threshold: float, tolerance: float, window: int) -> None:
         """Run one camera's events of level window ``k`` through its frame; keep the ones that pass."""

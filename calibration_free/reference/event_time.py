@@ -46,8 +46,8 @@ def _in_force_by_window(prm: EventTimeParams, events, values) -> tuple[dict, dic
         threshold[k] = level.thresholds(k)
         tolerance[k] = level.relative(k, absolute=prm.value_tolerance, scale=prm.value_tolerance_scale)[ref]
         # The other camera's pace: its events are the candidates.
-        window[k] = int(pace.relative(k, absolute=prm.time_window_us, scale=prm.time_window_scale)[1 - ref]) \
-            if prm.paced else int(prm.time_window_us)
+        window[k] = int(pace.relative(k, absolute=prm.time_window_us, scale=prm.time_window_scale,
+                                      floor=prm.time_window_us)[1 - ref]) if prm.paced else int(prm.time_window_us)
         for cam, ev, vals, ivl in ((ref, events[0], values[0], intervals[0]),
                                    (1 - ref, events[1], values[1], intervals[1])):
             in_k = [int(t) // w == k for t in ev["t"]]
