@@ -82,3 +82,58 @@ def test_describe_and_anchor_camera():
         EventTimeParams(reference_camera=2)
 
 
+
+
+def test_neighbour_intervals_by_hand():
+    """Time back to the last earlier same-polarity event in the 3x3 neighbourhood, fast kernel and reference."""
+    from calibration_free.event_time import _neighbour_intervals
+    from calibration_free.reference.event_time import _neighbour_intervals as reference_intervals
+
+    events = make_events([0, 100, 100, 250, 400, 700, 50_000], [5, 6, 6, 20, 5, 7, 6], [5, 5, 5, 5, 5, 6, 6],
+                         [1, 1, 1, 1, 0, 1, 1])
+    # 100: (5, 5) at 0; 100 again: the duplicate finds the same earlier event, not itself; 250: nobody near;
+    # 400: no earlier OFF event; 700: (6, 5) at 100; 50 000: 49 300 us after (7, 6), beyond the 40 ms cap.
+    expected = [np.nan, 100, 100, np.nan, np.nan, 600, np.nan]
+    last = np.full((2, 10, 24), -1, np.int64)
+    fast = np.empty(events.size)
+    cols = [events[name].astype(np.int64) for name in ("t", "x", "y", "p")]
+    _neighbour_intervals(*cols, last, last.copy(), 40_000, fast)
+    np.testing.assert_array_equal(fast, expected)
+    np.testing.assert_array_equal(reference_intervals(events, 40_000), expected)
+
+
+@pytest.mark.parametrize(("read", "found"), [("before", False), ("after", True)])
+def test_reading_d1_after_its_update_pairs_lone_events(read, found):
+    """Two first events at their pixels, at the same time: D2 just after its update is one centre weight (0.41);
+    D1 is 0 before its update (|0 - 0.41| > 0.3: no match) and 0.41 after (a match at 5 px)."""
+    right = make_events([1000], [50], [40], [1])
+    left = make_events([1000], [55], [40], [1])
+    m = EventTimeMatcher(EventTimeParams(threshold=0.0, reference_read=read))
+    matches = concat_matches([m.feed(left, right), m.flush()])
+    assert matches["disparity"].tolist() == ([5.0] if found else [])
+
+
+def _paced_pair(offset_us: int, period_us: int = 2000, until_us: int = 100_000):
+    """One pixel per camera firing every ``period_us``, the right camera ``offset_us`` after the left, 5 px apart."""
+    t = np.arange(0, until_us, period_us)
+    left = make_events(t, np.full(t.size, 55), np.full(t.size, 40), np.ones(t.size, int))
+    right = make_events(t + offset_us, np.full(t.size, 50), np.full(t.size, 40), np.ones(t.size, int))
+    return left, right
+
+
+@pytest.mark.parametrize(("scale", "found"), [(0.0, False), (0.5, True)])
+def test_the_time_window_follows_the_pace(scale, found):
+    """Partners 900 us apart: outside the fixed 300 us; inside 0.5 x the 2 ms pace once it is known."""
+    from calibration_free.reference.event_time import event_time_reference
+
+    left, right = _paced_pair(900)
+    prm = EventTimeParams(threshold_mode="relative", level_window_us=5_000, level_warmup=20, level_windows=3,
+                          threshold_scale=0.65, value_tolerance_scale=0.4, time_window_scale=scale)
+    matches = feed_cut(EventTimeMatcher(prm, resolution=(64, 48)), left, right, range(0, 100_000, 3_001))
+    np.testing.assert_array_equal(matches, event_time_reference(left, right, prm, resolution=(64, 48)))
+    if found:
+        # Warm-up: the pace is known after 20 intervals (40 ms), the fixed window in force before.
+        assert matches.size > 20 and set(matches["disparity"].tolist()) == {5.0}
+        assert matches["t"].min() >= 40_000
+    else:
+        assert matches.size == 0

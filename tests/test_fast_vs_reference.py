@@ -35,7 +35,7 @@ CASES = {
                                           "polarity": ["shared", "separate", "on"], "lr_check": [False, True]},
                    {"no-gaussian": {"threshold": 3.0}}),
     "event-time": (event_time_reference, {"reference_camera": [0, 1], "restrict_side": [True, False],
-                                          "max_disparity": [12]}, {}),
+                                          "max_disparity": [12], "reference_read": ["before", "after"]}, {}),
     "event-area": (event_area_reference, {"polarity": ["shared", "separate", "on"], "max_disparity": [20],
                                           "cost_scale": [0.0, 0.6]},
                    {"no-gaussian": {"threshold": 2.0}}),
@@ -50,9 +50,9 @@ MODES = {
     "absolute": {},
     "relative": {"threshold_mode": "relative", "level_window_us": 5_000, "level_warmup": 20, "level_windows": 3},
 }
-#: Relative mode: the scales drawn (event-time also scales its value tolerance).
+#: Relative mode: the scales drawn (event-time also scales its value tolerance, and its time window by the pace).
 SCALES = {"threshold_scale": [0.5, 0.8]}
-EVENT_TIME_SCALES = {"value_tolerance_scale": [0.3, 0.4]}
+EVENT_TIME_SCALES = {"value_tolerance_scale": [0.3, 0.4], "time_window_scale": [0.4, 0.0, 2.0]}
 
 
 def mode_params(method: str, mode: str, draw) -> dict:

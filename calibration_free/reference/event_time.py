@@ -13,23 +13,48 @@ from cvstereo.matches import empty_matches, make_matches
 from cvstereo.signal_level import SignalLevel
 
 
-def _thresholds_by_window(prm: EventTimeParams, events, values) -> tuple[dict, dict]:
-    """Window -> thresholds (per camera) and value tolerance in force, from the values of the windows before.
+def _neighbour_intervals(events: np.ndarray, cap: int) -> list[float]:
+    """Per event, the time back to the last earlier event (strictly earlier) of its polarity in its 3x3
+    neighbourhood; NaN when there is none within ``cap`` us."""
+    times: dict[tuple[int, int, int], list[int]] = {}  # (p, x, y) -> distinct event times so far
+    out = []
+    for e in events:
+        t, x, y, p = int(e["t"]), int(e["x"]), int(e["y"]), int(e["p"])
+        # Times only grow: the latest earlier time of a pixel is one of its last two distinct times.
+        earlier = [u for dx in (-1, 0, 1) for dy in (-1, 0, 1) for u in times.get((p, x + dx, y + dy), [])[-2:]
+                   if u < t]
+        out.append(t - max(earlier) if earlier and t - max(earlier) <= cap else np.nan)
+        seen = times.setdefault((p, x, y), [])
+        if not seen or seen[-1] != t:
+            seen.append(t)
+    return out
 
-    ``events`` and ``values`` are the reference camera's first, the other's second (D1 before, D2 after).
+
+def _in_force_by_window(prm: EventTimeParams, events, values) -> tuple[dict, dict, dict]:
+    """Window -> thresholds (per camera), value tolerance and time window in force, from the windows before.
+
+    ``events`` and ``values`` are the reference camera's first, the other's second (D1, D2 after).
     """
     w = prm.level_window_us
     ref = prm.reference_camera
     level = SignalLevel(prm, absolute=prm.threshold, unit=dynamic_unit(prm))
+    pace = SignalLevel(prm.pace_params(), absolute=prm.time_window_us, unit=1.0)
+    intervals = [_neighbour_intervals(ev, w) if prm.paced else [np.nan] * ev.size for ev in events]
     windows = sorted({int(t) // w for ev in events for t in ev["t"]})
-    threshold, tolerance = {}, {}
+    threshold, tolerance, window = {}, {}, {}
     for k in windows:
         threshold[k] = level.thresholds(k)
         tolerance[k] = level.relative(k, absolute=prm.value_tolerance, scale=prm.value_tolerance_scale)[ref]
-        for cam, ev, vals in ((ref, events[0], values[0]), (1 - ref, events[1], values[1])):
-            level.add(k, cam, np.array([np.nan if v is None else v for v, t in zip(vals, ev["t"], strict=True)
-                                        if int(t) // w == k]))
-    return threshold, tolerance
+        # The other camera's pace: its events are the candidates.
+        window[k] = int(pace.relative(k, absolute=prm.time_window_us, scale=prm.time_window_scale,
+                                      floor=prm.time_window_us)[1 - ref]) if prm.paced else int(prm.time_window_us)
+        for cam, ev, vals, ivl in ((ref, events[0], values[0], intervals[0]),
+                                   (1 - ref, events[1], values[1], intervals[1])):
+            in_k = [int(t) // w == k for t in ev["t"]]
+            level.add(k, cam, np.array([np.nan if v is None else v for v, here in zip(vals, in_k, strict=True)
+                                        if here]))
+            pace.add(k, cam, np.array([v for v, here in zip(ivl, in_k, strict=True) if here]))
+    return threshold, tolerance, window
 
 
 def event_time_reference(left: np.ndarray, right: np.ndarray, params: EventTimeParams | None = None, *,
@@ -52,10 +77,11 @@ def event_time_reference(left: np.ndarray, right: np.ndarray, params: EventTimeP
     events = (left, right)
     ev1, ev2 = events[ref], events[1 - ref]
     fp = prm.frame_params()
-    # D1 is read before e1 updates its frame; D2 as the frame stood just after e2's own update.
-    d1 = DynamicFrames(fp, resolution=resolution).process(ev1, after=False)
+    # D1 is read before e1 updates its frame (or just after, reference_read); D2 as the frame stood just after
+    # e2's own update.
+    d1 = DynamicFrames(fp, resolution=resolution).process(ev1, after=prm.reference_read == "after")
     d2 = DynamicFrames(fp, resolution=resolution).process(ev2, after=True)
-    threshold, tolerance = _thresholds_by_window(prm, (ev1, ev2), (d1, d2))
+    threshold, tolerance, window = _in_force_by_window(prm, (ev1, ev2), (d1, d2))
     t2_all = ev2["t"]
     rows = []
     for i, e1 in enumerate(ev1):
@@ -65,9 +91,9 @@ def event_time_reference(left: np.ndarray, right: np.ndarray, params: EventTimeP
         if d1[i] is None or not abs(d1[i]) >= threshold[k][ref]:
             continue
         minimum = None
-        lo = int(np.searchsorted(t2_all, t - prm.time_window_us, side="left"))
-        hi = int(np.searchsorted(t2_all, t + prm.time_window_us, side="right"))
-        for j in range(lo, hi):  # events e2 with |t2 - t| <= window
+        lo = int(np.searchsorted(t2_all, t - window[k], side="left"))
+        hi = int(np.searchsorted(t2_all, t + window[k], side="right"))
+        for j in range(lo, hi):  # events e2 with |t2 - t| <= the window in force
             e2 = ev2[j]
             v2 = d2[j]
             s2 = 1 if e2["p"] else -1
