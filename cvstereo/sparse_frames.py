@@ -181,8 +181,9 @@ def _accumulate(x, y, p, channel_of, first_plane, height, width, acc, touched): 
             return i
         if c >= 0:  # (a negative channel: a polarity the mode drops)
             plane = first_plane + c
-            acc[plane, y[i], x[i]] += np.float32(1.0) if p[i] else np.float32(-1.0)
-            touched[plane, y[i], x[i] >> 6] |= np.uint64(1) << np.uint64(x[i] & 63)
+            xi, yi = np.int64(x[i]), np.int64(y[i])
+            acc[plane, yi, xi] += np.float32(1.0) if p[i] else np.float32(-1.0)
+            touched[plane, yi, xi >> 6] |= np.uint64(1) << np.uint64(xi & 63)
     return -1
 
 
