@@ -126,7 +126,7 @@ def _plan_sparse(values, support, ref_plane, threshold, r, done, owner, searched
             word = support[ref_plane, y, i]
             while word:
                 x, word = bit_positions(word, i)
-                if x < r or x >= w - r or done[y, x] or not abs(np.float64(ref[y, x])) >= threshold:
+                if x < r or x >= w - r or not abs(np.float64(ref[y, x])) >= threshold or done[y, x]:
                     continue
                 for j in range(y - r, y + r + 1):
                     for k in range(x - r, x + r + 1):

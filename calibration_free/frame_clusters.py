@@ -334,7 +334,13 @@ def _match_sparse_rows(values, support, touched, n_channels, threshold_left, thr
     return out_x[:n], out_y[:n], out_sign[:n], out_d[:n]
 
 def _pixel_order(matches: np.ndarray) -> np.ndarray:
-    """Sort one window's matches by (y, x, p), so that the output order does not depend on the variant."""
+    """Sort one window's matches by (y, x, p), so that the output order does not depend on the variant.
+
+    One stable sort of a key that orders as (y, x, p) does (x, y < 2048 = MAX_RESOLUTION, p in {0, 1}): the
+    kernels emit each frame's matches in pixel order, and the sort merges those runs in one pass, where
+    ``np.lexsort`` sorted three times.
+    """
     if matches.size < 2:
         return matches
-    return matches[np.lexsort((matches["p"], matches["x"], matches["y"]))]
+    key = (matches["y"].astype(np.int64) * 2048 + matches["x"]) * 2 + matches["p"]
+    return matches[np.argsort(key, kind="stable")]
