@@ -14,7 +14,6 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import cv2
-import numba
 import numpy as np
 
 from cvstereo.rigcheck.params import RigCheckParams
@@ -214,19 +213,22 @@ def _row_spectra(frames, lo, hi, nfft, windows) -> RowSpectra:
     return RowSpectra(np.fft.rfft(padded, axis=1), index, energy)
 
 
-@numba.njit(cache=True, nogil=True)
-def _cross_spectra(spec_a, index_a, frames_a, spec_b, index_b, frames_b, y0, y1):  # pragma: no cover - compiled
+def _cross_spectra(a: RowSpectra, frames_a, b: RowSpectra, frames_b, y0, y1):
     """Per pair j, the sum over the rows y0 .. y1 - 1 of spectrum(a, frame frames_a[j], y) times the conjugate
-    of spectrum(b, frame frames_b[j], y); rows that are zero in either frame add nothing and are skipped."""
-    out = np.zeros((frames_a.size, spec_a.shape[1]), np.complex128)
-    for j in range(frames_a.size):
-        for y in range(y0, y1):
-            ia = index_a[frames_a[j], y]
-            ib = index_b[frames_b[j], y]
-            if ia < 0 or ib < 0:
-                continue
-            for f in range(spec_a.shape[1]):
-                out[j, f] += spec_a[ia, f] * np.conj(spec_b[ib, f])
+    of spectrum(b, frame frames_b[j], y); rows that are zero in either frame add nothing and are left out.
+
+    The products of a pair's rows are summed in row order (``np.add.reduceat`` over the pairs' runs).
+    """
+    ia, ib = a.index[frames_a, y0:y1], b.index[frames_b, y0:y1]
+    both = (ia >= 0) & (ib >= 0)
+    out = np.zeros((frames_a.size, a.spectra.shape[1]), np.complex128)
+    per_pair = both.sum(axis=1)
+    if not per_pair.any():
+        return out
+    products = a.spectra[ia[both]] * np.conj(b.spectra[ib[both]])
+    starts = np.concatenate([[0], np.cumsum(per_pair)[:-1]])
+    used = per_pair > 0
+    out[used] = np.add.reduceat(products, starts[used], axis=0)
     return out
 
 
@@ -257,7 +259,7 @@ def _fine_shift(a: RowSpectra, frames_a, b: RowSpectra, frames_b, rows, lo, hi, 
     slope.
     """
     y0, y1 = (int(r) for r in rows)
-    spec = _cross_spectra(a.spectra, a.index, frames_a, b.spectra, b.index, frames_b, y0, y1)
+    spec = _cross_spectra(a, frames_a, b, frames_b, y0, y1)
     n = nfft * upsample
     lags = np.arange(lo * upsample, hi * upsample + 1)
     c = (np.fft.irfft(spec, n, axis=-1) * upsample)[:, lags % n]
