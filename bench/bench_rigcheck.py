@@ -10,7 +10,7 @@
    README) and with the README's retina 1; "after" runs the rig check first and applies its findings (swap,
    row and time offset), as ``cvstereo match --auto`` does.
 
-Prints the tables and writes bench/results/rigcheck.md and .json.
+Prints the tables and writes rigcheck.md and .json into bench/results/ (``-o`` for another folder).
 
 Run: ``.venv/bin/python bench/bench_rigcheck.py [--before REV] [--skip-accuracy]`` (needs the shared data;
 $CVSTEREO_SHARED or ../shared).
@@ -131,9 +131,9 @@ def speed(before: str, repeats: int) -> tuple[list[str], list[dict]]:
     return lines, rows
 
 
-def update_speed(speed_lines: list[str], speed_rows: list[dict]) -> None:
-    """Replace the speed section of bench/results/rigcheck.md and .json, keeping the accuracy results."""
-    out = ROOT / "bench" / "results"
+def update_speed(speed_lines: list[str], speed_rows: list[dict], out: Path) -> None:
+    """Replace the speed section of rigcheck.md and .json in ``out``, keeping the accuracy results."""
+    out.mkdir(parents=True, exist_ok=True)
     md, js = out / "rigcheck.md", out / "rigcheck.json"
     rest = md.read_text() if md.exists() else ""
     cut = rest.find("## Fan_disp8.dat")
@@ -149,15 +149,17 @@ def main() -> None:
     parser.add_argument("--before", default="main", help="base revision for the speed comparison")
     parser.add_argument("--repeats", type=int, default=6, help="timings per file and code at most")
     parser.add_argument("--skip-accuracy", action="store_true", help="only the speed table")
+    parser.add_argument("-o", "--output", default=str(ROOT / "bench" / "results"),
+                        help="folder for rigcheck.md/.json")
     args = parser.parse_args()
     speed_lines, speed_rows = speed(args.before, args.repeats)
     if args.skip_accuracy:
-        update_speed(speed_lines, speed_rows)
+        update_speed(speed_lines, speed_rows, Path(args.output))
         return
-    accuracy(speed_lines, speed_rows)
+    accuracy(speed_lines, speed_rows, Path(args.output))
 
 
-def accuracy(speed_lines: list[str], speed_rows: list[dict]) -> None:
+def accuracy(speed_lines: list[str], speed_rows: list[dict], out: Path) -> None:
     """The --auto table on Fan_disp8.dat; writes both tables."""
     from cvstereo.io import read_recording
     from cvstereo.pipeline import match
@@ -202,7 +204,6 @@ def accuracy(speed_lines: list[str], speed_rows: list[dict]) -> None:
                      f"time {r['time_offset_us']} us |")
     lines += ["", "Rig check (retina 0 given as left):", "", "```", check_rig(read_recording(FAN, left_retina=0))
               .summary(), "```", ""]
-    out = ROOT / "bench" / "results"
     out.mkdir(parents=True, exist_ok=True)
     (out / "rigcheck.md").write_text("\n".join(lines))
     (out / "rigcheck.json").write_text(json.dumps({"speed": speed_rows, "rows": rows, "reports": reports},

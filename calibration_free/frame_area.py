@@ -108,25 +108,26 @@ def _scan_sad_kernel(ref, oth, ys, xs, max_disparity, r, step):  # pragma: no co
 
 
 @numba.njit(cache=True, nogil=True)
-def _plan_sparse(values, support, ref_plane, threshold, r, done, owner, searched):  # pragma: no cover - compiled
+def _plan_sparse(above, ref_plane, r, done, owner, searched):  # pragma: no cover - compiled
     """Which pixels Algorithm 2's scan of ``ref_plane`` searches, and which search writes each map pixel last.
 
+    ``above`` marks the pixels whose value reaches the scan's threshold (:attr:`SparseFrames.above`): only
+    they can be searched, so the scan visits only them, in its order (row by row, x ascending).
     Whether a pixel is searched depends only on the threshold and on the blocks written before it, never on
     the disparities found, so the scan order of :func:`_scan_sad_kernel` can be replayed without any SAD: the
     searched pixels go into ``searched`` (2, height * width) in scan order, and each pixel of a searched block
     gets ``done`` = True and ``owner`` = the index of the search (the later overwrites, as the scan does).
     ``done`` must be all False on entry (:func:`_unmark`). Returns the number of searches.
     """
-    _, h, w = values.shape
-    ref = values[ref_plane]
-    n_words = support.shape[2]
+    h, w = done.shape
+    n_words = above.shape[2]
     n_searched = 0
     for y in range(r, h - r):
         for i in range(n_words):
-            word = support[ref_plane, y, i]
+            word = above[ref_plane, y, i]
             while word:
                 x, word = bit_positions(word, i)
-                if x < r or x >= w - r or done[y, x] or not abs(np.float64(ref[y, x])) >= threshold:
+                if x < r or x >= w - r or done[y, x]:
                     continue
                 for j in range(y - r, y + r + 1):
                     for k in range(x - r, x + r + 1):
@@ -199,10 +200,11 @@ def _unmark(done, searched, n_searched, r):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def _scan_sparse(values, support, touched, ref_plane, oth_plane, threshold, back_threshold, lr_check,
-                 max_disparity, r, step, capacity, done, owner, searched):  # pragma: no cover - compiled
+def _scan_sparse(values, support, touched, above, ref_plane, oth_plane, lr_check, max_disparity, r, step, capacity,
+                 done, owner, searched):  # pragma: no cover - compiled
     """One frame pair's matches on sparse planes: Algorithm 2's scan of ``ref_plane`` and, with ``lr_check``,
-    the scan of ``oth_plane`` the other way (threshold ``back_threshold``) and
+    the scan of ``oth_plane`` the other way (each plane's pixels at or above its camera's threshold marked in
+    ``above``) and
     :func:`cvstereo.support.lr_consistent` (tolerance 1 px) on the reference pixels with events.
 
     The scans are planned first (:func:`_plan_sparse`) and only the searches whose disparity some reported
@@ -214,7 +216,7 @@ def _scan_sparse(values, support, touched, ref_plane, oth_plane, threshold, back
     (``touched``) that got one (and passed the check), row by row, x ascending.
     """
     _, h, w = values.shape
-    n_ref = _plan_sparse(values, support, ref_plane, threshold, r, done[0], owner[0], searched[0])
+    n_ref = _plan_sparse(above, ref_plane, r, done[0], owner[0], searched[0])
     out_x = np.empty(capacity, np.int64)
     out_y = np.empty(capacity, np.int64)
     need = np.zeros(n_ref, np.bool_)
@@ -234,7 +236,7 @@ def _scan_sparse(values, support, touched, ref_plane, oth_plane, threshold, back
     n_back = 0
     found_back = found  # replaced below with lr_check
     if lr_check:
-        n_back = _plan_sparse(values, support, oth_plane, back_threshold, r, done[1], owner[1], searched[1])
+        n_back = _plan_sparse(above, oth_plane, r, done[1], owner[1], searched[1])
         need_back = np.zeros(n_back, np.bool_)
         for m in range(n):
             xo = out_x[m] + step * found[owner[0, out_y[m], out_x[m]]]
@@ -352,7 +354,9 @@ class FrameAreaMatcher(FrameMatcher):
         ref_cam = prm.reference_camera
         sf = self._sparse
         n_frames, channel_of = slot_of_p(prm.polarity)
-        sf.fill((window.left, window.right), channel_of, n_frames)  # plane = camera * n_frames + slot
+        # plane = camera * n_frames + slot; ``above``: each camera's threshold (the reference scan uses the
+        # reference camera's, the left-right check's scan the other camera's)
+        sf.fill((window.left, window.right), channel_of, n_frames, thresholds=thresholds)
         try:
             ref_ev, oth_ev = (window.right, window.left) if ref_cam == 1 else (window.left, window.right)
             parts = []
@@ -364,9 +368,9 @@ class FrameAreaMatcher(FrameMatcher):
                 if not ref_ev.size:
                     continue  # no reference events: nothing above threshold, no pixel to report at
                 x, y, p, disp = _scan_sparse(
-                    sf.values, sf.support, sf.touched, ref_plane, oth_plane, float(thresholds[ref_cam]),
-                    float(thresholds[1 - ref_cam]), bool(prm.lr_check), int(prm.max_disparity), prm.block // 2,
-                    1 if ref_cam == 1 else -1, ref_ev.size, self._done, self._owner, self._searched)
+                    sf.values, sf.support, sf.touched, sf.above, ref_plane, oth_plane, bool(prm.lr_check),
+                    int(prm.max_disparity), prm.block // 2, 1 if ref_cam == 1 else -1, ref_ev.size, self._done,
+                    self._owner, self._searched)
                 parts.append(make_matches(window.t_end, x, y, p, ref_cam, disp))
         finally:
             sf.clear()

@@ -171,7 +171,10 @@ OFF_SENSOR = -2
 def event_channel(x, y, p, i, channel_of, width, height):  # pragma: no cover - compiled
     """The frame channel of event ``i`` (``channel_of[p]``: -1 where the polarity mode drops it), or
     :data:`OFF_SENSOR` where it lies outside the ``width`` x ``height`` sensor."""
-    if x[i] < 0 or x[i] >= width or y[i] < 0 or y[i] >= height:
+    # Compared as int64: numba's code for the int16 fields against the int64 sizes made the callers' loops
+    # some 10 times slower (60 instead of 5 ns an event at 640x480).
+    xi, yi = np.int64(x[i]), np.int64(y[i])
+    if xi < 0 or xi >= width or yi < 0 or yi >= height:
         return OFF_SENSOR
     return channel_of[p[i]]
 
@@ -186,9 +189,10 @@ def _stack_events(x, y, p, channel_of, first_frame, pitch, height, width, stack,
             return i
         if c < 0:
             continue  # a polarity the mode drops
-        stack[(first_frame + c) * pitch + y[i], x[i]] += np.float32(1.0) if p[i] else np.float32(-1.0)
+        xi, yi = np.int64(x[i]), np.int64(y[i])
+        stack[(first_frame + c) * pitch + yi, xi] += np.float32(1.0) if p[i] else np.float32(-1.0)
         if mark_seen:
-            seen[c * height + y[i], x[i]] = True
+            seen[c * height + yi, xi] = True
     return -1
 
 

@@ -8,6 +8,8 @@ per frame row, as bitmaps of 64-bit words:
 - ``touched``: pixels with events (of that frame);
 - ``row_support``: pixels within two columns of a touched one, where the Gaussian's row pass can be nonzero;
 - ``support``: pixels within two rows of those, where the filtered frame can be nonzero.
+- ``above`` (given thresholds): pixels where the filtered value reaches the camera's threshold, marked as the
+  filter computes them, so that a matcher's scans visit only the pixels its threshold keeps.
 
 The Gaussian is evaluated only on the support, with the arithmetic of OpenCV's separable filter for float32
 (what :func:`cvstereo.frames.gaussian_filter` calls), so that every filtered value is the one
@@ -71,6 +73,9 @@ class SparseFrames:
         The (filtered) frames after :meth:`fill`; zero outside ``support``.
     touched, support : (n_planes, height, words) uint64 ndarray
         Bitmaps of the pixels with events and of the pixels where ``values`` may be nonzero.
+    above : (n_planes, height, words) uint64 ndarray
+        Bitmap of the pixels where ``|values|`` reaches the plane's threshold given to :meth:`fill` (none
+        without thresholds): the pixels a matcher's threshold keeps, so that its scans visit only those.
     """
 
     def __init__(self, n_planes: int, *, resolution: tuple[int, int], gaussian: bool, kernel_sigma: float = 1.0,
@@ -85,6 +90,7 @@ class SparseFrames:
         words = (n_planes, self.height, (self.width + 63) // 64)
         self._acc = np.zeros(shape, np.float32)
         self.touched = np.zeros(words, np.uint64)
+        self.above = np.zeros(words, np.uint64)
         if self.gaussian:
             k = cv2.getGaussianKernel(SPARSE_KERNEL_SIZE, kernel_sigma, ktype=cv2.CV_32F).ravel()
             self._k = (np.float32(k[2]), np.float32(k[1]), np.float32(k[0]))  # centre, 1 px, 2 px
@@ -95,9 +101,12 @@ class SparseFrames:
         else:
             self.values, self.support = self._acc, self.touched
 
-    def fill(self, cameras, channel_of: np.ndarray, frames_per_camera: int) -> None:
+    def fill(self, cameras, channel_of: np.ndarray, frames_per_camera: int, thresholds=None) -> None:
         """Accumulate each camera's events (sum of signs, into plane ``cam * frames_per_camera +
         channel_of[p]``; -1 drops the event) and filter; the frames must be empty (:meth:`clear`).
+
+        ``thresholds`` (one per camera, compared as float64: ``|value| >= threshold``) fills ``above``; None
+        leaves it empty.
 
         Raises
         ------
@@ -112,9 +121,14 @@ class SparseFrames:
                 self.clear()
                 raise EventFormatError(f"camera {cam}: event {bad} at (x={int(ev['x'][bad])}, "
                                        f"y={int(ev['y'][bad])}) lies outside the {w}x{h} sensor.")
+        per_plane = np.full(self.touched.shape[0], np.inf)  # inf: no pixel is above
+        if thresholds is not None:
+            per_plane = np.repeat(np.asarray(thresholds, np.float64), frames_per_camera)
         if self.gaussian:
             _gaussian_on_support(self._acc, self.touched, self._rows, self.values, self._row_support, self.support,
-                                 *self._k, *self.layout)
+                                 *self._k, *self.layout, per_plane, self.above)
+        elif thresholds is not None:
+            _mark_above(self.values, self.support, per_plane, self.above)
 
     def values_at_events(self, first_plane: int, n_planes: int, capacity: int) -> np.ndarray:
         """``values`` at the touched pixels of planes ``first_plane ..``, plane by plane, row by row, x ascending
@@ -123,6 +137,7 @@ class SparseFrames:
 
     def clear(self) -> None:
         """Zero the frames where the last window wrote (the buffers are reused)."""
+        self.above[:] = 0
         if self.gaussian:
             _clear(self._rows, self._row_support)
             _clear(self.values, self.support)
@@ -162,7 +177,8 @@ def _probe_filter(probe: np.ndarray, kernel_sigma: float, layout) -> np.ndarray:
     k = cv2.getGaussianKernel(SPARSE_KERNEL_SIZE, kernel_sigma, ktype=cv2.CV_32F).ravel()
     out = np.zeros_like(probe)
     _gaussian_on_support(probe.copy(), touched, np.zeros_like(probe), out, np.zeros(words, np.uint64),
-                         np.zeros(words, np.uint64), np.float32(k[2]), np.float32(k[1]), np.float32(k[0]), *layout)
+                         np.zeros(words, np.uint64), np.float32(k[2]), np.float32(k[1]), np.float32(k[0]), *layout,
+                         np.full(n, np.inf), np.zeros(words, np.uint64))
     return out
 
 
@@ -181,8 +197,9 @@ def _accumulate(x, y, p, channel_of, first_plane, height, width, acc, touched): 
             return i
         if c >= 0:  # (a negative channel: a polarity the mode drops)
             plane = first_plane + c
-            acc[plane, y[i], x[i]] += np.float32(1.0) if p[i] else np.float32(-1.0)
-            touched[plane, y[i], x[i] >> 6] |= np.uint64(1) << np.uint64(x[i] & 63)
+            xi, yi = np.int64(x[i]), np.int64(y[i])
+            acc[plane, yi, xi] += np.float32(1.0) if p[i] else np.float32(-1.0)
+            touched[plane, yi, xi >> 6] |= np.uint64(1) << np.uint64(xi & 63)
     return -1
 
 
@@ -243,8 +260,9 @@ def _tap5(c, p1, p2, k0, k1, k2, fused_product_first, fused):  # pragma: no cove
 
 @numba.njit(cache=True, nogil=True)
 def _gaussian_on_support(acc, touched, rows, out, row_support, support, k0, k1, k2, use_fma, split_row,
-                         split_col):  # pragma: no cover - compiled
-    """The 5x5 Gaussian of each plane of ``acc`` (zero border), evaluated on the support only (module doc)."""
+                         split_col, thresholds, above):  # pragma: no cover - compiled
+    """The 5x5 Gaussian of each plane of ``acc`` (zero border), evaluated on the support only (module doc);
+    ``above`` marks where ``|out|`` reaches the plane's threshold (:attr:`SparseFrames.above`)."""
     n_planes, h, w = acc.shape
     n_words = touched.shape[2]
     zero = np.float32(0.0)
@@ -273,11 +291,32 @@ def _gaussian_on_support(acc, touched, rows, out, row_support, support, k0, k1, 
         for y in range(h):
             for i in range(n_words):
                 word = support[pl, y, i]
+                hits = np.uint64(0)
                 while word:
                     x, word = bit_positions(word, i)
                     p1 = (rows[pl, y - 1, x] if y >= 1 else zero) + (rows[pl, y + 1, x] if y + 1 < h else zero)
                     p2 = (rows[pl, y - 2, x] if y >= 2 else zero) + (rows[pl, y + 2, x] if y + 2 < h else zero)
-                    out[pl, y, x] = _tap5(rows[pl, y, x], p1, p2, k0, k1, k2, False, use_fma != 0 and x < split_col)
+                    v = _tap5(rows[pl, y, x], p1, p2, k0, k1, k2, False, use_fma != 0 and x < split_col)
+                    out[pl, y, x] = v
+                    if abs(np.float64(v)) >= thresholds[pl]:
+                        hits |= np.uint64(1) << np.uint64(x & 63)
+                above[pl, y, i] = hits
+
+
+@numba.njit(cache=True, nogil=True)
+def _mark_above(values, bits, thresholds, above):  # pragma: no cover - compiled
+    """above = the set bits of ``bits`` where ``|values|`` reaches the plane's threshold."""
+    n_planes, h, n_words = bits.shape
+    for pl in range(n_planes):
+        for y in range(h):
+            for i in range(n_words):
+                word = bits[pl, y, i]
+                hits = np.uint64(0)
+                while word:
+                    x, word = bit_positions(word, i)
+                    if abs(np.float64(values[pl, y, x])) >= thresholds[pl]:
+                        hits |= np.uint64(1) << np.uint64(x & 63)
+                above[pl, y, i] = hits
 
 
 @numba.njit(cache=True, nogil=True)

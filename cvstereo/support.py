@@ -35,19 +35,25 @@ SUPPORT_TOLERANCE_PX = 1.0
 
 
 @njit(cache=True, nogil=True)
-def _count_support(key, d, keys, start, per_key, order, radius, pitch, tolerance, counts):  # pragma: no cover
-    """The loop of :func:`support_counts`, compiled: matches grouped by pixel (``keys`` sorted, the matches of
-    ``keys[u]`` are ``order[start[u]:start[u] + per_key[u]]``); each match looks up the rows of the square around it."""
-    for i in range(key.size):
-        for dy in range(-radius, radius + 1):
-            # Padded rows keep the pixels of one row of the square at consecutive keys: one search a row.
-            low = key[i] + dy * pitch - radius
-            u = np.searchsorted(keys, low)
-            while u < keys.size and keys[u] <= low + 2 * radius:
-                for j in range(start[u], start[u] + per_key[u]):
-                    other = order[j]
-                    if other != i and abs(d[other] - d[i]) <= tolerance:
-                        counts[i] += 1
+def _count_support(keys, d, radius, pitch, tolerance, counts):  # pragma: no cover - compiled
+    """The loop of :func:`support_counts`, compiled, on the matches sorted by pixel key (``keys`` ascending).
+
+    The lowest key of each row of a match's square grows with the match's key, so one pointer per row of the
+    square only moves forward: a pass over the matches, without a binary search per match and row.
+    """
+    n = keys.size
+    first = np.zeros(2 * radius + 1, np.int64)  # per row of the square: the first match not below it
+    for i in range(n):
+        for row in range(2 * radius + 1):
+            # Padded rows keep the pixels of one row of the square at consecutive keys.
+            low = keys[i] + (row - radius) * pitch - radius
+            u = first[row]
+            while u < n and keys[u] < low:
+                u += 1
+            first[row] = u
+            while u < n and keys[u] <= low + 2 * radius:
+                if u != i and abs(d[u] - d[i]) <= tolerance:
+                    counts[i] += 1
                 u += 1
 
 
@@ -82,9 +88,10 @@ def support_counts(x: np.ndarray, y: np.ndarray, disparity: np.ndarray, *, width
         return counts
     pitch = int(width) + 2 * radius  # padded rows: an offset of up to radius never wraps into the next row
     key = (y + radius) * pitch + (x + radius)
-    order = np.argsort(key, kind="stable")
-    keys, start, per_key = np.unique(key[order], return_index=True, return_counts=True)
-    _count_support(key, d, keys, start, per_key, order, int(radius), pitch, float(tolerance), counts)
+    order = np.argsort(key, kind="stable")  # the frame matchers' matches come in pixel order: a linear pass
+    sorted_counts = np.zeros(n, dtype=np.int64)
+    _count_support(key[order], d[order], int(radius), pitch, float(tolerance), sorted_counts)
+    counts[order] = sorted_counts
     return counts
 
 

@@ -125,13 +125,10 @@ def time_offset_regression(left, right, *, row, disparity, resolution,
     n_cols, n_rows = params.reg_tiles
     col_edges = np.linspace(0, width, n_cols + 1).round().astype(int)
     row_edges = np.linspace(0, height, n_rows + 1).round().astype(int)
-    col_masks = np.zeros((n_cols, 1, 1, width), np.float32)
-    col_masks_r = np.zeros_like(col_masks)
-    for col in range(n_cols):
-        col_masks[col, ..., col_edges[col]:col_edges[col + 1]] = 1
-        # The right camera sees a tile's content ``disparity`` columns further left.
-        lo_r, hi_r = col_edges[col] - int(disparity), col_edges[col + 1] - int(disparity)
-        col_masks_r[col, ..., max(lo_r, 0):max(hi_r, 0)] = 1
+    # Columns of each tile in either camera: the right camera sees a tile's content ``disparity`` columns
+    # further left.
+    cols_l = [(col_edges[c], col_edges[c + 1]) for c in range(n_cols)]
+    cols_r = [(min(max(a - int(disparity), 0), width), min(max(b - int(disparity), 0), width)) for a, b in cols_l]
     lag_v = int(np.ceil(params.reg_max_speed * 2 * gap * window_us))
     nfft = fft_len(width + search + abs(int(disparity)) + 1)
     fine = {"nfft": nfft, "upsample": params.reg_upsample}
@@ -143,21 +140,19 @@ def time_offset_regression(left, right, *, row, disparity, resolution,
         before, inner, after = where.reshape(3, chunk.size)
         fl, fr = (_window_stack(ev, starts[needed], width, height, window_us, params.reg_blur_px)
                   for ev in (left, right))
-        # Spectra along x, once per camera and once per column tile; a row tile is a sum over its rows.
-        spec_l, spec_r = np.fft.rfft(fl, nfft, axis=2), np.fft.rfft(fr, nfft, axis=2)
-        energy_l, energy_r = (fl * fl).sum(axis=2), (fr * fr).sum(axis=2)
+        # Spectra along x, once per camera and once per column tile, each only of the windows it is used at; a
+        # row tile is a sum over its rows.
+        use_before, use_inner, use_after = (np.isin(np.arange(needed.size), w) for w in (before, inner, after))
+        spec_l = _row_spectra(fl, 0, width, nfft, use_before)
+        spec_r = _row_spectra(fr, 0, width, nfft, use_inner | use_before)
         for col in range(n_cols):
-            tl = np.fft.rfft(fl * col_masks[col], nfft, axis=2)
-            tr = np.fft.rfft(fr * col_masks_r[col], nfft, axis=2)
-            el, er = (fl * fl * col_masks[col]).sum(axis=2), (fr * fr * col_masks_r[col]).sum(axis=2)
+            tl = _row_spectra(fl, *cols_l[col], nfft, use_inner | use_after)
+            tr = _row_spectra(fr, *cols_r[col], nfft, use_after)
             for band in range(n_rows):
-                rs = slice(row_edges[band], row_edges[band + 1])
-                s, hs = _fine_shift(tl[inner, rs], spec_r[inner, rs], el[inner, rs], energy_r[inner, rs],
-                                    disparity - search, disparity + search, **fine)
-                ul, hl = _fine_shift(tl[after, rs], spec_l[before, rs],
-                                     el[after, rs], energy_l[before, rs], -lag_v, lag_v, **fine)
-                ur, hr = _fine_shift(tr[after, rs], spec_r[before, rs],
-                                     er[after, rs], energy_r[before, rs], -lag_v, lag_v, **fine)
+                rows = (row_edges[band], row_edges[band + 1])
+                s, hs = _fine_shift(tl, inner, spec_r, inner, rows, disparity - search, disparity + search, **fine)
+                ul, hl = _fine_shift(tl, after, spec_l, before, rows, -lag_v, lag_v, **fine)
+                ur, hr = _fine_shift(tr, after, spec_r, before, rows, -lag_v, lag_v, **fine)
                 tiles.append(np.full(inner.size, band * n_cols + col))
                 shifts.append(s)
                 s_weight.append(hs)
@@ -187,6 +182,56 @@ def _runs(centre, count, run):
     return np.unique(centre[(first[:, None] + np.arange(run)[None, :]).ravel()])
 
 
+class RowSpectra(NamedTuple):
+    """Spectra along x of the rows of a stack of frames (:func:`_row_spectra`), kept only for nonzero rows."""
+
+    spectra: np.ndarray
+    """(N, F) complex: the spectra of the N nonzero rows."""
+    index: np.ndarray
+    """(K, H) int64: the row of ``spectra`` that holds frame k's row y, -1 where that row is zero."""
+    energy: np.ndarray
+    """(K, H) float32: each row's sum of squares."""
+
+
+def _row_spectra(frames, lo, hi, nfft, windows) -> RowSpectra:
+    """Spectra along x (zero-padded to ``nfft``) and energies of each row of the frames cut to the columns
+    ``[lo, hi)`` (zero elsewhere), of the frames where ``windows`` (bool, per frame) is True (the others
+    count as zero).
+
+    Only the rows holding a nonzero value are transformed and kept: in a short window most rows hold no event
+    within a blur's reach (on the fan four in five), and the transforms and the products of spectra are most
+    of the regression's time.
+    """
+    seg = frames[:, :, lo:hi]
+    nonzero = seg.any(axis=2) & windows[:, None]
+    index = np.full(frames.shape[:2], -1, np.int64)
+    index[nonzero] = np.arange(int(nonzero.sum()))
+    padded = np.zeros((int(nonzero.sum()), nfft))
+    padded[:, lo:hi] = seg[nonzero]
+    energy = np.zeros(frames.shape[:2], np.float32)
+    energy[nonzero] = (seg[nonzero] ** 2).sum(axis=1)
+    return RowSpectra(np.fft.rfft(padded, axis=1), index, energy)
+
+
+def _cross_spectra(a: RowSpectra, frames_a, b: RowSpectra, frames_b, y0, y1):
+    """Per pair j, the sum over the rows y0 .. y1 - 1 of spectrum(a, frame frames_a[j], y) times the conjugate
+    of spectrum(b, frame frames_b[j], y); rows that are zero in either frame add nothing and are left out.
+
+    The products of a pair's rows are summed in row order (``np.add.reduceat`` over the pairs' runs).
+    """
+    ia, ib = a.index[frames_a, y0:y1], b.index[frames_b, y0:y1]
+    both = (ia >= 0) & (ib >= 0)
+    out = np.zeros((frames_a.size, a.spectra.shape[1]), np.complex128)
+    per_pair = both.sum(axis=1)
+    if not per_pair.any():
+        return out
+    products = a.spectra[ia[both]] * np.conj(b.spectra[ib[both]])
+    starts = np.concatenate([[0], np.cumsum(per_pair)[:-1]])
+    used = per_pair > 0
+    out[used] = np.add.reduceat(products, starts[used], axis=0)
+    return out
+
+
 def _window_stack(ev, starts, width, height, window_us, blur_px):
     """(K, H, W) float32 signed event frames of the windows ``[starts[k], starts[k] + window_us)`` (sorted,
     not overlapping), Gaussian-smoothed."""
@@ -202,17 +247,19 @@ def _window_stack(ev, starts, width, height, window_us, blur_px):
     return f
 
 
-def _fine_shift(spec_a, spec_b, energy_a, energy_b, lo, hi, *, nfft, upsample):
-    """Per window, the sub-pixel ``s`` in ``[lo, hi]`` maximising ``sum_y sum_x a(x, y) b(x - s, y)``, and that
+def _fine_shift(a: RowSpectra, frames_a, b: RowSpectra, frames_b, rows, lo, hi, *, nfft, upsample):
+    """Per pair of frames (``frames_a[j]`` of ``a``, ``frames_b[j]`` of ``b``), the sub-pixel ``s`` in
+    ``[lo, hi]`` maximising ``sum_y sum_x a(x, y) b(x - s, y)`` over the rows ``rows`` = (first, stop), and that
     maximum normalised like a correlation coefficient (0 when the peak sits at the end of the search range).
 
-    ``spec_a``, ``spec_b``: (K, rows, nfft // 2 + 1) spectra along x of the frames (zero-padded to ``nfft``);
-    ``energy_a``, ``energy_b``: (K, rows) sums of their squares per row. The rows' cross-spectra are summed
-    and transformed back on a grid ``upsample`` times finer than a pixel (exact interpolation of the
-    band-limited correlation); a parabola through the finest samples then places the peak. A parabola on
-    whole pixels alone biases sub-pixel shifts towards integers, which would leak into the slope.
+    ``a``, ``b``: spectra along x of the frames' rows, zero-padded to ``nfft`` (:func:`_row_spectra`). The
+    rows' cross-spectra are summed and transformed back on a grid ``upsample`` times finer than a pixel (exact
+    interpolation of the band-limited correlation); a parabola through the finest samples then places the
+    peak. A parabola on whole pixels alone biases sub-pixel shifts towards integers, which would leak into the
+    slope.
     """
-    spec = (spec_a * np.conj(spec_b)).sum(axis=1)
+    y0, y1 = (int(r) for r in rows)
+    spec = _cross_spectra(a, frames_a, b, frames_b, y0, y1)
     n = nfft * upsample
     lags = np.arange(lo * upsample, hi * upsample + 1)
     c = (np.fft.irfft(spec, n, axis=-1) * upsample)[:, lags % n]
@@ -223,7 +270,7 @@ def _fine_shift(spec_a, spec_b, energy_a, energy_b, lo, hi, *, nfft, upsample):
     p, q, r = c[k, i - 1], c[k, i], c[k, i + 1]
     den = p - 2 * q + r
     off = np.where(den < 0, 0.5 * (p - r) / np.where(den < 0, den, -1.0), 0.0)
-    norm = np.sqrt(energy_a.sum(axis=1) * energy_b.sum(axis=1))
+    norm = np.sqrt(a.energy[frames_a, y0:y1].sum(axis=1) * b.energy[frames_b, y0:y1].sum(axis=1))
     height = np.where(at_end | (norm <= 0), 0.0, q / np.maximum(norm, 1e-12))
     return (lags[i] + np.clip(off, -0.5, 0.5)) / upsample, height
 
