@@ -43,17 +43,20 @@ from cvstereo.dynamic_frames import advance, splat
 
 
 @njit(cache=True)
-def _event_area_kernel(stream, stored, scale, clock, kernel, decay, period, thresholds, half, max_d, max_cost, out_cam,
-                       out_index, out_disparity, values_l, values_r):
+def _event_area_kernel(stream, stored, scale, clock, kernel, decay, period, thresholds, half, max_d, max_cost,
+                       all_frames, own_ratio, out_cam, out_index, out_disparity, values_l, values_r):
     """Process the merged stream (:func:`calibration_free.merge_order.merged_stream`); one output row per matched
-    event; returns the count."""
+    event; returns the count. ``all_frames``: the SAD sums over all of a camera's frames (``sad_frames="all"``),
+    else it compares the event's own frame only."""
+    n_frames = stored.shape[1]
     height = stored.shape[2]
     width = stored.shape[3]
     size = 2 * half + 1
-    own = np.empty((size, size))
+    n_planes = n_frames if all_frames else 1
+    own = np.empty((n_planes, size, size))
     n_d = min(max_d, width) + 1  # at most this many candidates stay on the sensor
-    own_col = np.empty(size)
-    band_col = np.empty(n_d + 2 * half)
+    own_col = np.empty((n_planes, size))
+    band_col = np.empty((n_planes, n_d + 2 * half))
     band_abs = np.empty(n_d + 2 * half)
     bound = np.empty(n_d)
     n = 0
@@ -71,6 +74,8 @@ def _event_area_kernel(stream, stored, scale, clock, kernel, decay, period, thre
         else:
             values_r[i] = abs(value)
         if abs(value) >= thresholds[cam] and half <= x < width - half and half <= y < height - half:
+            # The frames compared: the event's own (plane 0 is frame ``slot``), or all of them in slot order.
+            first_slot = 0 if all_frames else slot
             # The candidates d = 0 .. last are those whose patch stays on the sensor (the search ends at the
             # first one that leaves it). Only the columns they cover are read, laid out so that column
             # k + d holds what candidate d compares at offset k: towards larger x for right-camera events,
@@ -82,42 +87,49 @@ def _event_area_kernel(stream, stored, scale, clock, kernel, decay, period, thre
             n_cols = last + size
             # Values are products stored * scale, computed once per pixel: the same numbers as the reference.
             own_abs = 0.0
-            for ii in range(size):
-                own_col[ii] = 0.0
-            for jj in range(size):
+            for q in range(n_planes):
+                s = first_slot + q
                 for ii in range(size):
-                    v = stored[cam, slot, y - half + jj, x - half + ii] * c1
-                    own[jj, ii] = v
-                    own_col[ii] += v
-                    own_abs += abs(v)
-            # The other frame's band, summed over its rows per column (for the bound below; the exact SADs
+                    own_col[q, ii] = 0.0
+                for jj in range(size):
+                    for ii in range(size):
+                        v = stored[cam, s, y - half + jj, x - half + ii] * c1
+                        own[q, jj, ii] = v
+                        own_col[q, ii] += v
+                        own_abs += abs(v)
+            # The other frames' band, summed over its rows per column (for the bound below; the exact SADs
             # read their few pixels again).
             for k in range(n_cols):
-                band_col[k] = 0.0
                 band_abs[k] = 0.0
-            for jj in range(size):
-                if cam == 1:
-                    for k in range(n_cols):
-                        v = stored[other, slot, y - half + jj, x - half + k] * c2
-                        band_col[k] += v
-                        band_abs[k] += abs(v)
-                else:
-                    for k in range(n_cols):
-                        v = stored[other, slot, y - half + jj, x + half - k] * c2
-                        band_col[k] += v
-                        band_abs[k] += abs(v)
+            for q in range(n_planes):
+                s = first_slot + q
+                for k in range(n_cols):
+                    band_col[q, k] = 0.0
+                for jj in range(size):
+                    if cam == 1:
+                        for k in range(n_cols):
+                            v = stored[other, s, y - half + jj, x - half + k] * c2
+                            band_col[q, k] += v
+                            band_abs[k] += abs(v)
+                    else:
+                        for k in range(n_cols):
+                            v = stored[other, s, y - half + jj, x + half - k] * c2
+                            band_col[q, k] += v
+                            band_abs[k] += abs(v)
             total_abs = own_abs
             for k in range(n_cols):
                 total_abs += band_abs[k]
             # A lower bound of every candidate's SAD: the SAD of the patches' column sums (triangle
-            # inequality), 5 terms instead of 25, for all candidates at once (the loop over d vectorises).
+            # inequality), 5 terms per frame instead of 25, for all candidates at once (the loop over d
+            # vectorises).
             for d in range(last + 1):
                 bound[d] = 0.0
-            for ii in range(size):
-                o = own_col[ii]
-                k0 = ii if cam == 1 else 2 * half - ii
-                for d in range(last + 1):
-                    bound[d] += abs(o - band_col[k0 + d])
+            for q in range(n_planes):
+                for ii in range(size):
+                    o = own_col[q, ii]
+                    k0 = ii if cam == 1 else 2 * half - ii
+                    for d in range(last + 1):
+                        bound[d] += abs(o - band_col[q, k0 + d])
             # The exact SAD first where the bound is least (likely the winner, so that the bound then rules
             # out most others), then of every candidate whose bound does not exceed the best SAD so far by
             # more than the rounding of both sums could explain (a relative 1e-9 of the magnitudes summed,
@@ -129,16 +141,23 @@ def _event_area_kernel(stream, stored, scale, clock, kernel, decay, period, thre
                     first = d
             best = -1
             best_sad = max_cost[cam]
+            if own_ratio > 0:  # the SAD of an empty candidate patch is own_abs: a match must explain more
+                best_sad = min(best_sad, own_ratio * own_abs)
             for e in range(-1, last + 1):
                 d = first if e < 0 else e
                 if e == first or (e >= 0 and bound[d] > best_sad + 1e-9 * (total_abs + best_sad) + 1e-300):
                     continue
                 x2 = x + d if cam == 1 else x - d
                 sad = 0.0
-                for jj in range(size):
+                # Rows of all planes in one loop (plane by plane, as the reference sums), so that a partial sum
+                # above the best ends the candidate: partial sums never decrease, it can neither win nor tie.
+                for r in range(n_planes * size):
+                    q = r // size
+                    jj = r - q * size
+                    s = first_slot + q
                     for ii in range(size):
-                        sad += abs(own[jj, ii] - stored[other, slot, y - half + jj, x2 - half + ii] * c2)
-                    if sad > best_sad:  # partial sums never decrease: this one can neither win nor tie
+                        sad += abs(own[q, jj, ii] - stored[other, s, y - half + jj, x2 - half + ii] * c2)
+                    if sad > best_sad:
                         break
                 if sad < best_sad or (sad == best_sad and d < best):  # ties keep the smaller disparity
                     best_sad = sad
@@ -173,5 +192,5 @@ class EventAreaMatcher(MergedEventMatcher):
         prm, bank = self.params, self._bank
         return int(_event_area_kernel(stream, bank.stored, bank.scale, bank.clock, bank.kernel,
                                       *bank.decay_args, thresholds, prm.block // 2,
-                                      int(prm.max_disparity), prm.max_costs(thresholds), out_cam, out_index,
-                                      out_disparity, *out_values))
+                                      int(prm.max_disparity), prm.max_costs(thresholds), prm.sad_frames == "all",
+                                      float(prm.own_ratio), out_cam, out_index, out_disparity, *out_values))

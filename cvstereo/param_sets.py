@@ -89,7 +89,8 @@ ADAPTIVE: dict[str, AdaptiveDefaults] = {
         variant="gaussian",
         why="the 3x3 update spreads each event over its neighbours, so a 5x5 block holds a signal after a few "
             "events; with single-pixel updates the density sweep and Fan_disp8 gave (almost) nothing",
-        params={**_RELATIVE, "threshold_scale": 0.69, "level_floor": 0.5, "cost_scale": 0.6},
+        params={**_RELATIVE, "threshold_scale": 0.69, "level_floor": 0.5, "cost_scale": 0.6, "polarity": "separate",
+                "sad_frames": "all", "own_ratio": 0.6},
         variant_params={"no-gaussian": {"threshold_scale": 1.5}},
     ),
     "event-vector": AdaptiveDefaults(
