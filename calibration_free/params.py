@@ -195,6 +195,13 @@ class EventAreaParams(SignalLevelParams, DynamicFrameParams):
         the OFF and the ON frame: ON and OFF events cannot cancel (as in a shared frame, a fan's blades), yet
         both inform the match (an edge pair of a bar, which one polarity alone leaves ambiguous). With one
         frame per camera both are the same.
+    own_ratio : float
+        0 (the thesis): off. Otherwise the SAD must also lie below ``own_ratio`` times the sum of |D| over the
+        event's own patch (the frames compared), which is the SAD of an empty candidate patch: the match must
+        explain part of the patch.
+    uniqueness : float
+        0 (the thesis): off. Otherwise a match is dropped when a candidate more than 1 px from the winner has a
+        SAD at most ``1 + uniqueness`` times the winner's (ambiguous), as OpenCV's ``uniquenessRatio`` / 100.
     """
 
     aliases: ClassVar[dict] = {"max_sad": "max_cost"}
@@ -206,12 +213,13 @@ class EventAreaParams(SignalLevelParams, DynamicFrameParams):
     cost_scale: float = 0.0
     sad_frames: Literal["own", "all"] = "own"
     own_ratio: float = 0.0
+    uniqueness: float = 0.0
 
     def __post_init__(self):
         super().__post_init__()
         if self.block < 1 or self.block % 2 == 0:
             raise ValueError(f"block must be odd and positive, got {self.block}.")
-        for name in ("threshold", "max_disparity", "cost_scale", "own_ratio"):
+        for name in ("threshold", "max_disparity", "cost_scale", "own_ratio", "uniqueness"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}.")
         if self.sad_frames not in ("own", "all"):

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _event_scenes import feed_cut, moving_edges
+from _event_scenes import feed_cut, moving_edges, simulated_clip
 
 from calibration_free.event_area import EventAreaMatcher, EventAreaParams
+from calibration_free.reference.event_area import event_area_reference
 from cvstereo.events import make_events
 from cvstereo.matches import concat_matches
 from cvstereo.registry import create_matcher
@@ -106,10 +107,42 @@ def test_own_ratio_needs_the_match_to_explain_part_of_the_own_patch(m, expected)
 
 def test_new_checks_are_off_by_default_and_validated():
     p = EventAreaParams()
-    assert p.sad_frames == "own" and p.own_ratio == 0.0
+    assert p.sad_frames == "own" and p.own_ratio == 0.0 and p.uniqueness == 0.0
     assert EventAreaParams(polarity="separate", sad_frames="all").compared_frames == 2
     assert EventAreaParams(sad_frames="all").compared_frames == 1
     with pytest.raises(ValueError, match="sad_frames"):
         EventAreaParams(sad_frames="both")
     with pytest.raises(ValueError, match="own_ratio"):
         EventAreaParams(own_ratio=-0.1)
+    with pytest.raises(ValueError, match="uniqueness"):
+        EventAreaParams(uniqueness=-0.1)
+
+
+@pytest.mark.parametrize(("second", "uniqueness", "expected"), [
+    (False, 0.0, [4.0]), (False, 3.5, [4.0]), (False, 4.5, []), (True, 0.2, [4.0]), (True, 0.6, [])])
+def test_uniqueness_drops_ambiguous_matches(second, uniqueness, expected):
+    # Right: 10 events at one pixel and a probe there (patch 10 * 2 * G, sum 20). Left: 8 events 4 px to the
+    # right, SAD 4 at d = 4. Hand-computed SADs of the others: 16.27 at d = 3 and 5 (the blob one pixel off:
+    # neighbours of the best, never rivals), 20 for an empty patch, 22.8 two pixels off; with a second blob of
+    # 7 events at d = 14, 6 there. A match stands only if no rival lies within the factor 1 + uniqueness of 4:
+    # 3.5 -> 18 (only the neighbours, exempt), 4.5 -> 22 (empty patches), 0.2 -> 4.8, 0.6 -> 6.4 (the blob).
+    right = _events((*_blob(36, 10), [1] * 10), ([100], [36], [30], [1]))
+    left = _events((*_blob(40, 8), [1] * 8), *([(*_blob(50, 7), [1] * 7)] if second else []))
+    got = _run(left, right, uniqueness=uniqueness)
+    assert got[(got["t"] == 100) & (got["camera"] == 1)]["disparity"].tolist() == expected
+
+
+def test_adaptive_checks_together_fast_equals_reference():
+    # The adaptive set's combination (separate frames, SAD over both, own_ratio, uniqueness, cost bound) on a
+    # simulated clip, with short level windows so that the thresholds change often, cut into packets.
+    from cvstereo.param_sets import resolve
+
+    _, values = resolve("event-area", None, "adaptive")
+    assert values["sad_frames"] == "all" and values["own_ratio"] > 0 and values["uniqueness"] > 0
+    params = EventAreaMatcher.make_params("gaussian", **{**values, "level_window_us": 5_000, "level_warmup": 20,
+                                                         "level_windows": 3})
+    left, right, resolution = simulated_clip(100_000)
+    expected = event_area_reference(left, right, params, resolution=resolution)
+    got = feed_cut(EventAreaMatcher(params, resolution=resolution), left, right, range(0, 100_000, 2_777))
+    assert expected.size > 100
+    np.testing.assert_array_equal(got, expected)

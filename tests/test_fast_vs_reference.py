@@ -38,7 +38,7 @@ CASES = {
                                           "max_disparity": [12]}, {}),
     "event-area": (event_area_reference, {"polarity": ["shared", "separate", "on"], "max_disparity": [20],
                                           "cost_scale": [0.0, 0.6], "sad_frames": ["own", "all"],
-                                          "own_ratio": [0.0, 0.6]},
+                                          "own_ratio": [0.0, 0.6], "uniqueness": [0.0, 0.2]},
                    {"no-gaussian": {"threshold": 2.0}}),
     "event-vector": (event_vector_reference, {"require_candidate_threshold": [True, False],
                                               "polarity": ["shared", "separate"], "max_disparity": [20]}, {}),
