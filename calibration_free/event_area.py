@@ -14,7 +14,8 @@ with the threshold raised to 4.
 Search **[implementation, same result]**: the SAD of the patches' column sums bounds every candidate's SAD from
 below (triangle inequality; 5 terms instead of 25, computed for all candidates at once); the exact SAD is
 computed where that bound is least, then only for candidates whose bound does not exceed the best SAD so far
-(with a margin far beyond float rounding), so that the winner and its tie rule are the full search's.
+(times ``1 + uniqueness``; with a margin far beyond float rounding), so that the winner, its tie rule and the
+uniqueness check are the full search's.
 
 Both cameras' events are processed in one merged order (by time, left first at equal times), see
 :mod:`calibration_free.merge_order` and :mod:`calibration_free._event_common`. The reference implementation is
@@ -25,9 +26,24 @@ Relative thresholds (``threshold_mode="relative"``, :mod:`cvstereo.signal_level`
 quantile of the |D| its events read at their pixels over the last second), since D grows with the events per
 edge. The SAD needs no threshold: candidates are compared with each other (least SAD wins), and ``max_cost``
 (1000) is Algorithm 3's "no match yet" start value, which no 5x5 SAD reaches; with ``cost_scale`` > 0 (not the
-thesis') the SAD must also stay below ``cost_scale * block**2`` times the threshold in force, a bound relative
-to the signal level like the threshold itself; block and disparity range are geometry; decay and its period
-are time.
+thesis') the SAD must also stay below ``cost_scale * block**2`` (per frame compared) times the threshold in
+force, a bound relative to the signal level like the threshold itself; block and disparity range are geometry;
+decay and its period are time.
+
+Checks the thesis does not make (each off at its default; :mod:`cvstereo.param_sets` turns them on under
+``adaptive``):
+
+* ``sad_frames="all"`` with ``polarity="separate"``: the SAD sums over the OFF and the ON frame. In one shared
+  frame ON and OFF events cancel where both fall in a patch (a fan's blades); the event's own polarity frame
+  alone leaves a bar's leading edge ambiguous against the next bar's, which the trailing edge of the other
+  polarity tells apart.
+* ``own_ratio`` > 0: the SAD must also stay below ``own_ratio`` times the sum of |D| over the own patch (over
+  the frames compared), which is the SAD of an empty candidate: a match must explain part of the patch, not
+  only be the least bad, whatever the signal level.
+* ``uniqueness`` > 0: a match is dropped when a candidate more than 1 px away has a SAD within the factor
+  ``1 + uniqueness`` of the best (ambiguous: a repeating texture, or too little content to tell), as OpenCV's
+  StereoBM ``uniquenessRatio``. The search then also computes the exact SAD of every candidate whose bound
+  lies within that factor of the best.
 """
 
 from __future__ import annotations
@@ -43,19 +59,24 @@ from cvstereo.dynamic_frames import advance, splat
 
 
 @njit(cache=True)
-def _event_area_kernel(stream, stored, scale, clock, kernel, decay, period, thresholds, half, max_d, max_cost, out_cam,
-                       out_index, out_disparity, values_l, values_r):
+def _event_area_kernel(stream, stored, scale, clock, kernel, decay, period, thresholds, half, max_d, max_cost,
+                       all_frames, own_ratio, uniqueness, out_cam, out_index, out_disparity, values_l, values_r):
     """Process the merged stream (:func:`calibration_free.merge_order.merged_stream`); one output row per matched
-    event; returns the count."""
+    event; returns the count. ``all_frames``: the SAD sums over all of a camera's frames (``sad_frames="all"``),
+    else it compares the event's own frame only."""
+    n_frames = stored.shape[1]
     height = stored.shape[2]
     width = stored.shape[3]
     size = 2 * half + 1
-    own = np.empty((size, size))
+    n_planes = n_frames if all_frames else 1
+    own = np.empty((n_planes, size, size))
     n_d = min(max_d, width) + 1  # at most this many candidates stay on the sensor
-    own_col = np.empty(size)
-    band_col = np.empty(n_d + 2 * half)
+    own_col = np.empty((n_planes, size))
+    band_col = np.empty((n_planes, n_d + 2 * half))
     band_abs = np.empty(n_d + 2 * half)
     bound = np.empty(n_d)
+    sads = np.empty(n_d)  # exact SADs of the candidates computed in full (inf: known to be no rival)
+    rival = 1.0 + uniqueness  # a candidate within this factor of the best SAD, > 1 px away, makes it ambiguous
     n = 0
     for k in range(stream.shape[1]):
         cam, i, t, x, y, p, slot = stream[0, k], stream[1, k], stream[2, k], stream[3, k], stream[4, k], \
@@ -71,6 +92,8 @@ def _event_area_kernel(stream, stored, scale, clock, kernel, decay, period, thre
         else:
             values_r[i] = abs(value)
         if abs(value) >= thresholds[cam] and half <= x < width - half and half <= y < height - half:
+            # The frames compared: the event's own (plane 0 is frame ``slot``), or all of them in slot order.
+            first_slot = 0 if all_frames else slot
             # The candidates d = 0 .. last are those whose patch stays on the sensor (the search ends at the
             # first one that leaves it). Only the columns they cover are read, laid out so that column
             # k + d holds what candidate d compares at offset k: towards larger x for right-camera events,
@@ -82,67 +105,92 @@ def _event_area_kernel(stream, stored, scale, clock, kernel, decay, period, thre
             n_cols = last + size
             # Values are products stored * scale, computed once per pixel: the same numbers as the reference.
             own_abs = 0.0
-            for ii in range(size):
-                own_col[ii] = 0.0
-            for jj in range(size):
+            for q in range(n_planes):
+                s = first_slot + q
                 for ii in range(size):
-                    v = stored[cam, slot, y - half + jj, x - half + ii] * c1
-                    own[jj, ii] = v
-                    own_col[ii] += v
-                    own_abs += abs(v)
-            # The other frame's band, summed over its rows per column (for the bound below; the exact SADs
+                    own_col[q, ii] = 0.0
+                for jj in range(size):
+                    for ii in range(size):
+                        v = stored[cam, s, y - half + jj, x - half + ii] * c1
+                        own[q, jj, ii] = v
+                        own_col[q, ii] += v
+                        own_abs += abs(v)
+            # The other frames' band, summed over its rows per column (for the bound below; the exact SADs
             # read their few pixels again).
             for k in range(n_cols):
-                band_col[k] = 0.0
                 band_abs[k] = 0.0
-            for jj in range(size):
-                if cam == 1:
-                    for k in range(n_cols):
-                        v = stored[other, slot, y - half + jj, x - half + k] * c2
-                        band_col[k] += v
-                        band_abs[k] += abs(v)
-                else:
-                    for k in range(n_cols):
-                        v = stored[other, slot, y - half + jj, x + half - k] * c2
-                        band_col[k] += v
-                        band_abs[k] += abs(v)
+            for q in range(n_planes):
+                s = first_slot + q
+                for k in range(n_cols):
+                    band_col[q, k] = 0.0
+                for jj in range(size):
+                    if cam == 1:
+                        for k in range(n_cols):
+                            v = stored[other, s, y - half + jj, x - half + k] * c2
+                            band_col[q, k] += v
+                            band_abs[k] += abs(v)
+                    else:
+                        for k in range(n_cols):
+                            v = stored[other, s, y - half + jj, x + half - k] * c2
+                            band_col[q, k] += v
+                            band_abs[k] += abs(v)
             total_abs = own_abs
             for k in range(n_cols):
                 total_abs += band_abs[k]
             # A lower bound of every candidate's SAD: the SAD of the patches' column sums (triangle
-            # inequality), 5 terms instead of 25, for all candidates at once (the loop over d vectorises).
+            # inequality), 5 terms per frame instead of 25, for all candidates at once (the loop over d
+            # vectorises).
             for d in range(last + 1):
                 bound[d] = 0.0
-            for ii in range(size):
-                o = own_col[ii]
-                k0 = ii if cam == 1 else 2 * half - ii
-                for d in range(last + 1):
-                    bound[d] += abs(o - band_col[k0 + d])
+            for q in range(n_planes):
+                for ii in range(size):
+                    o = own_col[q, ii]
+                    k0 = ii if cam == 1 else 2 * half - ii
+                    for d in range(last + 1):
+                        bound[d] += abs(o - band_col[q, k0 + d])
             # The exact SAD first where the bound is least (likely the winner, so that the bound then rules
-            # out most others), then of every candidate whose bound does not exceed the best SAD so far by
-            # more than the rounding of both sums could explain (a relative 1e-9 of the magnitudes summed,
-            # ~10^6 times the worst case): a candidate skipped has a SAD above the best one, so the winner
-            # (least SAD, ties to the smaller disparity, below max_cost) is the one the full search finds.
+            # out most others), then of every candidate whose bound does not exceed the best SAD so far (at
+            # first the SAD a match must stay below, so that often no exact SAD is needed at all) by more than
+            # the rounding of both sums could explain (a relative 1e-9 of the magnitudes summed, ~10^6 times
+            # the worst case): a candidate skipped has a SAD above the best one, so the winner (least SAD, ties
+            # to the smaller disparity, below max_cost) is the one the full search finds.
             first = 0
             for d in range(1, last + 1):
                 if bound[d] < bound[first]:
                     first = d
             best = -1
             best_sad = max_cost[cam]
+            if own_ratio > 0:  # the SAD of an empty candidate patch is own_abs: a match must explain more
+                best_sad = min(best_sad, own_ratio * own_abs)
+            for d in range(last + 1):
+                sads[d] = np.inf
             for e in range(-1, last + 1):
                 d = first if e < 0 else e
-                if e == first or (e >= 0 and bound[d] > best_sad + 1e-9 * (total_abs + best_sad) + 1e-300):
+                limit = best_sad * rival
+                if e == first or bound[d] > limit + 1e-9 * (total_abs + limit) + 1e-300:
                     continue
                 x2 = x + d if cam == 1 else x - d
                 sad = 0.0
-                for jj in range(size):
+                # Rows of all planes in one loop (plane by plane, as the reference sums), so that a partial sum
+                # above the best ends the candidate: partial sums never decrease, it can neither win nor tie.
+                for r in range(n_planes * size):
+                    q = r // size
+                    jj = r - q * size
+                    s = first_slot + q
                     for ii in range(size):
-                        sad += abs(own[jj, ii] - stored[other, slot, y - half + jj, x2 - half + ii] * c2)
-                    if sad > best_sad:  # partial sums never decrease: this one can neither win nor tie
+                        sad += abs(own[q, jj, ii] - stored[other, s, y - half + jj, x2 - half + ii] * c2)
+                    if sad > limit:
                         break
+                if sad <= limit:
+                    sads[d] = sad
                 if sad < best_sad or (sad == best_sad and d < best):  # ties keep the smaller disparity
                     best_sad = sad
                     best = d
+            if uniqueness > 0 and best >= 0:
+                for d in range(last + 1):
+                    if abs(d - best) > 1 and sads[d] <= best_sad * rival:
+                        best = -1
+                        break
             n = emit_match(out_cam, out_index, out_disparity, n, cam, i, best)
         splat(stored, scale, clock, cam, slot, x, y, 1.0 if p > 0 else -1.0, kernel)
     return n
@@ -173,5 +221,6 @@ class EventAreaMatcher(MergedEventMatcher):
         prm, bank = self.params, self._bank
         return int(_event_area_kernel(stream, bank.stored, bank.scale, bank.clock, bank.kernel,
                                       *bank.decay_args, thresholds, prm.block // 2,
-                                      int(prm.max_disparity), prm.max_costs(thresholds), out_cam, out_index,
+                                      int(prm.max_disparity), prm.max_costs(thresholds), prm.sad_frames == "all",
+                                      float(prm.own_ratio), float(prm.uniqueness), out_cam, out_index,
                                       out_disparity, *out_values))

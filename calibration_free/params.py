@@ -223,6 +223,19 @@ class EventAreaParams(SignalLevelParams, DynamicFrameParams):
         times the block's pixel count times the threshold in force for the event's camera
         (:meth:`max_costs`): a bound on the mean difference per pixel relative to the signal level, since the
         SAD of a wrong patch grows with the dynamic-frame values as the threshold does.
+    sad_frames : {"own", "all"}
+        ``own`` (the thesis): the SAD compares the event's own dynamic frame with the other camera's frame of
+        the same slot. ``all``: it sums over all of a camera's frames, which with ``polarity="separate"`` is
+        the OFF and the ON frame: ON and OFF events cannot cancel (as in a shared frame, a fan's blades), yet
+        both inform the match (an edge pair of a bar, which one polarity alone leaves ambiguous). With one
+        frame per camera both are the same.
+    own_ratio : float
+        0 (the thesis): off. Otherwise the SAD must also lie below ``own_ratio`` times the sum of |D| over the
+        event's own patch (the frames compared), which is the SAD of an empty candidate patch: the match must
+        explain part of the patch.
+    uniqueness : float
+        0 (the thesis): off. Otherwise a match is dropped when a candidate more than 1 px from the winner has a
+        SAD at most ``1 + uniqueness`` times the winner's (ambiguous), as OpenCV's ``uniquenessRatio`` / 100.
     """
 
     aliases: ClassVar[dict] = {"max_sad": "max_cost"}
@@ -232,20 +245,32 @@ class EventAreaParams(SignalLevelParams, DynamicFrameParams):
     max_disparity: int = 64
     max_cost: float = 1000.0
     cost_scale: float = 0.0
+    sad_frames: Literal["own", "all"] = "own"
+    own_ratio: float = 0.0
+    uniqueness: float = 0.0
 
     def __post_init__(self):
         super().__post_init__()
         if self.block < 1 or self.block % 2 == 0:
             raise ValueError(f"block must be odd and positive, got {self.block}.")
-        for name in ("threshold", "max_disparity", "cost_scale"):
+        for name in ("threshold", "max_disparity", "cost_scale", "own_ratio", "uniqueness"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}.")
+        if self.sad_frames not in ("own", "all"):
+            raise ValueError(f"sad_frames must be 'own' (the thesis) or 'all', got {self.sad_frames!r}.")
+
+    @property
+    def compared_frames(self) -> int:
+        """How many frames per camera one SAD sums over (2 only for ``sad_frames="all"`` with separate frames)."""
+        return 2 if self.sad_frames == "all" and self.polarity == "separate" else 1
 
     def max_costs(self, thresholds: np.ndarray) -> np.ndarray:
-        """The SAD bound of each camera's events, given the (2,) thresholds in force (see ``cost_scale``)."""
+        """The SAD bound of each camera's events, given the (2,) thresholds in force (see ``cost_scale``): per
+        value compared, of ``block**2`` times :attr:`compared_frames` values."""
         costs = np.full(2, float(self.max_cost))
         if self.cost_scale > 0:
-            costs = np.minimum(costs, self.cost_scale * self.block * self.block * np.asarray(thresholds, float))
+            n_values = self.block * self.block * self.compared_frames
+            costs = np.minimum(costs, self.cost_scale * n_values * np.asarray(thresholds, float))
         return costs
 
 

@@ -13,12 +13,13 @@ same error. Besides the scales, ``adaptive`` adds checks that the thesis does no
 thesis value switches it off), chosen so that its median bad2 over the robustness suite is at most the
 thesis' while it covers more: the frame matcher keeps a match only with 3 agreeing neighbours
 (``min_support``, :mod:`cvstereo.support`); frame-area matches OFF and ON frames each on its own and keeps a
-disparity only where the other camera's scan agrees (``polarity="separate"``, ``lr_check``); event-area bounds
-the SAD relative to the threshold in force (``cost_scale``); event-time reads D1 just after e1's own update, as
-D2 is read (``reference_read``), and sets its time window to 0.5 times the other camera's pace, the median time
-between neighbouring events (``time_window_scale``), so that the window widens as events per edge thin out.
-The rig check's time offset is NOT applied by
-default: on Fan_disp8 it finds +0.01 ms at confidence 0.25 (no offset to apply), and forcing -3 ms or +3 ms
+disparity only where the other camera's scan agrees (``polarity="separate"``, ``lr_check``); event-area keeps OFF
+and ON dynamic frames apart but sums its SAD over both (``polarity="separate"``, ``sad_frames="all"``), bounds the
+SAD relative to the threshold in force and to the own patch (``cost_scale``, ``own_ratio``) and drops ambiguous
+matches (``uniqueness``); event-time reads D1 just after e1's own update, as D2 is read (``reference_read``), and
+sets its time window to 0.5 times the other camera's pace, the median time between neighbouring events
+(``time_window_scale``), so that the window widens as events per edge thin out. The rig check's time offset is
+NOT applied by default: on Fan_disp8 it finds +0.01 ms at confidence 0.25 (no offset to apply), and forcing -3 ms or +3 ms
 made every matcher worse under ``adaptive`` (event-area 59 % -> 28 % within 1 px of 8); what cancelled the
 fan's blades was ON and OFF events sharing one frame. A set gives the
 defaults; ``--param key=value`` overrides any field, and a variant given explicitly wins over the set's
@@ -95,8 +96,13 @@ ADAPTIVE: dict[str, AdaptiveDefaults] = {
     "event-area": AdaptiveDefaults(
         variant="gaussian",
         why="the 3x3 update spreads each event over its neighbours, so a 5x5 block holds a signal after a few "
-            "events; with single-pixel updates the density sweep and Fan_disp8 gave (almost) nothing",
-        params={**_RELATIVE, "threshold_scale": 0.69, "level_floor": 0.5, "cost_scale": 0.6},
+            "events; with single-pixel updates the density sweep and Fan_disp8 gave (almost) nothing; adaptive "
+            "sums the SAD over separate OFF and ON frames (one shared frame cancels a fan's blades: Fan_disp8 "
+            "61 % -> 99.8 % within 1 px of 8; the own polarity's frame alone confuses a bar's edge with the next "
+            "bar's) and drops matches that explain little of the patch or have a rival (density sweep bad2 at "
+            "thresholds x3 0.08 -> 0.01)",
+        params={**_RELATIVE, "threshold_scale": 0.5, "level_floor": 0.5, "cost_scale": 0.6, "polarity": "separate",
+                "sad_frames": "all", "own_ratio": 0.6, "uniqueness": 0.2},
         variant_params={"no-gaussian": {"threshold_scale": 1.5}},
     ),
     "event-vector": AdaptiveDefaults(

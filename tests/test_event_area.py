@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _event_scenes import feed_cut, moving_edges
+from _event_scenes import feed_cut, moving_edges, simulated_clip
 
 from calibration_free.event_area import EventAreaMatcher, EventAreaParams
+from calibration_free.reference.event_area import event_area_reference
 from cvstereo.events import make_events
 from cvstereo.matches import concat_matches
 from cvstereo.registry import create_matcher
@@ -58,3 +59,90 @@ def test_variant_parameters():
         EventAreaParams(block=4)
 
 
+
+
+def _blob(x, n, *, y=30, t0=0):
+    """``n`` events at one pixel at times t0 .. t0 + n - 1 (within the first decay period: no decay)."""
+    return np.arange(t0, t0 + n), [x] * n, [y] * n
+
+
+def _events(*parts):
+    """One camera's events from (t, x, y, p) parts, time-ordered."""
+    t, x, y, p = (np.concatenate([np.asarray(part[k]) for part in parts]) for k in range(4))
+    order = np.argsort(t, kind="stable")
+    return make_events(t[order], x[order], y[order], p[order])
+
+
+def test_sad_over_all_frames_uses_the_other_polarity_to_break_a_tie():
+    # Right camera: an ON blob at x = 36 (probed at t = 100) and an OFF blob at x = 33, whose 3x3 updates reach
+    # into the probe's 5x5 patch. Left camera: two identical ON blobs, at 40 (d = 4, a decoy) and 50 (d = 14),
+    # and the OFF blob at 47 (d = 14). The ON frames alone tie at d = 4 and 14 (ties: the smaller); the OFF
+    # frame decides for 14.
+    on, off = 1, 0
+    right = _events((*_blob(36, 10), [on] * 10), (*_blob(33, 10), [off] * 10), ([100], [36], [30], [on]))
+    left = _events((*_blob(40, 10), [on] * 10), (*_blob(50, 10), [on] * 10), (*_blob(47, 10), [off] * 10))
+
+    def probe(**params):
+        m = _run(left, right, polarity="separate", max_disparity=20, **params)
+        return m[(m["t"] == 100) & (m["camera"] == 1)]["disparity"].tolist()
+
+    assert probe() == [4.0]                      # own frame (the thesis): the tie goes to the decoy
+    assert probe(sad_frames="all") == [14.0]
+    # With one shared frame per camera there is one frame to compare: "all" changes nothing.
+    shared = [_run(left, right, max_disparity=20, sad_frames=s) for s in ("own", "all")]
+    np.testing.assert_array_equal(shared[0], shared[1])
+
+
+@pytest.mark.parametrize(("m", "expected"), [(6, [4.0]), (3, [])])
+def test_own_ratio_needs_the_match_to_explain_part_of_the_own_patch(m, expected):
+    # Right: 10 ON events at one pixel, then a probe there: its patch is 10 * 2 * G (sum 20, no decay yet).
+    # Left: m events at the pixel 4 px to the right: SAD at d = 4 is (10 - m) * 2, every other candidate's more.
+    # own_ratio 0.6 keeps the match iff (10 - m) * 2 < 0.6 * 20, i.e. m > 4; without it, it always stands.
+    right = _events((*_blob(36, 10), [1] * 10), ([100], [36], [30], [1]))
+    left = _events((*_blob(40, m), [1] * m))
+    for ratio, want in ((0.0, [4.0]), (0.6, expected)):
+        got = _run(left, right, own_ratio=ratio)
+        assert got[(got["t"] == 100) & (got["camera"] == 1)]["disparity"].tolist() == want
+
+
+def test_new_checks_are_off_by_default_and_validated():
+    p = EventAreaParams()
+    assert p.sad_frames == "own" and p.own_ratio == 0.0 and p.uniqueness == 0.0
+    assert EventAreaParams(polarity="separate", sad_frames="all").compared_frames == 2
+    assert EventAreaParams(sad_frames="all").compared_frames == 1
+    with pytest.raises(ValueError, match="sad_frames"):
+        EventAreaParams(sad_frames="both")
+    with pytest.raises(ValueError, match="own_ratio"):
+        EventAreaParams(own_ratio=-0.1)
+    with pytest.raises(ValueError, match="uniqueness"):
+        EventAreaParams(uniqueness=-0.1)
+
+
+@pytest.mark.parametrize(("second", "uniqueness", "expected"), [
+    (False, 0.0, [4.0]), (False, 3.5, [4.0]), (False, 4.5, []), (True, 0.2, [4.0]), (True, 0.6, [])])
+def test_uniqueness_drops_ambiguous_matches(second, uniqueness, expected):
+    # Right: 10 events at one pixel and a probe there (patch 10 * 2 * G, sum 20). Left: 8 events 4 px to the
+    # right, SAD 4 at d = 4. Hand-computed SADs of the others: 16.27 at d = 3 and 5 (the blob one pixel off:
+    # neighbours of the best, never rivals), 20 for an empty patch, 22.8 two pixels off; with a second blob of
+    # 7 events at d = 14, 6 there. A match stands only if no rival lies within the factor 1 + uniqueness of 4:
+    # 3.5 -> 18 (only the neighbours, exempt), 4.5 -> 22 (empty patches), 0.2 -> 4.8, 0.6 -> 6.4 (the blob).
+    right = _events((*_blob(36, 10), [1] * 10), ([100], [36], [30], [1]))
+    left = _events((*_blob(40, 8), [1] * 8), *([(*_blob(50, 7), [1] * 7)] if second else []))
+    got = _run(left, right, uniqueness=uniqueness)
+    assert got[(got["t"] == 100) & (got["camera"] == 1)]["disparity"].tolist() == expected
+
+
+def test_adaptive_checks_together_fast_equals_reference():
+    # The adaptive set's combination (separate frames, SAD over both, own_ratio, uniqueness, cost bound) on a
+    # simulated clip, with short level windows so that the thresholds change often, cut into packets.
+    from cvstereo.param_sets import resolve
+
+    _, values = resolve("event-area", None, "adaptive")
+    assert values["sad_frames"] == "all" and values["own_ratio"] > 0 and values["uniqueness"] > 0
+    params = EventAreaMatcher.make_params("gaussian", **{**values, "level_window_us": 5_000, "level_warmup": 20,
+                                                         "level_windows": 3})
+    left, right, resolution = simulated_clip(100_000)
+    expected = event_area_reference(left, right, params, resolution=resolution)
+    got = feed_cut(EventAreaMatcher(params, resolution=resolution), left, right, range(0, 100_000, 2_777))
+    assert expected.size > 100
+    np.testing.assert_array_equal(got, expected)

@@ -35,18 +35,34 @@ def event_area_reference(left: np.ndarray, right: np.ndarray, params: EventAreaP
                 half <= y < height - half):
             return None
         minimum = prm.max_costs(thresholds)[cam]
+        # The frames compared: the event's own, or (sad_frames="all") all of the camera's, in slot order.
+        slots = range(own.n_frames) if prm.sad_frames == "all" else (slot,)
+        if prm.own_ratio > 0:
+            own_abs = 0.0
+            for s in slots:
+                for j in range(-half, half + 1):
+                    for i in range(-half, half + 1):
+                        own_abs += abs(own.value(s, x + i, y + j))
+            minimum = min(minimum, prm.own_ratio * own_abs)
         disparity = None
+        sads = {}
         for d in range(prm.max_disparity + 1):
             x2 = x + d if cam == 1 else x - d  # right camera: towards larger x; left: smaller
             if x2 - half < 0 or x2 + half >= width:
                 break
             sad = 0.0
-            for j in range(-half, half + 1):
-                for i in range(-half, half + 1):
-                    sad += abs(own.value(slot, x + i, y + j) - other.value(slot, x2 + i, y + j))
+            for s in slots:
+                for j in range(-half, half + 1):
+                    for i in range(-half, half + 1):
+                        sad += abs(own.value(s, x + i, y + j) - other.value(s, x2 + i, y + j))
+            sads[d] = sad
             if sad < minimum:  # strict: ties keep the smaller disparity
                 minimum = sad
                 disparity = d
+        if prm.uniqueness > 0 and disparity is not None:
+            # Ambiguous: another candidate more than 1 px away within the factor 1 + uniqueness of the best.
+            if any(abs(d - disparity) > 1 and sad <= minimum * (1.0 + prm.uniqueness) for d, sad in sads.items()):
+                return None
         return disparity
 
     return match_merged(left, right, prm, search, resolution=resolution)
