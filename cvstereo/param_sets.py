@@ -19,11 +19,10 @@ SAD relative to the threshold in force and to the own patch (``cost_scale``, ``o
 matches (``uniqueness``); event-time reads D1 just after e1's own update, as D2 is read (``reference_read``), and
 sets its time window to 0.5 times the other camera's pace, the median time between neighbouring events
 (``time_window_scale``), so that the window widens as events per edge thin out. The rig check's time offset is
-NOT applied by default: on Fan_disp8 it finds +0.01 ms at confidence 0.25 (no offset to apply), and forcing -3 ms or +3 ms
-made every matcher worse under ``adaptive`` (event-area 59 % -> 28 % within 1 px of 8); what cancelled the
-fan's blades was ON and OFF events sharing one frame. A set gives the
-defaults; ``--param key=value`` overrides any field, and a variant given explicitly wins over the set's
-default variant.
+NOT applied by default: on Fan_disp8 it finds +0.01 ms at confidence 0.25 (no offset to apply), and forcing
+-3 ms or +3 ms made every matcher worse under ``adaptive`` (event-area 59 % -> 28 % within 1 px of 8); what
+cancelled the fan's blades was ON and OFF events sharing one frame. A set gives the defaults;
+``--param key=value`` overrides any field, and a variant given explicitly wins over the set's default variant.
 
 >>> resolve("frame", None, "adaptive")[0]
 'separate'
