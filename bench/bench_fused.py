@@ -54,6 +54,8 @@ PACKET_US = 40_000
 #: Both sensors' thresholds times this in the 346x260 speed recording: about 1 M events/s (issue 17's target).
 #: (2 s clips, simulator of 2026-12-01: x0.07 gave 8.7 M events/s, x0.3 1.65 M, x0.43 1.02 M, x0.65 0.56 M.)
 BIG_THRESHOLD_K = 0.43
+#: Fused parameters of every run of this bench (``--set NAME=VALUE``), under each run's own overrides.
+FUSED_SET: dict = {}
 #: The recordings of the ablation table (a subset, to keep the run short).
 ABLATION_RECORDINGS = ("1arm-50cm", "2arms-150cm", "motorcycle", "1arm-100cm thr x3.0")
 #: Ablation rows: name -> parameter overrides of fused.
@@ -127,7 +129,8 @@ def run_fused(rec, **params):
 
     The CPU time of this process is the fairer speed figure on a shared machine (the wall time counts the
     time other processes held the core)."""
-    m = FusedMatcher(FusedMatcher.make_params(**params), resolution=rec.resolution)
+    # from_variant scales the default disparity range with the sensor width, as the pipeline does for the peers.
+    m = FusedMatcher.from_variant(resolution=rec.resolution, **{**FUSED_SET, **params})
     start, cpu = time.perf_counter(), time.process_time()
     parts = [m.feed(p.left, p.right, until=p.until) for p in rec.packets(PACKET_US)]
     parts.append(m.flush())
@@ -357,7 +360,12 @@ def main(argv=None) -> int:
     ap.add_argument("-o", "--output", default=str(OUT.parent), help="folder of fused.md (default bench/results)")
     ap.add_argument("--no-write", action="store_true", help="print only")
     ap.add_argument("--no-speed", action="store_true", help="skip the speed section")
+    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                    help="a fused parameter for every run (repeatable), e.g. --set fill_radius=8")
     args = ap.parse_args(argv)
+    for item in args.set:
+        name, _, value = item.partition("=")
+        FUSED_SET[name] = json.loads(value.lower() if value.lower() in ("true", "false") else value)
     cv2.setNumThreads(1)
     out = Path(args.output)
     peer_path = out / "fused-peers.json"
@@ -368,7 +376,8 @@ def main(argv=None) -> int:
     else:
         recs = recordings(args.quick)
     parts = ["# fused beside SGBM and dv-semidense", "",
-             f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; peers: {', '.join(peers())}.", ""]
+             f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; peers: {', '.join(peers())}"
+             + (f"; fused with {FUSED_SET}" if FUSED_SET else "") + ".", ""]
     clips = "robustness suite v1 (2.5 s) and the motorcycle (2 s)" if args.suite else "2 s clips"
     text, summary = accuracy_section(recs, peer_cache, clips)
     if peer_cache is not None and not args.no_write:

@@ -5,7 +5,7 @@ semi-global aggregation, winner, left-right check, sub-pixel, uncertainty). Ever
 is evaluated in the same order as in :mod:`calibration_free.reference.fused`, so that both give bit-identical
 matches (tests/test_fused.py).
 
-Where the time goes, and why the kernels are shaped as they are (2arms-50cm, 128x128, 48 disparities: about
+Where the time goes, and why the kernels are shaped as they are (2arms-50cm, 128x128, 64 disparities: about
 6000 active pixels a window; a 346x260 recording at 1 M ev/s: 32000 and 174 disparities):
 
 * The cost and the paths of a window are (active pixels x disparities) arrays of several MB, more than the

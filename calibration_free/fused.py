@@ -43,9 +43,9 @@ Design, part by part, with the reason for each (bench/results/fused.md measures 
    gives it per match).
 8. **Left-right consistency** (``lr_tolerance``): the right pixel the winner points to must choose the same
    disparity (within 1 px) from the same aggregated volume; occlusions and half-matched edges fail it.
-   A winner that fails it takes the median of the consistent answers within ``fill_radius`` px (when there
-   are any), the usual filling of SGM's invalidated pixels (Hirschmüller 2008, section 3.4) restricted to
-   the event pixels; it keeps its high uncertainty, so it only counts when a user asks for high coverage.
+   A winner that fails it takes the median of the consistent answers within ``fill_radius`` (12) px (when
+   there are any), the usual filling of SGM's invalidated pixels (Hirschmüller 2008, section 3.4) restricted
+   to the event pixels; it keeps its high uncertainty, so it only counts when a user asks for high coverage.
 9. **Sub-pixel refinement** (``subpixel``): a parabola through the aggregated costs at ``d - 1, d, d + 1``.
 10. **Noise filter** (``min_neighbours``): a pixel answers only if another pixel of its 3x3 neighbourhood saw
     an event in the last two windows. Isolated events are mostly noise; the thesis' event matchers owe
