@@ -5,12 +5,18 @@ scaled by k (event density), and the real file Fan_disp8.dat (share within 1 px 
 through the same streaming path (40 ms packets) on the same events; fused's matches are also scored after
 keeping only its most certain ones, as many as each peer's coverage allows (issue 17). Speed: one core,
 2arms-50cm, and a 346x260 recording at about 1 M events/s; the load average is printed beside each figure.
-Writes ``bench/results/fused.md``.
+Writes ``bench/results/fused.md`` (``-o DIR``: ``DIR/fused.md``; ``--no-write``: print only).
+
+``--suite``: the peer comparison over the robustness suite v1 (29 recordings of 2.5 s, cached by
+:func:`cvstereo.simulate.suite_recordings`) and the motorcycle clip instead of the presets and density clips,
+with issue 17's four criteria (:func:`criteria`). The peers' figures do not depend on fused, so they are kept in
+``DIR/fused-peers.json`` and reused by the next run with the same ``-o``.
 
 Run::
 
     .venv/bin/python bench/bench_fused.py             # everything (about 10 minutes on a shared machine)
     .venv/bin/python bench/bench_fused.py --quick     # fewer recordings, no ablation
+    .venv/bin/python bench/bench_fused.py --suite -o /tmp/fused --no-speed   # issue 17 over the suite
 """
 
 from __future__ import annotations
@@ -26,6 +32,8 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import dataclasses  # noqa: E402
+import json  # noqa: E402
+import statistics  # noqa: E402
 import time  # noqa: E402
 
 import cv2  # noqa: E402
@@ -46,6 +54,8 @@ PACKET_US = 40_000
 #: Both sensors' thresholds times this in the 346x260 speed recording: about 1 M events/s (issue 17's target).
 #: (2 s clips, simulator of 2026-12-01: x0.07 gave 8.7 M events/s, x0.3 1.65 M, x0.43 1.02 M, x0.65 0.56 M.)
 BIG_THRESHOLD_K = 0.43
+#: Fused parameters of every run of this bench (``--set NAME=VALUE``), under each run's own overrides.
+FUSED_SET: dict = {}
 #: The recordings of the ablation table (a subset, to keep the run short).
 ABLATION_RECORDINGS = ("1arm-50cm", "2arms-150cm", "motorcycle", "1arm-100cm thr x3.0")
 #: Ablation rows: name -> parameter overrides of fused.
@@ -100,12 +110,27 @@ def recordings(quick: bool) -> dict:
     return recs
 
 
+def suite_recordings(only: list[str] | None = None) -> dict:
+    """Name -> Recording of the robustness suite v1 (its own 2.5 s; cached) and the motorcycle clip."""
+    from cvstereo.io.npz import read_recording_npz
+    from cvstereo.simulate import MotorcycleScene, simulate
+    from cvstereo.simulate import suite_recordings as suite
+
+    names = None if only is None else [n for n in only if n != "motorcycle"]
+    recs = {n: read_recording_npz(p) for n, p in suite("robustness", only=names)} if names != [] else {}
+    if only is None or "motorcycle" in only:
+        recs["motorcycle"] = _sim(f"motorcycle-{SECONDS}s", lambda: simulate(MotorcycleScene(), seconds=SECONDS,
+                                                                             seed=0))
+    return recs
+
+
 def run_fused(rec, **params):
     """Fused over a recording through feed/flush (40 ms packets): (matches, uncertainty, meta, (wall s, CPU s)).
 
     The CPU time of this process is the fairer speed figure on a shared machine (the wall time counts the
     time other processes held the core)."""
-    m = FusedMatcher(FusedMatcher.make_params(**params), resolution=rec.resolution)
+    # from_variant scales the default disparity range with the sensor width, as the pipeline does for the peers.
+    m = FusedMatcher.from_variant(resolution=rec.resolution, **{**FUSED_SET, **params})
     start, cpu = time.perf_counter(), time.process_time()
     parts = [m.feed(p.left, p.right, until=p.until) for p in rec.packets(PACKET_US)]
     parts.append(m.flush())
@@ -135,8 +160,24 @@ def peers() -> list[str]:
     return [m for m in ("sgbm", "dv-semidense") if m in available_methods()]
 
 
-def accuracy_section(recs) -> tuple[str, dict]:
-    lines = ["## Accuracy (2 s clips; window anchors at the left camera's event pixels)", "",
+def _figures(f: dict) -> dict:
+    """The figures the tables use, as plain floats (JSON-safe)."""
+    return {k: float(f[k]) for k in ("coverage", "bad2", "false_rate", "matches")}
+
+
+def peer_figures(rec, name: str, peer: str, cache: dict | None) -> dict:
+    """A peer's figures on a recording, from ``cache`` (name -> peer -> figures, updated) when it has them."""
+    key = f"{name} {rec.left.size} {rec.right.size}"  # a regenerated recording has other event counts
+    if cache is not None and peer in cache.get(key, {}):
+        return cache[key][peer]
+    f = _figures(evaluate(rec, match(rec, method=peer, packet_us=PACKET_US)))
+    if cache is not None:
+        cache.setdefault(key, {})[peer] = f
+    return f
+
+
+def accuracy_section(recs, peer_cache: dict | None = None, clips: str = "2 s clips") -> tuple[str, dict]:
+    lines = [f"## Accuracy ({clips}; window anchors at the left camera's event pixels)", "",
              "bad2 = share of matches with error > 2 px, false = share of matches on noise or background "
              "(evaluation.md). `fused @ peer coverage`: fused run with `max_uncertainty=1` (every winner, the "
              "left-right inconsistent ones ranked last), keeping its most certain matches down to the peer's "
@@ -147,46 +188,92 @@ def accuracy_section(recs) -> tuple[str, dict]:
     for name, rec in recs.items():
         fm, _, meta, _ = run_fused(rec)
         ranked, unc, _, _ = run_fused(rec, max_uncertainty=1.0)
-        f_full = evaluate(rec, fm, meta)
+        f_full = _figures(evaluate(rec, fm, meta))
         rows = {"fused": f_full}
         lines.append(f"| {name} | fused | {f_full['coverage']:.1%} | {f_full['bad2']:.1%} | "
-                     f"{f_full['false_rate']:.1%} | {f_full['matches']} | - | {load_avg()} |")
+                     f"{f_full['false_rate']:.1%} | {f_full['matches']:.0f} | - | {load_avg()} |")
         for peer in peers():
-            pf = evaluate(rec, match(rec, method=peer, packet_us=PACKET_US))
-            ff = evaluate(rec, most_certain(ranked, unc, rec, meta, pf["coverage"]), meta)
+            pf = peer_figures(rec, name, peer, peer_cache)
+            ff = _figures(evaluate(rec, most_certain(ranked, unc, rec, meta, pf["coverage"]), meta))
             rows[peer] = pf
             rows[f"fused@{peer}"] = ff
             lines.append(f"| {name} | {peer} | {pf['coverage']:.1%} | {pf['bad2']:.1%} | {pf['false_rate']:.1%} | "
-                         f"{pf['matches']} | {ff['bad2']:.1%} at {ff['coverage']:.1%} | {load_avg()} |")
+                         f"{pf['matches']:.0f} | {ff['bad2']:.1%} at {ff['coverage']:.1%} | {load_avg()} |")
         summary[name] = rows
         print("\n".join(lines[-3:]), flush=True)
     return "\n".join(lines), summary
 
 
+def _beats(fused: dict, peer: dict) -> bool:
+    """Fused's bad2 below the peer's, or both without a single bad match (nothing left to beat)."""
+    return _bad2(fused) < _bad2(peer) or _bad2(fused) == _bad2(peer) == 0.0
+
+
+def _bad2(f: dict) -> float:
+    """bad2, counting a result without matches as 1 (bench_robustness's rule: silence counts against it)."""
+    return 1.0 if not f["matches"] or np.isnan(f["bad2"]) else f["bad2"]
+
+
+def criteria(summary: dict) -> dict:
+    """Issue 17's "done when" over the recordings of ``summary`` (name -> rows of :func:`accuracy_section`).
+
+    Returns
+    -------
+    dict
+        ``median`` peer -> (median fused bad2 at the peer's coverage, the peer's median bad2); ``better``
+        (recordings where fused at each peer's coverage has a lower bad2 than that peer, for both peers; a
+        tie counts only at bad2 = 0), ``margin`` (the largest ``fused bad2 at the better peer's coverage - that
+        peer's bad2``) and where it is, ``false`` (recordings where fused's own false rate is at most the lower
+        peer's) and the medians of those false rates, ``n`` recordings.
+    """
+    ps = [p for p in peers() if all(p in rows for rows in summary.values())]
+    out = {"n": len(summary), "median": {}, "better": 0, "margin": -np.inf, "margin_at": "", "false": 0}
+    for p in ps:
+        out["median"][p] = (statistics.median(_bad2(r[f"fused@{p}"]) for r in summary.values()),
+                            statistics.median(_bad2(r[p]) for r in summary.values()))
+    fused_false, low_false = [], []
+    for name, rows in summary.items():
+        out["better"] += all(_beats(rows[f"fused@{p}"], rows[p]) for p in ps)
+        best = min(ps, key=lambda p: _bad2(rows[p]))
+        margin = _bad2(rows[f"fused@{best}"]) - _bad2(rows[best])
+        if margin > out["margin"]:
+            out["margin"], out["margin_at"] = margin, name
+        low = min(rows[p]["false_rate"] for p in ps)
+        out["false"] += rows["fused"]["false_rate"] <= low
+        fused_false.append(rows["fused"]["false_rate"])
+        low_false.append(low)
+    out["false_median"] = (statistics.median(fused_false), statistics.median(low_false))
+    return out
+
+
 def verdict_section(summary: dict) -> str:
-    """Issue 17's "done when" on these recordings: fused against the better peer, at fused's own coverage and
-    at the peer's."""
+    """Issue 17's "done when" on these recordings: per recording fused against each peer at the peer's
+    coverage, then the four criteria (:func:`criteria`)."""
     lines = ["## Against the targets (issue 17)", "",
              "| recording | fused bad2 (own cov.) | better peer bad2 | fused bad2 @ SGBM cov. | SGBM bad2 | "
-             "fused bad2 @ dv cov. | dv bad2 | fused false | lower peer false |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
-    wins = 0
+             "fused bad2 @ dv cov. | dv bad2 | better than both | fused false | lower peer false |",
+             "|---|---:|---:|---:|---:|---:|---:|:-:|---:|---:|"]
     for name, rows in summary.items():
         ps = [p for p in peers() if p in rows]
-        best_peer = min(rows[p]["bad2"] for p in ps)
-        low_false = min(rows[p]["false_rate"] for p in ps)
-        cells = [f"{rows['fused']['bad2']:.1%}", f"{best_peer:.1%}"]
-        beat = True
+        cells = [f"{_bad2(rows['fused']):.1%}", f"{min(_bad2(rows[p]) for p in ps):.1%}"]
         for p in ("sgbm", "dv-semidense"):
-            if p in rows:
-                cells += [f"{rows[f'fused@{p}']['bad2']:.1%}", f"{rows[p]['bad2']:.1%}"]
-                beat &= rows[f"fused@{p}"]["bad2"] < rows[p]["bad2"]
-            else:
-                cells += ["-", "-"]
-        cells += [f"{rows['fused']['false_rate']:.1%}", f"{low_false:.1%}"]
-        wins += beat
+            cells += [f"{_bad2(rows[f'fused@{p}']):.1%}", f"{_bad2(rows[p]):.1%}"] if p in rows else ["-", "-"]
+        beat = all(_beats(rows[f"fused@{p}"], rows[p]) for p in ps)
+        cells += ["yes" if beat else "**no**", f"{rows['fused']['false_rate']:.1%}",
+                  f"{min(rows[p]['false_rate'] for p in ps):.1%}"]
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
-    lines += ["", f"fused beats both peers at their coverages on {wins} of {len(summary)} recordings."]
+    c = criteria(summary)
+    n = c["n"]
+    lines += ["", "| criterion | target | measured | met |", "|---|---|---|:-:|"]
+    for p, (fused_med, peer_med) in c["median"].items():
+        lines.append(f"| median bad2 at {p}'s coverage | below {p}'s | {fused_med:.2%} vs {peer_med:.2%} | "
+                     f"{'yes' if fused_med < peer_med else 'no'} |")
+    lines += [f"| recordings better than both peers | >= 80 % | {c['better']}/{n} ({c['better'] / n:.0%}) | "
+              f"{'yes' if c['better'] >= 0.8 * n else 'no'} |",
+              f"| worst margin against the better peer | <= 0.02 | {c['margin']:+.3f} ({c['margin_at']}) | "
+              f"{'yes' if c['margin'] <= 0.02 else 'no'} |",
+              f"| false rate at most the lower peer's | every recording | {c['false']}/{n} (medians "
+              f"{c['false_median'][0]:.2%} vs {c['false_median'][1]:.2%}) | {'yes' if c['false'] == n else 'no'} |"]
     return "\n".join(lines)
 
 
@@ -268,19 +355,46 @@ def speed_section(quick: bool) -> str:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--suite", action="store_true", help="the robustness suite v1 + motorcycle (issue 17)")
+    ap.add_argument("--only", default=None, metavar="NAME,...", help="with --suite: only these recordings")
+    ap.add_argument("-o", "--output", default=str(OUT.parent), help="folder of fused.md (default bench/results)")
+    ap.add_argument("--no-write", action="store_true", help="print only")
+    ap.add_argument("--no-speed", action="store_true", help="skip the speed section")
+    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                    help="a fused parameter for every run (repeatable), e.g. --set fill_radius=8")
     args = ap.parse_args(argv)
+    for item in args.set:
+        name, _, value = item.partition("=")
+        FUSED_SET[name] = json.loads(value.lower() if value.lower() in ("true", "false") else value)
     cv2.setNumThreads(1)
-    recs = recordings(args.quick)
+    out = Path(args.output)
+    peer_path = out / "fused-peers.json"
+    peer_cache = None
+    if args.suite:
+        recs = suite_recordings(args.only.split(",") if args.only else None)
+        peer_cache = json.loads(peer_path.read_text()) if peer_path.exists() else {}
+    else:
+        recs = recordings(args.quick)
     parts = ["# fused beside SGBM and dv-semidense", "",
-             f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; peers: {', '.join(peers())}.", ""]
-    text, summary = accuracy_section(recs)
+             f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; peers: {', '.join(peers())}"
+             + (f"; fused with {FUSED_SET}" if FUSED_SET else "") + ".", ""]
+    clips = "robustness suite v1 (2.5 s) and the motorcycle (2 s)" if args.suite else "2 s clips"
+    text, summary = accuracy_section(recs, peer_cache, clips)
+    if peer_cache is not None and not args.no_write:
+        out.mkdir(parents=True, exist_ok=True)
+        peer_path.write_text(json.dumps(peer_cache, indent=1))
     parts += [text, "", verdict_section(summary), ""]
+    print(parts[-2], flush=True)
     parts += [fan_section(), ""]
-    if not args.quick:
+    print(parts[-2], flush=True)
+    if not (args.quick or args.suite):
         parts += [ablation_section(recs, summary), ""]
-    parts += [speed_section(args.quick), ""]
-    OUT.write_text("\n".join(parts))
-    print(f"wrote {OUT}")
+    if not args.no_speed:
+        parts += [speed_section(args.quick), ""]
+    if not args.no_write:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / OUT.name).write_text("\n".join(parts))
+        print(f"wrote {out / OUT.name}")
     return 0
 
 

@@ -5,7 +5,7 @@ semi-global aggregation, winner, left-right check, sub-pixel, uncertainty). Ever
 is evaluated in the same order as in :mod:`calibration_free.reference.fused`, so that both give bit-identical
 matches (tests/test_fused.py).
 
-Where the time goes, and why the kernels are shaped as they are (2arms-50cm, 128x128, 48 disparities: about
+Where the time goes, and why the kernels are shaped as they are (2arms-50cm, 128x128, 64 disparities: about
 6000 active pixels a window; a 346x260 recording at 1 M ev/s: 32000 and 174 disparities):
 
 * The cost and the paths of a window are (active pixels x disparities) arrays of several MB, more than the
@@ -123,7 +123,8 @@ def _pixel_cost(fl, right_rev, yy, xx, pr, row_tol, temporal_weight, out):
 
 @njit(cache=True, nogil=True)
 def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2, paths, temporal_weight, lr_tol,
-                   subpixel, min_neighbours, max_uncertainty, fill_radius, work, rowbuf, planes):
+                   subpixel, min_neighbours, isolated_below, max_uncertainty, fill_radius, confirm, work, rowbuf,
+                   planes):
     """Match one window's normalised features; return the answers at the left camera's event pixels.
 
     Parameters
@@ -138,8 +139,10 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
         Left pixels with an event in the last two windows (the noise filter's neighbours).
     prior : (H, W) float64 ndarray
         Disparity of the previous window per pixel, NaN where none (temporal coherence).
-    max_d, row_tol, p1, p2, paths, temporal_weight, lr_tol, subpixel, min_neighbours, max_uncertainty, fill_radius
-        :class:`~calibration_free.fused_params.FusedParams` fields.
+    max_d, row_tol, p1, p2, paths, temporal_weight, lr_tol, subpixel, min_neighbours, isolated_below,
+    max_uncertainty, fill_radius, confirm
+        :class:`~calibration_free.fused_params.FusedParams` fields (``isolated_below``: its
+        ``isolated_max_uncertainty``; ``confirm``: its ``fill_confirms``).
     work : (3, n, max_d + 1) float64 ndarray
         Scratch for at least the n active pixels: cost, row path from the left (then the sum of the paths),
         column path from above (kept by the caller: fresh pages cost more than the arithmetic).
@@ -276,8 +279,9 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
                 for x2 in range(max(xx - 1, 0), min(xx + 2, w)):
                     if recent[y2, x2]:
                         neighbours += 1
-            if neighbours < min_neighbours:
-                continue
+            isolated = neighbours < min_neighbours
+            if isolated and isolated_below <= 0.0:
+                continue  # no isolated pixel can answer: skip the work
             s = total[k]
             # The first least disparity (argmin's), then the least more than 1 px away from it.
             low = _min4(s)
@@ -307,6 +311,8 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
                             best_r = d
                 consistent = best_r >= 0 and abs(best_r - best) <= lr_tol
             u = 0.5 * ratio if consistent else 0.5 * ratio + 0.5
+            if isolated and not u < isolated_below:
+                continue
             disp = float(best)
             if subpixel and 0 < best < nd - 1:
                 a, b, c = s[best - 1], s[best], s[best + 1]
@@ -324,7 +330,8 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
     out_x, out_y, out_p = out_x[out_has], out_y[out_has], out_p[out_has]
     out_d, out_u, out_ok = out_d[out_has], out_u[out_has], out_ok[out_has]
     m = out_x.size
-    # Inconsistent winners take the median of the consistent answers around them (when there are any).
+    # Inconsistent winners take the median of the consistent answers around them (when there are any), or are
+    # confirmed by it when they agree with it.
     keep = np.zeros(m, np.bool_)
     for i in range(m):
         if out_ok[i]:
@@ -341,7 +348,11 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
                         c += 1
             if c > 0:
                 srt = np.sort(vals[:c])
-                out_d[i] = srt[c // 2] if c % 2 else (srt[c // 2 - 1] + srt[c // 2]) / 2.0
+                med = srt[c // 2] if c % 2 else (srt[c // 2 - 1] + srt[c // 2]) / 2.0
+                if confirm and abs(out_d[i] - med) <= lr_tol:
+                    out_u[i] = out_u[i] - 0.5  # confirmed by the consistent answers around it
+                else:
+                    out_d[i] = med
         keep[i] = out_u[i] <= max_uncertainty
     for i in range(m):
         consistent_d[out_y[i], out_x[i]] = np.nan

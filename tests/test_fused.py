@@ -53,8 +53,9 @@ def textured_pair(seed: int, *, windows: int = 4, shift: int = 5, size: tuple[in
 
 PARAM_AXES = {
     "sgm_paths": [0, 2, 4], "lr_tolerance": [-1, 0, 1], "subpixel": [True, False], "temporal_weight": [0.0, 0.3],
-    "support_radius": [0, 1, 2], "path_radius": [0, 1, 3], "fill_radius": [0, 2], "row_tolerance": [0, 1],
-    "min_neighbours": [1, 3], "max_uncertainty": [1.0, 0.5, 0.3],
+    "support_radius": [0, 1, 2], "path_radius": [0, 1, 3], "fill_radius": [0, 2, 12], "row_tolerance": [0, 1],
+    "min_neighbours": [1, 3], "max_uncertainty": [1.0, 0.5, 0.3], "fill_confirms": [True, False],
+    "isolated_max_uncertainty": [0.0, 0.1, 0.3],
     "max_disparity": [12, 20],
 }
 
@@ -118,7 +119,8 @@ def test_left_right_failures_rank_behind_consistent_matches():
 
 def test_inconsistent_matches_take_the_median_of_consistent_neighbours():
     left, right, resolution = textured_pair(4, windows=6)
-    m = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0, fill_radius=2), resolution=resolution)
+    m = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0, fill_radius=2, fill_confirms=False),
+                     resolution=resolution)
     got = feed_cut(m, left, right, [])
     u = m.take_uncertainty()
     ok = u <= 0.5
@@ -132,13 +134,49 @@ def test_inconsistent_matches_take_the_median_of_consistent_neighbours():
     assert filled > 0
 
 
+def test_a_failed_winner_that_agrees_with_its_fill_is_confirmed():
+    left, right, resolution = textured_pair(4, windows=6)
+    runs = {}
+    for confirm in (False, True):
+        m = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0, fill_radius=2, fill_confirms=confirm),
+                         resolution=resolution)
+        runs[confirm] = (feed_cut(m, left, right, []), m.take_uncertainty().astype(np.float64))
+    (filled, u_filled), (confirmed, u_confirmed) = runs[False], runs[True]
+    for key in ("t", "x", "y", "p"):
+        np.testing.assert_array_equal(confirmed[key], filled[key])
+    same = (u_confirmed == u_filled) & (confirmed["disparity"] == filled["disparity"])
+    lifted = np.isclose(u_confirmed, u_filled - 0.5)
+    assert np.all(same | lifted)
+    assert lifted.any()
+    # A confirmed winner failed the check (its penalty is gone) and lies within 1 px of the median that filled it.
+    assert np.all(u_filled[lifted] > 0.5)
+    assert np.all(np.abs(confirmed["disparity"][lifted] - filled["disparity"][lifted]) <= 1.0 + 1e-6)
+
+
 def test_isolated_noise_gets_no_answer():
-    # One event per pixel, far apart: no pixel has a neighbour that fired, so the noise filter answers nowhere.
+    # One event per pixel, far apart: no pixel has a neighbour that fired. The right camera's events lie rows
+    # away, so no left event has a partner: every cost is flat, and the noise filter answers nowhere.
     t = np.arange(0, 40_000, 4_000)
     x = np.arange(2, 42, 4)
     ev = make_events(t, x, np.full(t.size, 5), np.ones(t.size, int))
-    assert feed_cut(FusedMatcher(resolution=(48, 12)), ev, ev, []).size == 0
-    assert feed_cut(FusedMatcher(FusedParams(min_neighbours=1), resolution=(48, 12)), ev, ev, []).size > 0
+    elsewhere = make_events(t, x, np.full(t.size, 10), np.ones(t.size, int))
+    assert feed_cut(FusedMatcher(resolution=(48, 12)), ev, elsewhere, []).size == 0
+    unfiltered = FusedParams(min_neighbours=1, max_uncertainty=1.0)  # every winner, ties included
+    assert feed_cut(FusedMatcher(unfiltered, resolution=(48, 12)), ev, elsewhere, []).size > 0
+
+
+def test_isolated_events_with_a_clear_partner_answer():
+    # The same isolated events in both cameras: each has an exact partner at disparity 0, a clear match, which
+    # answers unless isolated_max_uncertainty = 0 drops every isolated pixel.
+    t = np.arange(0, 40_000, 4_000)
+    x = np.arange(2, 42, 4)
+    ev = make_events(t, x, np.full(t.size, 5), np.ones(t.size, int))
+    assert feed_cut(FusedMatcher(FusedParams(isolated_max_uncertainty=0.0), resolution=(48, 12)), ev, ev, []).size == 0
+    m = FusedMatcher(resolution=(48, 12))
+    got = feed_cut(m, ev, ev, [])
+    assert got.size > 0
+    np.testing.assert_allclose(got["disparity"], 0.0, atol=0.5)
+    assert np.all(m.take_uncertainty() < FusedParams().isolated_max_uncertainty)
 
 
 def test_registered_and_window_anchored():

@@ -120,8 +120,7 @@ def choose(total, active, counts, recent, prm: FusedParams):
     for y, x in zip(*np.nonzero(counts.sum(axis=0)), strict=True):
         if not active[y, x]:
             continue
-        if recent[max(y - 1, 0):y + 2, max(x - 1, 0):x + 2].sum() < prm.min_neighbours:
-            continue
+        isolated = recent[max(y - 1, 0):y + 2, max(x - 1, 0):x + 2].sum() < prm.min_neighbours
         s = total[y, x]
         best = int(np.argmin(s))
         far = np.abs(np.arange(nd) - best) > 1
@@ -139,6 +138,8 @@ def choose(total, active, counts, recent, prm: FusedParams):
             consistent = best_r >= 0 and abs(best_r - best) <= prm.lr_tolerance
         # Inconsistent winners rank behind every consistent one (design part 7).
         u = 0.5 * ratio if consistent else 0.5 * ratio + 0.5
+        if isolated and not u < prm.isolated_max_uncertainty:
+            continue  # the noise filter (design part 10): an isolated pixel answers only with a clear match
         disp = float(best)
         if prm.subpixel and 0 < best < nd - 1:
             a, b, c = s[best - 1], s[best], s[best + 1]
@@ -146,7 +147,8 @@ def choose(total, active, counts, recent, prm: FusedParams):
             if den > 0.0:
                 disp = disp + min(max((a - c) / (2.0 * den), -0.5), 0.5)
         out.append([x, y, 1 if counts[1, y, x] >= counts[0, y, x] else 0, disp, u, consistent])
-    # Inconsistent winners: the median of the consistent answers within fill_radius, where there are any.
+    # Inconsistent winners: the median of the consistent answers within fill_radius, where there are any; a
+    # winner that agrees with it is confirmed instead.
     consistent_d = np.full((h, w), np.nan)
     for x, y, _, disp, _, ok in out:
         if ok:
@@ -160,7 +162,11 @@ def choose(total, active, counts, recent, prm: FusedParams):
         vals = np.sort(near[~np.isnan(near)])
         c = vals.size
         if c:
-            row[3] = float(vals[c // 2]) if c % 2 else (float(vals[c // 2 - 1]) + float(vals[c // 2])) / 2.0
+            med = float(vals[c // 2]) if c % 2 else (float(vals[c // 2 - 1]) + float(vals[c // 2])) / 2.0
+            if prm.fill_confirms and abs(row[3] - med) <= prm.lr_tolerance:
+                row[4] = row[4] - 0.5  # confirmed by the consistent answers around it: no left-right penalty
+            else:
+                row[3] = med
     return [tuple(row[:5]) for row in out if row[4] <= prm.max_uncertainty]
 
 
