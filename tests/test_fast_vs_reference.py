@@ -40,7 +40,9 @@ CASES = {
                                           "cost_scale": [0.0, 0.6]},
                    {"no-gaussian": {"threshold": 2.0}}),
     "event-vector": (event_vector_reference, {"require_candidate_threshold": [True, False],
-                                              "polarity": ["shared", "separate"], "max_disparity": [20]}, {}),
+                                              "polarity": ["shared", "separate"], "max_disparity": [20],
+                                              "run_ends": [False, True], "cost_ratio": [0.0, 1.0],
+                                              "tie_break": ["smallest", "centre"]}, {}),
 }
 
 COMBOS = [(m, v) for m in CASES for v in matcher_class(m).variants]
