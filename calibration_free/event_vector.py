@@ -14,9 +14,10 @@ the threshold has an empty run of its own: its vector points to the nearest abov
 
 Beyond the thesis (each a field of :class:`~calibration_free.params.EventVectorParams` whose default switches
 it off): ``run_ends`` extends each vector by how many pixels of the pixel's own run lie left and right of it,
-so that the cost also places a candidate within its run; ``cost_ratio`` bounds the least cost by a multiple of
-the event vector's length; ``tie_break="centre"`` reports the middle of the disparities of equal least cost
-(possibly half a pixel) instead of the smallest.
+so that the cost also places a candidate within its run; ``cost_slack`` and ``cost_ratio`` bound the least
+cost by a slack plus a multiple of the event vector's length; ``tie_break="centre"`` reports the middle of
+the disparities of equal least cost (possibly half a pixel) instead of the smallest. The ``adaptive`` set
+(:mod:`cvstereo.param_sets`) turns all of them on, with separate OFF and ON frames.
 
 Search **[implementation, same result]**: the walks through gaps skip 16-column blocks whose magnitude bound
 says that they hold no above-threshold pixel (:func:`cvstereo.dynamic_frames.skip_below`); the other row is read
@@ -187,8 +188,8 @@ def _choose(cand_x, cand_cost, m, x, cam, max_cost, bound, centre):
 
 @njit(cache=True)
 def _event_vector_kernel(stream, stored, scale, clock, bound, kernel, decay, period, thresholds, require, max_d,
-                         max_cost, run_ends, cost_ratio, centre, out_cam, out_index, out_disparity, values_l,
-                         values_r):
+                         max_cost, run_ends, cost_ratio, cost_slack, centre, out_cam, out_index, out_disparity,
+                         values_l, values_r):
     """Process the merged stream (:func:`calibration_free.merge_order.merged_stream`); one output row per matched
     event; returns the count."""
     width = stored.shape[3]
@@ -243,8 +244,8 @@ def _event_vector_kernel(stream, stored, scale, clock, bound, kernel, decay, per
                 m = _search_all(stored, bound, other, slot, y, lo, hi, c2, threshold, a1, b1, l1, r1, run_ends,
                                 last, s_last, prev, s_prev, start, row, vec_a, vec_b, vec_l, vec_r, cand_x, cand_cost)
             length = abs(a1) + abs(b1) + (l1 + r1 if run_ends else 0)
-            best = _choose(cand_x, cand_cost, m, x, cam, max_cost, cost_ratio * length if cost_ratio > 0 else -1.0,
-                           centre)
+            limit = cost_slack + cost_ratio * length if cost_ratio > 0 else -1.0
+            best = _choose(cand_x, cand_cost, m, x, cam, max_cost, limit, centre)
             n = emit_match(out_cam, out_index, out_disparity, n, cam, i, best)
         splat_bounded(stored, scale, clock, bound, cam, slot, x, y, 1.0 if p > 0 else -1.0, kernel)
     return n
@@ -275,4 +276,5 @@ class EventVectorMatcher(MergedEventMatcher):
                                         bank.kernel, *bank.decay_args, thresholds,
                                         bool(prm.require_candidate_threshold), int(prm.max_disparity),
                                         float(prm.max_cost), bool(prm.run_ends), float(prm.cost_ratio),
-                                        prm.tie_break == "centre", out_cam, out_index, out_disparity, *out_values))
+                                        float(prm.cost_slack), prm.tie_break == "centre", out_cam, out_index,
+                                        out_disparity, *out_values))

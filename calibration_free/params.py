@@ -237,8 +237,12 @@ class EventVectorParams(SignalLevelParams, DynamicFrameParams):
         the two neighbouring runs), and a row with one run in each camera has nothing to compare at all.
     cost_ratio : float
         0 (the thesis): ``max_cost`` alone bounds the cost. Otherwise the least cost must also be at most
-        ``cost_ratio`` times the length (sum of the absolute entries) of the event's vector: its distances are
-        measured in pixels, and so are the errors of a right match.
+        ``cost_slack + cost_ratio * length``, the length being the sum of the absolute entries of the event's
+        vector: the distances of a right match disagree by more the longer they are (runs of the two cameras
+        differ in width, edges move between events), a wrong match's by about their size.
+    cost_slack : float
+        The part of that bound that does not grow with the length, px (only with ``cost_ratio > 0``): short
+        vectors of a right match still differ by a pixel or two.
     tie_break : {"smallest", "centre"}
         Among disparities of equal least cost, the smallest (the thesis) or the middle of the smallest and the
         largest: the cost is flat between the disparities that the left and the right neighbour imply, and
@@ -251,11 +255,12 @@ class EventVectorParams(SignalLevelParams, DynamicFrameParams):
     max_cost: float = 1000.0
     run_ends: bool = False
     cost_ratio: float = 0.0
+    cost_slack: float = 0.0
     tie_break: Literal["smallest", "centre"] = "smallest"
 
     def __post_init__(self):
         super().__post_init__()
-        for name in ("threshold", "max_disparity", "cost_ratio"):
+        for name in ("threshold", "max_disparity", "cost_ratio", "cost_slack"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}.")
         if self.tie_break not in ("smallest", "centre"):

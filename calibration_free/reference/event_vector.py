@@ -106,7 +106,7 @@ def event_vector_reference(left: np.ndarray, right: np.ndarray, params: EventVec
             if prm.require_candidate_threshold and not (abs(v2) >= other_threshold and sign(v2) == sign(value)):
                 continue
             costs[d] = sum(abs(p - q) for p, q in zip(v1, vector(other, slot, x2, y, other_threshold), strict=True))
-        bound = prm.cost_ratio * sum(abs(v) for v in v1) if prm.cost_ratio > 0 else None
+        bound = prm.cost_slack + prm.cost_ratio * sum(abs(v) for v in v1) if prm.cost_ratio > 0 else None
         return choose(costs, prm, bound)
 
     return match_merged(left, right, prm, search, resolution=resolution)
