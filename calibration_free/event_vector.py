@@ -79,14 +79,15 @@ def _own_vector(stored, bound, cam, slot, y, x, c, threshold):
 
 
 @njit(cache=True)
-def _search_runs(stored, bound, other, slot, y, lo, hi, c, threshold, s1, a1, b1, l1, r1, run_ends, last, s_last,
-                 prev, s_prev, start, cand_x, cand_cost):
+def _search_runs(stored, bound, other, slot, y, x, cam, lo, hi, c, threshold, s1, a1, b1, l1, r1, run_ends, last,
+                 s_last, prev, s_prev, start):
     """Candidates = the above-threshold pixels of D's sign in lo..hi of the other row: visit its runs, skipping
     the gaps blockwise. A run's pixels share their vector's ends: the last above-threshold pixel before the run
     and the first one after it (found beyond hi if need be). ``last``/``prev``/``start``: the scan state at lo
-    (see the kernel). Writes (x2, cost) per candidate; returns their number."""
+    (see the kernel). Returns the least cost and the smallest and largest disparity of that cost
+    (:func:`_keep_least`)."""
     width = stored.shape[3]
-    m = 0
+    best, d_lo, d_hi = np.inf, -1, -1
     xx = skip_below(stored, bound, other, slot, y, lo, 1, hi + 1, c, threshold)
     if not (xx == lo and lo > 0 and _above(stored, other, slot, y, lo - 1, c, threshold)):
         prev, s_prev, start = last, s_last, xx  # lo's run (if any) does not come from the left of lo
@@ -104,21 +105,19 @@ def _search_runs(stored, bound, other, slot, y, lo, hi, c, threshold, s1, a1, b1
             cost = abs(a1 - a2) + abs(b1 - b2)
             if run_ends:
                 cost += abs(l1 - (x2 - start)) + abs(r1 - (end - x2))
-            cand_x[m] = x2
-            cand_cost[m] = cost
-            m += 1
+            best, d_lo, d_hi = _keep_least(best, d_lo, d_hi, cost, x - x2 if cam == 0 else x2 - x)
         prev, s_prev = end, _sign(stored[other, slot, y, end] * c)  # the next run's left end
         xx = nxt
         start = nxt
-    return m
+    return best, d_lo, d_hi
 
 
 @njit(cache=True)
-def _search_all(stored, bound, other, slot, y, lo, hi, c, threshold, a1, b1, l1, r1, run_ends, last, s_last,
-                prev, s_prev, start, row, vec_a, vec_b, vec_l, vec_r, cand_x, cand_cost):
+def _search_all(stored, bound, other, slot, y, x, cam, lo, hi, c, threshold, a1, b1, l1, r1, run_ends, last,
+                s_last, prev, s_prev, start, row, vec_a, vec_b, vec_l, vec_r):
     """Candidates = every pixel of lo..hi of the other row (Algorithm 4 literally): its vectors in two passes
     (the same numbers as walking from each), left to right from the scan state at lo, then right to left from
-    the mirror state. Writes (x2, cost) per candidate; returns their number."""
+    the mirror state. Returns the least cost and the smallest and largest disparity of that cost."""
     width = stored.shape[3]
     for xx in range(max(0, lo - 1), min(width - 1, hi + 1) + 1):
         row[xx] = stored[other, slot, y, xx] * c
@@ -158,32 +157,33 @@ def _search_all(stored, bound, other, slot, y, lo, hi, c, threshold, a1, b1, l1,
         else:
             vec_b[xx] = s_last * (last - xx) if last < width else 0
             vec_r[xx] = 0
-    m = 0
+    best, d_lo, d_hi = np.inf, -1, -1
     for x2 in range(lo, hi + 1):
         cost = abs(a1 - vec_a[x2]) + abs(b1 - vec_b[x2])
         if run_ends:
             cost += abs(l1 - vec_l[x2]) + abs(r1 - vec_r[x2])
-        cand_x[m] = x2
-        cand_cost[m] = cost
-        m += 1
-    return m
+        best, d_lo, d_hi = _keep_least(best, d_lo, d_hi, cost, x - x2 if cam == 0 else x2 - x)
+    return best, d_lo, d_hi
 
 
-@njit(cache=True)
-def _choose(cand_x, cand_cost, m, x, cam, max_cost, bound, centre):
-    """The disparity of the least cost (below ``max_cost`` and at most ``bound`` if >= 0): the smallest one of
-    equal cost, or with ``centre`` the middle of the smallest and the largest; -1 for none."""
-    best = max_cost
-    for j in range(m):
-        best = min(best, cand_cost[j])
-    if not best < max_cost or (bound >= 0 and best > bound):
+@njit(cache=True, inline="always")
+def _keep_least(best, d_lo, d_hi, cost, d):
+    """The least cost so far and the smallest and largest disparity of that cost, after candidate ``d``."""
+    if cost < best:
+        return cost, d, d
+    if cost == best:
+        return best, min(d_lo, d), max(d_hi, d)
+    return best, d_lo, d_hi
+
+
+@njit(cache=True, inline="always")
+def _choose(best, d_lo, d_hi, max_cost, limit, centre):
+    """The disparity of the least cost ``best`` if below ``max_cost`` and at most ``limit`` (if >= 0): the
+    smallest one of that cost ``d_lo``, or with ``centre`` the middle of it and the largest ``d_hi``; -1 for
+    none."""
+    if not best < max_cost or (limit >= 0 and best > limit):
         return -1.0
-    lo, hi = 1 << 30, -1
-    for j in range(m):
-        if cand_cost[j] == best:
-            d = x - cand_x[j] if cam == 0 else cand_x[j] - x
-            lo, hi = min(lo, d), max(hi, d)
-    return 0.5 * (lo + hi) if centre else float(lo)
+    return 0.5 * (d_lo + d_hi) if centre else float(d_lo)
 
 
 @njit(cache=True)
@@ -198,8 +198,6 @@ def _event_vector_kernel(stream, stored, scale, clock, bound, kernel, decay, per
     vec_b = np.empty(width, dtype=np.int64)
     vec_l = np.empty(width, dtype=np.int64)
     vec_r = np.empty(width, dtype=np.int64)
-    cand_x = np.empty(max_d + 1, dtype=np.int64)
-    cand_cost = np.empty(max_d + 1)
     n = 0
     for j in range(stream.shape[1]):
         cam, i, t, x, y, p, slot = stream[0, j], stream[1, j], stream[2, j], stream[3, j], stream[4, j], \
@@ -238,15 +236,17 @@ def _event_vector_kernel(stream, stored, scale, clock, bound, kernel, decay, per
                 if k >= 0:
                     last, s_last = k, _sign(stored[other, slot, y, k] * c2)
             if require:
-                m = _search_runs(stored, bound, other, slot, y, lo, hi, c2, threshold, _sign(value), a1, b1, l1,
-                                 r1, run_ends, last, s_last, prev, s_prev, start, cand_x, cand_cost)
+                best, d_lo, d_hi = _search_runs(stored, bound, other, slot, y, x, cam, lo, hi, c2, threshold,
+                                                _sign(value), a1, b1, l1, r1, run_ends, last, s_last, prev,
+                                                s_prev, start)
             else:
-                m = _search_all(stored, bound, other, slot, y, lo, hi, c2, threshold, a1, b1, l1, r1, run_ends,
-                                last, s_last, prev, s_prev, start, row, vec_a, vec_b, vec_l, vec_r, cand_x, cand_cost)
+                best, d_lo, d_hi = _search_all(stored, bound, other, slot, y, x, cam, lo, hi, c2, threshold, a1, b1,
+                                               l1, r1, run_ends, last, s_last, prev, s_prev, start, row, vec_a,
+                                               vec_b, vec_l, vec_r)
             length = abs(a1) + abs(b1) + (l1 + r1 if run_ends else 0)
             limit = cost_slack + cost_ratio * length if cost_ratio > 0 else -1.0
-            best = _choose(cand_x, cand_cost, m, x, cam, max_cost, limit, centre)
-            n = emit_match(out_cam, out_index, out_disparity, n, cam, i, best)
+            disparity = _choose(best, d_lo, d_hi, max_cost, limit, centre)
+            n = emit_match(out_cam, out_index, out_disparity, n, cam, i, disparity)
         splat_bounded(stored, scale, clock, bound, cam, slot, x, y, 1.0 if p > 0 else -1.0, kernel)
     return n
 
