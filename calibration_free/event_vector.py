@@ -58,7 +58,7 @@ def _above(stored, cam, slot, y, k, c, threshold):
     return abs(stored[cam, slot, y, k] * c) >= threshold
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _own_vector(stored, bound, cam, slot, y, x, c, threshold):
     """The event's vector (a, b) and the pixels of its run left and right of x (l, r)."""
     width = stored.shape[3]
@@ -78,7 +78,7 @@ def _own_vector(stored, bound, cam, slot, y, x, c, threshold):
     return a, b, left, right
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _search_runs(stored, bound, other, slot, y, x, cam, lo, hi, c, threshold, s1, a1, b1, l1, r1, run_ends, last,
                  s_last, prev, s_prev, start):
     """Candidates = the above-threshold pixels of D's sign in lo..hi of the other row: visit its runs, skipping
