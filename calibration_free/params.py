@@ -289,15 +289,38 @@ class EventVectorParams(SignalLevelParams, DynamicFrameParams):
         Largest disparity searched.
     max_cost : float
         A match needs a cost below this (Algorithm 4's initial minimum).
+    run_ends : bool
+        False (the thesis): the vector is (a, b). True: it also holds how many pixels of the pixel's own run lie
+        left and right of it (0, 0 below the threshold), and the cost adds their differences. Without them
+        every pixel of a candidate run costs the same wherever it lies in the run (the cost depends only on
+        the two neighbouring runs), and a row with one run in each camera has nothing to compare at all.
+    cost_ratio : float
+        0 (the thesis): ``max_cost`` alone bounds the cost. Otherwise the least cost must also be at most
+        ``cost_slack + cost_ratio * length``, the length being the sum of the absolute entries of the event's
+        vector: the distances of a right match disagree by more the longer they are (runs of the two cameras
+        differ in width, edges move between events), a wrong match's by about their size.
+    cost_slack : float
+        The part of that bound that does not grow with the length, px (only with ``cost_ratio > 0``): short
+        vectors of a right match still differ by a pixel or two.
+    tie_break : {"smallest", "centre"}
+        Among disparities of equal least cost, the smallest (the thesis) or the middle of the smallest and the
+        largest: the cost is flat between the disparities that the left and the right neighbour imply, and
+        the smallest one lies at the low end of that range.
     """
 
     threshold: float = 0.8
     require_candidate_threshold: bool = True
     max_disparity: int = 64
     max_cost: float = 1000.0
+    run_ends: bool = False
+    cost_ratio: float = 0.0
+    cost_slack: float = 0.0
+    tie_break: Literal["smallest", "centre"] = "smallest"
 
     def __post_init__(self):
         super().__post_init__()
-        for name in ("threshold", "max_disparity"):
+        for name in ("threshold", "max_disparity", "cost_ratio", "cost_slack"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}.")
+        if self.tie_break not in ("smallest", "centre"):
+            raise ValueError(f"tie_break must be 'smallest' or 'centre', got {self.tie_break!r}.")

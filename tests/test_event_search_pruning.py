@@ -57,6 +57,9 @@ def sparse_pair(seed: int, n_clusters: int = 8, per_cluster: int = 60):
                                           "level_warmup": 20, "level_windows": 3}),
     ("event-vector", event_vector_reference, {"require_candidate_threshold": True}),
     ("event-vector", event_vector_reference, {"require_candidate_threshold": False}),
+    ("event-vector", event_vector_reference, {"run_ends": True, "tie_break": "centre", "cost_ratio": 0.3,
+                                              "cost_slack": 2.0}),
+    ("event-vector", event_vector_reference, {"require_candidate_threshold": False, "run_ends": True}),
 ])
 def test_pruned_search_equals_reference_on_sparse_wide_rows(method, reference, extra, seed):
     cls = matcher_class(method)

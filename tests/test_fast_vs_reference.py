@@ -41,7 +41,10 @@ CASES = {
                                           "own_ratio": [0.0, 0.6], "uniqueness": [0.0, 0.2]},
                    {"no-gaussian": {"threshold": 2.0}}),
     "event-vector": (event_vector_reference, {"require_candidate_threshold": [True, False],
-                                              "polarity": ["shared", "separate"], "max_disparity": [20]}, {}),
+                                              "polarity": ["shared", "separate"], "max_disparity": [20],
+                                              "run_ends": [False, True],
+                                              "bound": [{"cost_ratio": 0.0}, {"cost_ratio": 0.3, "cost_slack": 2.0}],
+                                              "tie_break": ["smallest", "centre"]}, {}),
 }
 
 COMBOS = [(m, v) for m in CASES for v in matcher_class(m).variants]
