@@ -94,11 +94,13 @@ def test_neighbour_intervals_by_hand():
     # 100: (5, 5) at 0; 100 again: the duplicate finds the same earlier event, not itself; 250: nobody near;
     # 400: no earlier OFF event; 700: (6, 5) at 100; 50 000: 49 300 us after (7, 6), beyond the 40 ms cap.
     expected = [np.nan, 100, 100, np.nan, np.nan, 600, np.nan]
-    last = np.full((2, 10, 24), -1, np.int64)
-    fast = np.empty(events.size)
     cols = [events[name].astype(np.int64) for name in ("t", "x", "y", "p")]
-    _neighbour_intervals(*cols, last, last.copy(), 40_000, fast)
-    np.testing.assert_array_equal(fast, expected)
+    for cut in range(events.size + 1):  # the writes held back at a call's end (time 100) reach the next call
+        last, deferred, state = np.full((2, 10, 24), -1, np.int64), np.empty(events.size, np.int64), np.array([0, -1])
+        fast = np.empty(events.size)
+        _neighbour_intervals(*(c[:cut] for c in cols), last, deferred, state, 40_000, fast[:cut])
+        _neighbour_intervals(*(c[cut:] for c in cols), last, deferred, state, 40_000, fast[cut:])
+        np.testing.assert_array_equal(fast, expected)
     np.testing.assert_array_equal(reference_intervals(events, 40_000), expected)
 
 
