@@ -59,9 +59,9 @@ def _resolve(pt, px, py, pp, pv, n, ct, cx, cy, cp, cv, height, window, max_wind
     sign tests, D2 just after their update) are both time-ordered. Candidates are bucketed by row (a stable
     counting sort keeps each row time-ordered), so each pending event scans only rows y - row_tol .. y + row_tol,
     from its own ``t - window`` on: a per-row pointer that only moves forward skips candidates older than
-    ``t - max_window``, which no later pending event can reach whatever its own window, and a binary search
-    from there finds ``t - window``. The winner, the smallest distance, does not
-    depend on the scan order. ``side`` is +1 (x2 >= x), -1 (x2 <= x) or 0 (either side).
+    ``t - max_window``, which no later pending event can reach whatever its own window, and a second one
+    follows ``t - window`` (a paced window may be 300 us where ``max_window`` is 20 ms). The winner, the
+    smallest distance, does not depend on the scan order. ``side`` is +1 (x2 >= x), -1 (x2 <= x) or 0 (either side).
     """
     nc = ct.shape[0]
     start = np.zeros(height + 1, dtype=np.int64)
@@ -74,11 +74,10 @@ def _resolve(pt, px, py, pp, pv, n, ct, cx, cy, cp, cv, height, window, max_wind
     for j in range(nc):
         order[fill[cy[j]]] = j
         fill[cy[j]] += 1
-    # The candidates in row order (the scans read them in that order); the times also let a pending event's
-    # scan start at t - its window by a binary search: a paced window may reach 20 ms back (max_window) where
-    # the one in force is 300 us.
+    # The candidates in row order, as the scans read them.
     row_t, row_x, row_p, row_v = ct[order], cx[order], cp[order], cv[order]
     lo = start[:height].copy()
+    first = lo.copy()  # per row: the first candidate at or after t - w of the last pending event that scanned it
     for i in range(n):
         t = pt[i]
         w = window[i]
@@ -86,7 +85,14 @@ def _resolve(pt, px, py, pp, pv, n, ct, cx, cy, cp, cv, height, window, max_wind
         for r in range(max(0, py[i] - row_tol), min(height - 1, py[i] + row_tol) + 1):
             while lo[r] < start[r + 1] and row_t[lo[r]] < t - max_window:
                 lo[r] += 1
-            k = lo[r] + np.searchsorted(row_t[lo[r]:start[r + 1]], t - w) if w < max_window else lo[r]
+            # t - w only grows while the window stays (one level window): the first candidate moves forward,
+            # and back only where a longer window begins.
+            k = max(first[r], lo[r])
+            while k > lo[r] and row_t[k - 1] >= t - w:
+                k -= 1
+            while k < start[r + 1] and row_t[k] < t - w:
+                k += 1
+            first[r] = k
             while k < start[r + 1] and row_t[k] <= t + w:
                 if row_p[k] == pp[i] and abs(pv[i] - row_v[k]) <= value_tol[i]:
                     dx = row_x[k] - px[i]
@@ -98,13 +104,17 @@ def _resolve(pt, px, py, pp, pv, n, ct, cx, cy, cp, cv, height, window, max_wind
         out[i] = best
 
 
+#: "No event yet" in the tables of event times: below any time stamp (time stamps may be negative).
+NO_TIME = np.iinfo(np.int64).min
+
+
 @njit(cache=True)
 def _neighbour_intervals(t, x, y, p, last, deferred, state, cap, out):
     """Time from each event back to the last earlier event of its polarity in its 3x3 neighbourhood.
 
     ``last[p, y + 1, x + 1]`` is the latest time of a ``p`` event at (x, y) before the current time ``td``
-    (padded by one pixel, -1 for none): the events of one time stamp read the table before any of them writes
-    it, so that an event sent twice at the same time finds the same earlier event both times and duplicates
+    (padded by one pixel, :data:`NO_TIME` for none): the events of one time stamp read the table before any of
+    them writes it, so that an event sent twice at the same time finds the same earlier event both times and duplicates
     do not fake a fast pace. Their writes wait in ``deferred`` (flat indices into ``last``, the first
     ``state[0]`` in use, of time ``state[1]``) until a later time comes, in this call or the next: one
     table of times per polarity instead of two (the latest and the one before), half the memory that a 640x480
@@ -119,11 +129,11 @@ def _neighbour_intervals(t, x, y, p, last, deferred, state, cap, out):
             for k in range(nd):
                 flat[deferred[k]] = td
             nd, td = 0, ti
-        newest = -1
+        newest = NO_TIME
         for r in range(yy - 1, yy + 2):
             for c in range(xx - 1, xx + 2):
                 newest = max(newest, last[pol, r, c])
-        out[i] = ti - newest if newest >= 0 and ti - newest <= cap else np.nan
+        out[i] = ti - newest if newest != NO_TIME and ti - newest <= cap else np.nan
         deferred[nd] = (pol * last.shape[1] + yy) * last.shape[2] + xx
         nd += 1
     state[0], state[1] = nd, td
@@ -188,16 +198,16 @@ class EventTimeMatcher(StreamMatcher):
         self._cands, self._cand_value = np.empty((4, 0), np.int64), np.empty(0)
         self._level = SignalLevel(self.params, absolute=self.params.threshold, unit=dynamic_unit(self.params),
                                   value_name="dynamic-frame value")
-        # The pace of each camera's events (time_window_scale): per camera and polarity, the last two distinct
-        # event times of every pixel (_neighbour_intervals), padded by one pixel; -1 for none.
+        # The pace of the other camera's events (time_window_scale), whose events are the candidates: the
+        # reference camera's pace is never used, and its intervals cost as much as the other's.
         self._pace = SignalLevel(self.params.pace_params(), absolute=self.params.time_window_us, unit=1.0,
                                  value_name="interval")
         width, height = self.resolution
-        self._last = np.full((2, 2, height + 2, width + 2), -1, np.int64) if self.params.paced else None
-        # Per camera: the writes of the latest time stamp that _neighbour_intervals still holds back, and
-        # (their number, their time).
-        self._deferred = [np.empty(0, np.int64) for _ in range(2)]
-        self._deferred_state = np.array([[0, -1], [0, -1]], np.int64)
+        # Per polarity, the latest time of the other camera's events at every pixel (padded by one pixel, NO_TIME
+        # for none); the writes of its latest time stamp that _neighbour_intervals still holds back, and (their
+        # number, their time).
+        self._last = np.full((2, height + 2, width + 2), NO_TIME, np.int64) if self.params.paced else None
+        self._deferred, self._deferred_state = np.empty(0, np.int64), np.array([0, NO_TIME], np.int64)
 
     def anchor_cameras(self) -> tuple[int, ...]:
         return (self.params.reference_camera,)
@@ -242,8 +252,8 @@ class EventTimeMatcher(StreamMatcher):
     def _take(self, cam: int, events: np.ndarray, k: int, threshold: float, tolerance: float, window: int) -> None:
         """Run one camera's events of level window ``k`` through its frame; keep the ones that pass."""
         cols = event_matrix(events)
-        if self.params.paced:
-            self._pace.add(k, cam, self._intervals(cam, cols))
+        if self.params.paced and cam != self.params.reference_camera:
+            self._pace.add(k, cam, self._intervals(cols))
         if cam == self.params.reference_camera:
             v1 = self._bank.process_columns(cam, cols, read=self.params.reference_read)
             keep = _passing(v1, cols[3], float(threshold), False)
@@ -259,16 +269,16 @@ class EventTimeMatcher(StreamMatcher):
             self._cand_value = np.concatenate([self._cand_value, v2[keep]])
             self._level.add(k, cam, v2)
 
-    def _intervals(self, cam: int, cols: np.ndarray) -> np.ndarray:
-        """:func:`_neighbour_intervals` of camera ``cam``'s events (rows t, x, y, p), which follow its earlier ones."""
-        held = int(self._deferred_state[cam, 0])
-        if self._deferred[cam].size < held + cols.shape[1]:
-            grown = np.empty(max(2 * self._deferred[cam].size, held + cols.shape[1]), np.int64)
-            grown[:held] = self._deferred[cam][:held]
-            self._deferred[cam] = grown
+    def _intervals(self, cols: np.ndarray) -> np.ndarray:
+        """:func:`_neighbour_intervals` of the other camera's events (rows t, x, y, p), after its earlier ones."""
+        held = int(self._deferred_state[0])
+        if self._deferred.size < held + cols.shape[1]:
+            grown = np.empty(max(2 * self._deferred.size, held + cols.shape[1]), np.int64)
+            grown[:held] = self._deferred[:held]
+            self._deferred = grown
         out = np.empty(cols.shape[1])
-        _neighbour_intervals(cols[0], cols[1], cols[2], cols[3], self._last[cam], self._deferred[cam],
-                             self._deferred_state[cam], int(self.params.level_window_us), out)
+        _neighbour_intervals(cols[0], cols[1], cols[2], cols[3], self._last, self._deferred, self._deferred_state,
+                             int(self.params.level_window_us), out)
         return out
 
     def _flush(self) -> np.ndarray:
