@@ -58,9 +58,10 @@ def _resolve(pt, px, py, pp, pv, n, ct, cx, cy, cp, cv, height, window, max_wind
     maximum ``|D1 - D2|``) and candidates (ct, ... cv: the other camera's events that passed the threshold and
     sign tests, D2 just after their update) are both time-ordered. Candidates are bucketed by row (a stable
     counting sort keeps each row time-ordered), so each pending event scans only rows y - row_tol .. y + row_tol,
-    from a per-row pointer that only moves forward: it skips candidates older than ``t - max_window``, which
-    no later pending event can reach whatever its own window. The winner, the smallest distance, does not
-    depend on the scan order. ``side`` is +1 (x2 >= x), -1 (x2 <= x) or 0 (either side).
+    from its own ``t - window`` on: a per-row pointer that only moves forward skips candidates older than
+    ``t - max_window``, which no later pending event can reach whatever its own window, and a second one
+    follows ``t - window`` (a paced window may be 300 us where ``max_window`` is 20 ms). The winner, the
+    smallest distance, does not depend on the scan order. ``side`` is +1 (x2 >= x), -1 (x2 <= x) or 0 (either side).
     """
     nc = ct.shape[0]
     start = np.zeros(height + 1, dtype=np.int64)
@@ -73,47 +74,69 @@ def _resolve(pt, px, py, pp, pv, n, ct, cx, cy, cp, cv, height, window, max_wind
     for j in range(nc):
         order[fill[cy[j]]] = j
         fill[cy[j]] += 1
+    # The candidates in row order, as the scans read them.
+    row_t, row_x, row_p, row_v = ct[order], cx[order], cp[order], cv[order]
     lo = start[:height].copy()
+    first = lo.copy()  # per row: the first candidate at or after t - w of the last pending event that scanned it
     for i in range(n):
         t = pt[i]
         w = window[i]
         best = -1
         for r in range(max(0, py[i] - row_tol), min(height - 1, py[i] + row_tol) + 1):
-            while lo[r] < start[r + 1] and ct[order[lo[r]]] < t - max_window:
+            while lo[r] < start[r + 1] and row_t[lo[r]] < t - max_window:
                 lo[r] += 1
-            k = lo[r]
-            while k < start[r + 1] and ct[order[k]] <= t + w:
-                j = order[k]
+            # t - w only grows while the window stays (one level window): the first candidate moves forward,
+            # and back only where a longer window begins.
+            k = max(first[r], lo[r])
+            while k > lo[r] and row_t[k - 1] >= t - w:
+                k -= 1
+            while k < start[r + 1] and row_t[k] < t - w:
                 k += 1
-                if ct[j] >= t - w and cp[j] == pp[i] and abs(pv[i] - cv[j]) <= value_tol[i]:
-                    dx = cx[j] - px[i]
+            first[r] = k
+            while k < start[r + 1] and row_t[k] <= t + w:
+                if row_p[k] == pp[i] and abs(pv[i] - row_v[k]) <= value_tol[i]:
+                    dx = row_x[k] - px[i]
                     if not ((side > 0 and dx < 0) or (side < 0 and dx > 0)):
                         d = abs(dx)
                         if d <= max_d and (best < 0 or d < best):
                             best = d
+                k += 1
         out[i] = best
 
 
+#: "No event yet" in the tables of event times: below any time stamp (time stamps may be negative).
+NO_TIME = np.iinfo(np.int64).min
+
+
 @njit(cache=True)
-def _neighbour_intervals(t, x, y, p, last, before, cap, out):
+def _neighbour_intervals(t, x, y, p, last, deferred, state, cap, out):
     """Time from each event back to the last earlier event of its polarity in its 3x3 neighbourhood.
 
-    ``last[p, y + 1, x + 1]`` is the latest time of a ``p`` event at (x, y) and ``before`` the latest time
-    before that one (both padded by one pixel, -1 for none): an event sent twice at the same time finds
-    the same earlier event both times, so duplicates do not fake a fast pace. ``out[i]`` is NaN when there
-    is no earlier event within ``cap`` us.
+    ``last[p, y + 1, x + 1]`` is the latest time of a ``p`` event at (x, y) before the current time ``td``
+    (padded by one pixel, :data:`NO_TIME` for none): the events of one time stamp read the table before any of
+    them writes it, so that an event sent twice at the same time finds the same earlier event both times and duplicates
+    do not fake a fast pace. Their writes wait in ``deferred`` (flat indices into ``last``, the first
+    ``state[0]`` in use, of time ``state[1]``) until a later time comes, in this call or the next: one
+    table of times per polarity instead of two (the latest and the one before), half the memory that a 640x480
+    sensor's neighbourhoods draw through the cache. ``deferred`` holds at least ``state[0] + t.size``
+    entries. ``out[i]`` is NaN when there is no earlier event within ``cap`` us.
     """
+    flat = last.reshape(-1)
+    nd, td = state[0], state[1]
     for i in range(t.shape[0]):
         pol, yy, xx, ti = p[i], y[i] + 1, x[i] + 1, t[i]
-        newest = -1
+        if ti != td:
+            for k in range(nd):
+                flat[deferred[k]] = td
+            nd, td = 0, ti
+        newest = NO_TIME
         for r in range(yy - 1, yy + 2):
             for c in range(xx - 1, xx + 2):
-                prior = last[pol, r, c] if last[pol, r, c] < ti else before[pol, r, c]
-                newest = max(newest, prior)
-        out[i] = ti - newest if newest >= 0 and ti - newest <= cap else np.nan
-        if last[pol, yy, xx] != ti:
-            before[pol, yy, xx] = last[pol, yy, xx]
-            last[pol, yy, xx] = ti
+                newest = max(newest, last[pol, r, c])
+        out[i] = ti - newest if newest != NO_TIME and ti - newest <= cap else np.nan
+        deferred[nd] = (pol * last.shape[1] + yy) * last.shape[2] + xx
+        nd += 1
+    state[0], state[1] = nd, td
 
 
 @njit(cache=True)
@@ -175,13 +198,16 @@ class EventTimeMatcher(StreamMatcher):
         self._cands, self._cand_value = np.empty((4, 0), np.int64), np.empty(0)
         self._level = SignalLevel(self.params, absolute=self.params.threshold, unit=dynamic_unit(self.params),
                                   value_name="dynamic-frame value")
-        # The pace of each camera's events (time_window_scale): per polarity, the last two distinct event times
-        # of every pixel, padded by one pixel; -1 for none.
+        # The pace of the other camera's events (time_window_scale), whose events are the candidates: the
+        # reference camera's pace is never used, and its intervals cost as much as the other's.
         self._pace = SignalLevel(self.params.pace_params(), absolute=self.params.time_window_us, unit=1.0,
                                  value_name="interval")
         width, height = self.resolution
-        self._last = np.full((2, 2, height + 2, width + 2), -1, np.int64)
-        self._before = self._last.copy()
+        # Per polarity, the latest time of the other camera's events at every pixel (padded by one pixel, NO_TIME
+        # for none); the writes of its latest time stamp that _neighbour_intervals still holds back, and (their
+        # number, their time).
+        self._last = np.full((2, height + 2, width + 2), NO_TIME, np.int64) if self.params.paced else None
+        self._deferred, self._deferred_state = np.empty(0, np.int64), np.array([0, NO_TIME], np.int64)
 
     def anchor_cameras(self) -> tuple[int, ...]:
         return (self.params.reference_camera,)
@@ -226,11 +252,8 @@ class EventTimeMatcher(StreamMatcher):
     def _take(self, cam: int, events: np.ndarray, k: int, threshold: float, tolerance: float, window: int) -> None:
         """Run one camera's events of level window ``k`` through its frame; keep the ones that pass."""
         cols = event_matrix(events)
-        if self.params.paced:
-            intervals = np.empty(cols.shape[1])
-            _neighbour_intervals(cols[0], cols[1], cols[2], cols[3], self._last[cam], self._before[cam],
-                                 int(self.params.level_window_us), intervals)
-            self._pace.add(k, cam, intervals)
+        if self.params.paced and cam != self.params.reference_camera:
+            self._pace.add(k, cam, self._intervals(cols))
         if cam == self.params.reference_camera:
             v1 = self._bank.process_columns(cam, cols, read=self.params.reference_read)
             keep = _passing(v1, cols[3], float(threshold), False)
@@ -245,6 +268,18 @@ class EventTimeMatcher(StreamMatcher):
             self._cands = np.concatenate([self._cands, cols[:, keep]], axis=1)
             self._cand_value = np.concatenate([self._cand_value, v2[keep]])
             self._level.add(k, cam, v2)
+
+    def _intervals(self, cols: np.ndarray) -> np.ndarray:
+        """:func:`_neighbour_intervals` of the other camera's events (rows t, x, y, p), after its earlier ones."""
+        held = int(self._deferred_state[0])
+        if self._deferred.size < held + cols.shape[1]:
+            grown = np.empty(max(2 * self._deferred.size, held + cols.shape[1]), np.int64)
+            grown[:held] = self._deferred[:held]
+            self._deferred = grown
+        out = np.empty(cols.shape[1])
+        _neighbour_intervals(cols[0], cols[1], cols[2], cols[3], self._last, self._deferred, self._deferred_state,
+                             int(self.params.level_window_us), out)
+        return out
 
     def _flush(self) -> np.ndarray:
         return self._resolve(self._pending.shape[1])

@@ -86,19 +86,23 @@ def test_describe_and_anchor_camera():
 
 def test_neighbour_intervals_by_hand():
     """Time back to the last earlier same-polarity event in the 3x3 neighbourhood, fast kernel and reference."""
-    from calibration_free.event_time import _neighbour_intervals
+    from calibration_free.event_time import NO_TIME, _neighbour_intervals
     from calibration_free.reference.event_time import _neighbour_intervals as reference_intervals
 
-    events = make_events([0, 100, 100, 250, 400, 700, 50_000], [5, 6, 6, 20, 5, 7, 6], [5, 5, 5, 5, 5, 6, 6],
-                         [1, 1, 1, 1, 0, 1, 1])
+    # Times 1 ms earlier than the comment says: time stamps may be negative, and "no event yet" is not -1.
+    events = make_events(np.array([0, 100, 100, 250, 400, 700, 50_000]) - 1000, [5, 6, 6, 20, 5, 7, 6],
+                         [5, 5, 5, 5, 5, 6, 6], [1, 1, 1, 1, 0, 1, 1])
     # 100: (5, 5) at 0; 100 again: the duplicate finds the same earlier event, not itself; 250: nobody near;
     # 400: no earlier OFF event; 700: (6, 5) at 100; 50 000: 49 300 us after (7, 6), beyond the 40 ms cap.
     expected = [np.nan, 100, 100, np.nan, np.nan, 600, np.nan]
-    last = np.full((2, 10, 24), -1, np.int64)
-    fast = np.empty(events.size)
     cols = [events[name].astype(np.int64) for name in ("t", "x", "y", "p")]
-    _neighbour_intervals(*cols, last, last.copy(), 40_000, fast)
-    np.testing.assert_array_equal(fast, expected)
+    for cut in range(events.size + 1):  # the writes held back at a call's end (time 100) reach the next call
+        last, deferred = np.full((2, 10, 24), NO_TIME, np.int64), np.empty(events.size, np.int64)
+        state = np.array([0, NO_TIME])
+        fast = np.empty(events.size)
+        _neighbour_intervals(*(c[:cut] for c in cols), last, deferred, state, 40_000, fast[:cut])
+        _neighbour_intervals(*(c[cut:] for c in cols), last, deferred, state, 40_000, fast[cut:])
+        np.testing.assert_array_equal(fast, expected)
     np.testing.assert_array_equal(reference_intervals(events, 40_000), expected)
 
 
@@ -137,3 +141,44 @@ def test_the_time_window_follows_the_pace(scale, found):
         assert matches["t"].min() >= 40_000
     else:
         assert matches.size == 0
+
+
+
+
+def test_windows_that_shrink_and_grow_keep_fast_equal_to_reference():
+    """A pace that changes (periods 2 ms, 0.5 ms, 3 ms, 0.5 ms; 100 ms each) gives long time windows, then the
+    300 us floor, then long ones again. Where a window grows, a pending event (B, 50 us into a 5 ms level
+    window) reaches back to its partner 0.8 or 1.2 ms before it, further back than the shorter window of the
+    pending event just before it in its row (A, 100 us earlier, no partner): each row's scan start must move
+    back. fast == reference at any packet cut (and with the partners at negative times at the start, which the
+    fast path's intervals once took for "no event yet")."""
+    from calibration_free.reference.dynamic_frames import DynamicFrames
+    from calibration_free.reference.event_time import _in_force_by_window, event_time_reference
+
+    left, right = [], []
+    for i, (period, lag) in enumerate(((2000, 800), (500, 100), (3000, 1200), (500, 100))):
+        # B: 50 us after a multiple of 1 ms, so 50 us after every 5 ms level window's start (2 and 3 ms periods
+        # step through all multiples of 1 ms modulo 5 ms); its partner lag us earlier (the first ones at
+        # negative times).
+        b = 102_000 * i + np.arange(50, 100_000, period)
+        left.append(make_events(b - lag, np.full(b.size, 30), np.full(b.size, 20), np.ones(b.size, int)))
+        right.append(make_events(b - 100, np.full(b.size, 40), np.full(b.size, 20), np.ones(b.size, int)))  # A
+        right.append(make_events(b, np.full(b.size, 25), np.full(b.size, 20), np.ones(b.size, int)))  # B
+    left, right = (np.sort(np.concatenate(ev), order="t", kind="stable") for ev in (left, right))
+    prm = EventTimeParams(threshold_mode="relative", level_window_us=5_000, level_warmup=20, level_windows=3,
+                          threshold_scale=0.65, value_tolerance_scale=0.4, time_window_scale=0.5)
+    expected = event_time_reference(left, right, prm, resolution=(64, 48))
+    # The windows in force (reference camera first, D read after the update as adaptive reads them).
+    d = [DynamicFrames(prm.frame_params(), resolution=(64, 48)).process(ev, after=True) for ev in (right, left)]
+    steps = np.diff(list(_in_force_by_window(prm, (right, left), d)[2].values()))
+    assert (steps > 0).any() and (steps < 0).any() and expected.size > 100
+    for step in (410_000, 2_999, 7_001, 40_000):
+        got = feed_cut(EventTimeMatcher(prm, resolution=(64, 48)), left, right, range(0, 410_000, step))
+        np.testing.assert_array_equal(got, expected)
+
+
+def _shifted(events: np.ndarray, dt: int) -> np.ndarray:
+    """``events`` ``dt`` us later."""
+    out = events.copy()
+    out["t"] += dt
+    return out

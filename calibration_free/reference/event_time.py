@@ -39,7 +39,9 @@ def _in_force_by_window(prm: EventTimeParams, events, values) -> tuple[dict, dic
     ref = prm.reference_camera
     level = SignalLevel(prm, absolute=prm.threshold, unit=dynamic_unit(prm))
     pace = SignalLevel(prm.pace_params(), absolute=prm.time_window_us, unit=1.0)
-    intervals = [_neighbour_intervals(ev, w) if prm.paced else [np.nan] * ev.size for ev in events]
+    # Only the other camera's pace is used: the reference camera's events give no intervals.
+    intervals = ([np.nan] * events[0].size,
+                 _neighbour_intervals(events[1], w) if prm.paced else [np.nan] * events[1].size)
     windows = sorted({int(t) // w for ev in events for t in ev["t"]})
     threshold, tolerance, window = {}, {}, {}
     for k in windows:
