@@ -75,7 +75,8 @@ def _event_area_kernel(stream, stored, scale, clock, kernel, decay, period, thre
     band_col = np.empty((n_planes, n_d + 2 * half))
     band_abs = np.empty(n_d + 2 * half)
     bound = np.empty(n_d)
-    sads = np.empty(n_d)  # exact SADs of the candidates computed in full (inf: known to be no rival)
+    done_d = np.empty(n_d, np.int64)  # the candidates whose exact SAD was computed in full, and their SADs
+    done_sad = np.empty(n_d)
     rival = 1.0 + uniqueness  # a candidate within this factor of the best SAD, > 1 px away, makes it ambiguous
     n = 0
     for k in range(stream.shape[1]):
@@ -162,12 +163,12 @@ def _event_area_kernel(stream, stored, scale, clock, kernel, decay, period, thre
             best_sad = max_cost[cam]
             if own_ratio > 0:  # the SAD of an empty candidate patch is own_abs: a match must explain more
                 best_sad = min(best_sad, own_ratio * own_abs)
-            for d in range(last + 1):
-                sads[d] = np.inf
+            limit = best_sad * rival
+            cut = limit + 1e-9 * (total_abs + limit) + 1e-300  # a bound above this rules the candidate out
+            n_done = 0
             for e in range(-1, last + 1):
                 d = first if e < 0 else e
-                limit = best_sad * rival
-                if e == first or bound[d] > limit + 1e-9 * (total_abs + limit) + 1e-300:
+                if e == first or bound[d] > cut:
                     continue
                 x2 = x + d if cam == 1 else x - d
                 sad = 0.0
@@ -181,14 +182,18 @@ def _event_area_kernel(stream, stored, scale, clock, kernel, decay, period, thre
                         sad += abs(own[q, jj, ii] - stored[other, s, y - half + jj, x2 - half + ii] * c2)
                     if sad > limit:
                         break
-                if sad <= limit:
-                    sads[d] = sad
+                if sad <= limit:  # a possible rival: kept for the uniqueness check
+                    done_d[n_done] = d
+                    done_sad[n_done] = sad
+                    n_done += 1
                 if sad < best_sad or (sad == best_sad and d < best):  # ties keep the smaller disparity
                     best_sad = sad
                     best = d
+                    limit = best_sad * rival
+                    cut = limit + 1e-9 * (total_abs + limit) + 1e-300
             if uniqueness > 0 and best >= 0:
-                for d in range(last + 1):
-                    if abs(d - best) > 1 and sads[d] <= best_sad * rival:
+                for m in range(n_done):
+                    if abs(done_d[m] - best) > 1 and done_sad[m] <= best_sad * rival:
                         best = -1
                         break
             n = emit_match(out_cam, out_index, out_disparity, n, cam, i, best)
