@@ -170,14 +170,15 @@ def _event_area_kernel(stream, stored, scale, clock, kernel, decay, period, thre
                 d = e if cam == 1 else last - e
                 x2 = base + half + e  # the candidate's centre, x + d or x - d
                 sad = 0.0
-                # Rows of all planes in one loop (plane by plane, as the reference sums), so that a partial sum
-                # above the best ends the candidate: partial sums never decrease, it can neither win nor tie.
-                for r in range(n_planes * size):
-                    q = r // size
-                    jj = r - q * size
+                # Plane by plane, row by row, as the reference sums; a partial sum above the best ends the
+                # candidate: partial sums never decrease, it can neither win nor tie.
+                for q in range(n_planes):
                     s = first_slot + q
-                    for ii in range(size):
-                        sad += abs(own[q, jj, ii] - stored[other, s, y - half + jj, x2 - half + ii] * c2)
+                    for jj in range(size):
+                        for ii in range(size):
+                            sad += abs(own[q, jj, ii] - stored[other, s, y - half + jj, x2 - half + ii] * c2)
+                        if sad > limit:
+                            break
                     if sad > limit:
                         break
                 if sad <= limit:  # a possible rival: kept for the uniqueness check
