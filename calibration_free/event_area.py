@@ -75,7 +75,8 @@ def _event_area_kernel(stream, stored, scale, clock, kernel, decay, period, thre
     band_col = np.empty((n_planes, n_d + 2 * half))
     band_abs = np.empty(n_d + 2 * half)
     bound = np.empty(n_d)
-    sads = np.empty(n_d)  # exact SADs of the candidates computed in full (inf: known to be no rival)
+    done_d = np.empty(n_d, np.int64)  # the candidates whose exact SAD was computed in full, and their SADs
+    done_sad = np.empty(n_d)
     rival = 1.0 + uniqueness  # a candidate within this factor of the best SAD, > 1 px away, makes it ambiguous
     n = 0
     for k in range(stream.shape[1]):
@@ -95,13 +96,16 @@ def _event_area_kernel(stream, stored, scale, clock, kernel, decay, period, thre
             # The frames compared: the event's own (plane 0 is frame ``slot``), or all of them in slot order.
             first_slot = 0 if all_frames else slot
             # The candidates d = 0 .. last are those whose patch stays on the sensor (the search ends at the
-            # first one that leaves it). Only the columns they cover are read, laid out so that column
-            # k + d holds what candidate d compares at offset k: towards larger x for right-camera events,
-            # mirrored for left-camera ones.
+            # first one that leaves it): towards larger x for right-camera events, smaller x for left-camera
+            # ones. Only the columns they cover are read, from ``base`` on, in memory order (contiguous reads
+            # that vectorise, where the mirrored order of left-camera events did not): candidate e's patch starts
+            # at column e of the band, e = d for right-camera events, e = last - d for left-camera ones.
             if cam == 1:
                 last = min(max_d, width - 1 - half - x)
+                base = x - half
             else:
                 last = min(max_d, x - half)
+                base = x - last - half
             n_cols = last + size
             # Values are products stored * scale, computed once per pixel: the same numbers as the reference.
             own_abs = 0.0
@@ -124,71 +128,71 @@ def _event_area_kernel(stream, stored, scale, clock, kernel, decay, period, thre
                 for k in range(n_cols):
                     band_col[q, k] = 0.0
                 for jj in range(size):
-                    if cam == 1:
-                        for k in range(n_cols):
-                            v = stored[other, s, y - half + jj, x - half + k] * c2
-                            band_col[q, k] += v
-                            band_abs[k] += abs(v)
-                    else:
-                        for k in range(n_cols):
-                            v = stored[other, s, y - half + jj, x + half - k] * c2
-                            band_col[q, k] += v
-                            band_abs[k] += abs(v)
+                    for k in range(n_cols):
+                        v = stored[other, s, y - half + jj, base + k] * c2
+                        band_col[q, k] += v
+                        band_abs[k] += abs(v)
             total_abs = own_abs
             for k in range(n_cols):
                 total_abs += band_abs[k]
             # A lower bound of every candidate's SAD: the SAD of the patches' column sums (triangle
-            # inequality), 5 terms per frame instead of 25, for all candidates at once (the loop over d
+            # inequality), 5 terms per frame instead of 25, for all candidates at once (the loop over e
             # vectorises).
-            for d in range(last + 1):
-                bound[d] = 0.0
+            for e in range(last + 1):
+                bound[e] = 0.0
             for q in range(n_planes):
                 for ii in range(size):
                     o = own_col[q, ii]
-                    k0 = ii if cam == 1 else 2 * half - ii
-                    for d in range(last + 1):
-                        bound[d] += abs(o - band_col[q, k0 + d])
+                    for e in range(last + 1):
+                        bound[e] += abs(o - band_col[q, ii + e])
             # The exact SAD first where the bound is least (likely the winner, so that the bound then rules
             # out most others), then of every candidate whose bound does not exceed the best SAD so far (at
             # first the SAD a match must stay below, so that often no exact SAD is needed at all) by more than
             # the rounding of both sums could explain (a relative 1e-9 of the magnitudes summed, ~10^6 times
             # the worst case): a candidate skipped has a SAD above the best one, so the winner (least SAD, ties
-            # to the smaller disparity, below max_cost) is the one the full search finds.
+            # to the smaller disparity, below max_cost) and the uniqueness check are the full search's, whatever
+            # the order in which the candidates are visited.
             first = 0
-            for d in range(1, last + 1):
-                if bound[d] < bound[first]:
-                    first = d
+            for e in range(1, last + 1):
+                if bound[e] < bound[first]:
+                    first = e
             best = -1
             best_sad = max_cost[cam]
             if own_ratio > 0:  # the SAD of an empty candidate patch is own_abs: a match must explain more
                 best_sad = min(best_sad, own_ratio * own_abs)
-            for d in range(last + 1):
-                sads[d] = np.inf
-            for e in range(-1, last + 1):
-                d = first if e < 0 else e
-                limit = best_sad * rival
-                if e == first or bound[d] > limit + 1e-9 * (total_abs + limit) + 1e-300:
+            limit = best_sad * rival
+            cut = limit + 1e-9 * (total_abs + limit) + 1e-300  # a bound above this rules the candidate out
+            n_done = 0
+            for f in range(-1, last + 1):
+                e = first if f < 0 else f
+                if f == first or bound[e] > cut:
                     continue
-                x2 = x + d if cam == 1 else x - d
+                d = e if cam == 1 else last - e
+                x2 = base + half + e  # the candidate's centre, x + d or x - d
                 sad = 0.0
-                # Rows of all planes in one loop (plane by plane, as the reference sums), so that a partial sum
-                # above the best ends the candidate: partial sums never decrease, it can neither win nor tie.
-                for r in range(n_planes * size):
-                    q = r // size
-                    jj = r - q * size
+                # Plane by plane, row by row, as the reference sums; a partial sum above the best ends the
+                # candidate: partial sums never decrease, it can neither win nor tie.
+                for q in range(n_planes):
                     s = first_slot + q
-                    for ii in range(size):
-                        sad += abs(own[q, jj, ii] - stored[other, s, y - half + jj, x2 - half + ii] * c2)
+                    for jj in range(size):
+                        for ii in range(size):
+                            sad += abs(own[q, jj, ii] - stored[other, s, y - half + jj, x2 - half + ii] * c2)
+                        if sad > limit:
+                            break
                     if sad > limit:
                         break
-                if sad <= limit:
-                    sads[d] = sad
+                if sad <= limit:  # a possible rival: kept for the uniqueness check
+                    done_d[n_done] = d
+                    done_sad[n_done] = sad
+                    n_done += 1
                 if sad < best_sad or (sad == best_sad and d < best):  # ties keep the smaller disparity
                     best_sad = sad
                     best = d
+                    limit = best_sad * rival
+                    cut = limit + 1e-9 * (total_abs + limit) + 1e-300
             if uniqueness > 0 and best >= 0:
-                for d in range(last + 1):
-                    if abs(d - best) > 1 and sads[d] <= best_sad * rival:
+                for m in range(n_done):
+                    if abs(done_d[m] - best) > 1 and done_sad[m] <= best_sad * rival:
                         best = -1
                         break
             n = emit_match(out_cam, out_index, out_disparity, n, cam, i, best)
