@@ -126,12 +126,17 @@ def dynamic_unit(params) -> float:
 # ----------------------------------------------------------------------------------------------------------
 # The same operations as the reference DynamicFrames, on state arrays of several cameras, in numba.
 # State of camera ``cam``: stored[cam] (n_frames, H, W), scale[cam], clock[cam] = (next_tick, touched).
-# advance() and splat() are inlined into their callers: a numba call with array arguments costs atomic
-# reference counting on every array, which made a 9-pixel splat ten times slower.
+# The per-event helpers are inlined into their callers: a numba call with array arguments costs atomic
+# reference counting on every array, which made a 9-pixel splat ten times slower. Inlining does not always
+# remove it either: numba binds the arrays to new variables and relies on an LLVM pass to drop the
+# increments and decrements around them, which gives up when the inlined code holds nested loops or two
+# loops in a row (about 20 atomic operations an event in event-vector, ~100 ns at 640x480). Hence the shape
+# of the helpers below: the rare work of a decay tick in a function of its own behind a cheap test, and
+# :func:`splat_bounded` as one loop.
 
 
-@njit(cache=True, inline="always")
-def advance(stored, scale, clock, cam, t, decay, period):
+@njit(cache=True)
+def advance_due(stored, scale, clock, cam, t, decay, period):
     """Apply the due decay ticks of camera ``cam`` up to time ``t`` (reference: ``DynamicFrames.advance``)."""
     if clock[cam, 1] != 0 and t // period + 1 - clock[cam, 0] > FORGET_TICKS:
         stored[cam] = 0.0
@@ -153,6 +158,17 @@ def advance(stored, scale, clock, cam, t, decay, period):
             scale[cam] = 1.0
         k += 1
     clock[cam, 0] = k
+
+
+@njit(cache=True, inline="always")
+def advance(stored, scale, clock, cam, t, decay, period):
+    """:func:`advance_due` when it has anything to do: a tick at or before ``t``, or frames never touched.
+
+    Otherwise (most events: a tick every 250 us) the next tick lies after ``t``, so neither a tick nor the
+    forgetting of a long gap applies. The work stays in a function of its own, not inlined (see above).
+    """
+    if clock[cam, 1] == 0 or clock[cam, 0] * period <= t:
+        advance_due(stored, scale, clock, cam, t, decay, period)
 
 
 @njit(cache=True, inline="always")
@@ -212,27 +228,41 @@ def rebuild_bounds(bound, stored, cam):
                 bound[cam, f, yy, b] = m
 
 
-@njit(cache=True, inline="always")
-def advance_bounded(stored, scale, clock, bound, cam, t, decay, period):
-    """:func:`advance`, keeping camera ``cam``'s block bounds valid: a renormalisation or a reset rescales the
+@njit(cache=True)
+def advance_due_bounded(stored, scale, clock, bound, cam, t, decay, period):
+    """:func:`advance_due`, keeping camera ``cam``'s block bounds valid: a renormalisation or a reset rescales the
     stored values (the scale jumps up), after which the bounds are rebuilt."""
     before = scale[cam]
-    advance(stored, scale, clock, cam, t, decay, period)
+    advance_due(stored, scale, clock, cam, t, decay, period)
     if scale[cam] > before:
         rebuild_bounds(bound, stored, cam)
 
 
 @njit(cache=True, inline="always")
+def advance_bounded(stored, scale, clock, bound, cam, t, decay, period):
+    """:func:`advance_due_bounded` when it has anything to do (the test of :func:`advance`)."""
+    if clock[cam, 1] == 0 or clock[cam, 0] * period <= t:
+        advance_due_bounded(stored, scale, clock, bound, cam, t, decay, period)
+
+
+@njit(cache=True, inline="always")
 def splat_bounded(stored, scale, clock, bound, cam, slot, x, y, sign, kernel):
-    """:func:`splat`, then raise the block bounds of the pixels it changed to their new |stored|."""
-    splat(stored, scale, clock, cam, slot, x, y, sign, kernel)
+    """:func:`splat`, raising the block bounds of the pixels it changes to their new |stored|.
+
+    The same float64 operations as :func:`splat`, in one loop over the kernel's window on the sensor rather than
+    :func:`splat` followed by a second loop: in that form numba kept atomic reference counting of the arrays
+    around every call (~30 ns an event).
+    """
     r = kernel.shape[0] // 2
+    c = scale[cam]
     for yy in range(max(0, y - r), min(stored.shape[2], y + r + 1)):
         for xx in range(max(0, x - r), min(stored.shape[3], x + r + 1)):
-            v = abs(stored[cam, slot, yy, xx])
+            v = stored[cam, slot, yy, xx] + sign * kernel[yy - y + r, xx - x + r] / c
+            stored[cam, slot, yy, xx] = v
             b = xx >> BOUND_SHIFT
-            if v > bound[cam, slot, yy, b]:
-                bound[cam, slot, yy, b] = v
+            if abs(v) > bound[cam, slot, yy, b]:
+                bound[cam, slot, yy, b] = abs(v)
+    clock[cam, 1] = 1
 
 
 @njit(cache=True, inline="always")
@@ -263,7 +293,9 @@ def process_events(stored, scale, clock, cam, t, x, y, p, slot_of_p, kernel, dec
         if slot < 0:
             out[i] = np.nan
             continue
-        advance(stored, scale, clock, cam, t[i], decay, period)
+        # advance()'s test written out: the inlined helper kept reference counting around it here (see above).
+        if clock[cam, 1] == 0 or clock[cam, 0] * period <= t[i]:
+            advance_due(stored, scale, clock, cam, t[i], decay, period)
         if not read_after:
             out[i] = stored[cam, slot, y[i], x[i]] * scale[cam]
         splat(stored, scale, clock, cam, slot, x[i], y[i], 1.0 if p[i] > 0 else -1.0, kernel)
