@@ -5,7 +5,8 @@ scaled by k (event density), and the real file Fan_disp8.dat (share within 1 px 
 through the same streaming path (40 ms packets) on the same events; fused's matches are also scored after
 keeping only its most certain ones, as many as each peer's coverage allows (issue 17). Speed: one core,
 2arms-50cm, and a 346x260 recording at about 1 M events/s; the load average is printed beside each figure.
-Writes ``bench/results/fused.md`` (``-o DIR``: ``DIR/fused.md``; ``--no-write``: print only).
+Writes ``bench/results/fused.md`` (``-o DIR``: ``DIR/fused.md``; ``--no-write``: print only); with ``--suite``
+``fused-suite.md`` instead, so that the two comparisons (and the ablation of the default run) stand side by side.
 
 ``--suite``: the peer comparison over the robustness suite v1 (29 recordings of 2.5 s, cached by
 :func:`cvstereo.simulate.suite_recordings`) and the motorcycle clip instead of the presets and density clips,
@@ -47,6 +48,7 @@ from cvstereo.registry import available_methods  # noqa: E402
 from cvstereo.timing import MAX_RUNS, load_average, measure  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / "results" / "fused.md"
+SUITE_OUT_NAME = "fused-suite.md"
 SECONDS = 2.0
 PRESETS = ("1arm-50cm", "1arm-100cm", "2arms-100cm", "2arms-150cm")
 DENSITY_K = (0.5, 1.0, 2.0, 3.0)
@@ -357,7 +359,8 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--suite", action="store_true", help="the robustness suite v1 + motorcycle (issue 17)")
     ap.add_argument("--only", default=None, metavar="NAME,...", help="with --suite: only these recordings")
-    ap.add_argument("-o", "--output", default=str(OUT.parent), help="folder of fused.md (default bench/results)")
+    ap.add_argument("-o", "--output", default=str(OUT.parent),
+                    help="folder of fused.md / fused-suite.md (default bench/results)")
     ap.add_argument("--no-write", action="store_true", help="print only")
     ap.add_argument("--no-speed", action="store_true", help="skip the speed section")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
@@ -393,8 +396,9 @@ def main(argv=None) -> int:
         parts += [speed_section(args.quick), ""]
     if not args.no_write:
         out.mkdir(parents=True, exist_ok=True)
-        (out / OUT.name).write_text("\n".join(parts))
-        print(f"wrote {out / OUT.name}")
+        path = out / (SUITE_OUT_NAME if args.suite else OUT.name)
+        path.write_text("\n".join(parts))
+        print(f"wrote {path}")
     return 0
 
 
