@@ -17,7 +17,9 @@ it off): ``run_ends`` extends each vector by how many pixels of the pixel's own 
 so that the cost also places a candidate within its run; ``cost_slack`` and ``cost_ratio`` bound the least
 cost by a slack plus a multiple of the event vector's length; ``tie_break="centre"`` reports the middle of
 the disparities of equal least cost (possibly half a pixel) instead of the smallest. The ``adaptive`` set
-(:mod:`cvstereo.param_sets`) turns all of them on, with separate OFF and ON frames.
+(:mod:`cvstereo.param_sets`) turns all of them on, with separate OFF and ON frames and a wider splat (5x5,
+sigma 1.5 px): the runs are only as contiguous as the frame is smooth, and a 3x3 splat of a sparse stream
+leaves holes in an edge's run wherever no event fell within a pixel.
 
 Search **[implementation, same result]**: the walks through gaps skip 16-column blocks whose magnitude bound
 says that they hold no above-threshold pixel (:func:`cvstereo.dynamic_frames.skip_below`); the other row is read

@@ -113,9 +113,13 @@ ADAPTIVE: dict[str, AdaptiveDefaults] = {
             "places each candidate within its own run (run_ends: a row with one run per camera then still "
             "has something to compare), reports the middle of equally good disparities (the smallest sat at "
             "the low end of a flat cost) and bounds the cost by 2 px + 0.3 x the vector's length: Fan_disp8 "
-            "56 % -> 98 % within 1 px of 8, density sweep bad2 at thresholds x3 0.35 -> 0.03",
+            "56 % -> 98 % within 1 px of 8, density sweep bad2 at thresholds x3 0.35 -> 0.03; it splats each event "
+            "with a 5x5 Gaussian of sigma 1.5 px (thesis 3x3, sigma 1): with fewer events per edge a 3x3 splat "
+            "leaves holes where no event fell within a pixel, which split the runs the vectors measure, so every "
+            "second event dropped kept 74 % of the coverage (now 89 %, cells agreeing 94 -> 96 %); density sweep "
+            "coverage 0.34/0.42/0.48/0.33 -> 0.41/0.51/0.60/0.41, Fan_disp8 98.1 -> 99.1 % within 1 px of 8",
         params={**_RELATIVE, "threshold_scale": 0.5, "level_floor": 0.5, "polarity": "separate", "run_ends": True,
-                "tie_break": "centre", "cost_ratio": 0.3, "cost_slack": 2.0},
+                "tie_break": "centre", "cost_ratio": 0.3, "cost_slack": 2.0, "kernel_size": 5, "kernel_sigma": 1.5},
     ),
 }
 
