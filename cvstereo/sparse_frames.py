@@ -298,9 +298,15 @@ def _gaussian_on_support(acc, touched, rows, out, row_support, support, k0, k1, 
                     p2 = (rows[pl, y - 2, x] if y >= 2 else zero) + (rows[pl, y + 2, x] if y + 2 < h else zero)
                     v = _tap5(rows[pl, y, x], p1, p2, k0, k1, k2, False, use_fma != 0 and x < split_col)
                     out[pl, y, x] = v
-                    if abs(np.float64(v)) >= thresholds[pl]:
-                        hits |= np.uint64(1) << np.uint64(x & 63)
+                    hits |= _above_bit(v, thresholds[pl], x)
                 above[pl, y, i] = hits
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _above_bit(value, threshold, x):  # pragma: no cover - compiled
+    """Column ``x``'s bit of its 64-bit word where ``|value|`` reaches ``threshold``, else 0: the one test of
+    :attr:`SparseFrames.above`, compared as float64 as the matchers' dense paths compare."""
+    return np.uint64(1) << np.uint64(x & 63) if abs(np.float64(value)) >= threshold else np.uint64(0)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -314,8 +320,7 @@ def _mark_above(values, bits, thresholds, above):  # pragma: no cover - compiled
                 hits = np.uint64(0)
                 while word:
                     x, word = bit_positions(word, i)
-                    if abs(np.float64(values[pl, y, x])) >= thresholds[pl]:
-                        hits |= np.uint64(1) << np.uint64(x & 63)
+                    hits |= _above_bit(values[pl, y, x], thresholds[pl], x)
                 above[pl, y, i] = hits
 
 
