@@ -100,7 +100,7 @@ def _veto(last, x, y, t, best, radius, window, min_agree, buf):
         for c in range(x0, x1):
             recent = last[r, c, 0] >= since
             n += recent
-            near += recent and abs(last[r, c, 1] - best) <= 1
+            near += recent & (abs(last[r, c, 1] - best) <= 1)
     # More than half within 1 px of best puts the lower median there too: no veto, and no sort (the common case).
     if n == 0 or n < min_agree or 2 * near > n:
         return -1
