@@ -163,6 +163,16 @@ class EventTimeParams(SignalLevelParams, DynamicFrameParams):
         fell to 0.3 ms and a shorter window lost a quarter of the coverage). With fewer events per edge (or a
         slower edge) the corresponding events of the two cameras lie further apart in time, and so do the
         events of one edge: a fixed window keeps ever fewer true partners.
+    consensus_radius : int
+        0 (the thesis): off. Otherwise a veto: the last match of each reference pixel within this many px
+        (own pixel included) counts when at most ``consensus_window_us`` old; where at least ``consensus_min``
+        of them, and more than half, lie within 1 px of their lower median m and the smallest distance lies more
+        than 1 px from m, the candidate nearest m is taken if within 1 px of it, else the event is not matched.
+        Without recent neighbour matches a match stands, so sparse or large sensors keep their coverage.
+    consensus_window_us : int
+        How old a neighbour's last match may be to count (``consensus_radius``).
+    consensus_min : int
+        How many recent neighbour matches within 1 px of their median make a consensus (``consensus_radius``).
     """
 
     threshold: float = 0.8
@@ -175,6 +185,9 @@ class EventTimeParams(SignalLevelParams, DynamicFrameParams):
     max_disparity: int = 64
     reference_read: Literal["before", "after"] = "before"
     time_window_scale: float = 0.0
+    consensus_radius: int = 0
+    consensus_window_us: int = 40_000
+    consensus_min: int = 2
 
     def __post_init__(self):
         super().__post_init__()
@@ -183,7 +196,8 @@ class EventTimeParams(SignalLevelParams, DynamicFrameParams):
         if self.reference_camera not in (0, 1):
             raise ValueError(f"reference_camera must be 0 (left) or 1 (right), got {self.reference_camera}.")
         for name in ("threshold", "value_tolerance", "value_tolerance_scale", "time_window_us", "row_tolerance",
-                     "max_disparity", "time_window_scale"):
+                     "max_disparity", "time_window_scale", "consensus_radius", "consensus_window_us",
+                     "consensus_min"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}.")
 

@@ -182,3 +182,38 @@ def _shifted(events: np.ndarray, dt: int) -> np.ndarray:
     out = events.copy()
     out["t"] += dt
     return out
+
+
+def _veto_scene(probe_partners, neighbour_disparities=(5, 5)):
+    """Right-camera events at (49, 40) t=1000 and (51, 40) t=2000 whose only partners lie
+    ``neighbour_disparities`` px to their right, then a probe at (50, 40) t=3000 with left candidates at
+    ``50 + d`` for d in ``probe_partners`` (all at t=3000; every other pair is more than 300 us apart)."""
+    right = make_events([1000, 2000, 3000], [49, 51, 50], [40] * 3, [1] * 3)
+    lx = [49 + neighbour_disparities[0], 51 + neighbour_disparities[1], *(50 + d for d in probe_partners)]
+    lt = [1000, 2000, *([3000] * len(probe_partners))]
+    return make_events(lt, lx, [40] * len(lx), [1] * len(lx)), right
+
+
+@pytest.mark.parametrize(("partners", "neighbours", "overrides", "expected"), [
+    ((2, 5), (5, 5), {}, 5),  # the neighbours agree on 5: the look-alike at 2 gives way to the candidate at 5
+    ((2,), (5, 5), {}, None),  # ... and with no candidate near 5 the probe is not matched
+    ((2, 5), (5, 5), {"consensus_radius": 0}, 2),  # off (the thesis): the smallest distance
+    ((2, 5), (5, 5), {"consensus_window_us": 1500}, 2),  # the match at t=1000 is too old: one neighbour is no consensus
+    ((2, 5), (5, 9), {}, 2),  # neighbours that disagree (5 and 9) veto nothing
+    ((2, 5), (5, 5), {"consensus_window_us": 1500, "consensus_min": 1}, 5),  # ... unless one suffices
+    ((4, 5), (5, 5), {}, 4),  # within 1 px of the consensus: no veto
+])
+def test_the_neighbours_consensus_vetoes_a_look_alike(partners, neighbours, overrides, expected):
+    """By hand: the neighbour matches (d = 5 each unless said otherwise) and the probe's candidates; fast at
+    every packet cut and reference give the expected disparity of the probe (None: not matched)."""
+    from calibration_free.reference.event_time import event_time_reference
+
+    left, right = _veto_scene(partners, neighbours)
+    prm = EventTimeParams(threshold=0.0, value_tolerance=10.0, **{"consensus_radius": 1, **overrides})
+    expected_rows = event_time_reference(left, right, prm, resolution=(64, 48))
+    assert expected_rows["disparity"][:2].tolist() == list(map(float, neighbours))
+    probe = expected_rows[expected_rows["t"] == 3000]["disparity"].tolist()
+    assert probe == ([] if expected is None else [float(expected)])
+    for cut in (0, 1000, 1500, 2000, 2500, 3000):
+        got = feed_cut(EventTimeMatcher(prm, resolution=(64, 48)), left, right, [cut])
+        np.testing.assert_array_equal(got, expected_rows)

@@ -30,6 +30,34 @@ def _neighbour_intervals(events: np.ndarray, cap: int) -> list[float]:
     return out
 
 
+def _consensus(last: dict, x: int, y: int, t: int, prm: EventTimeParams) -> int | None:
+    """The disparity the recent matches around (x, y) agree on (None: no consensus).
+
+    ``last`` maps a pixel (x, y) to the time and disparity of its last match. The pixels within
+    ``consensus_radius`` (own pixel included) whose last match is at most ``consensus_window_us`` old count;
+    their lower median m is the consensus if at least ``consensus_min`` of them, and more than half, lie within
+    1 px of m.
+    """
+    r = prm.consensus_radius
+    around = (last.get((x + dx, y + dy)) for dx in range(-r, r + 1) for dy in range(-r, r + 1))
+    recent = sorted(d for tt, d in filter(None, around) if t - tt <= prm.consensus_window_us)
+    if not recent:
+        return None
+    m = recent[(len(recent) - 1) // 2]
+    agree = sum(abs(d - m) <= 1 for d in recent)
+    return m if agree >= prm.consensus_min and 2 * agree > len(recent) else None
+
+
+def _choose(disparities: list[int], consensus: int | None) -> int | None:
+    """Algorithm 1's smallest distance; where it lies more than 1 px from the neighbourhood's consensus, the
+    candidate nearest the consensus (the smaller on a tie) if within 1 px of it, else None."""
+    best = min(disparities)
+    if consensus is None or abs(best - consensus) <= 1:
+        return best
+    near = min(disparities, key=lambda d: (abs(d - consensus), d))
+    return near if abs(near - consensus) <= 1 else None
+
+
 def _in_force_by_window(prm: EventTimeParams, events, values) -> tuple[dict, dict, dict]:
     """Window -> thresholds (per camera), value tolerance and time window in force, from the windows before.
 
@@ -86,13 +114,14 @@ def event_time_reference(left: np.ndarray, right: np.ndarray, params: EventTimeP
     threshold, tolerance, window = _in_force_by_window(prm, (ev1, ev2), (d1, d2))
     t2_all = ev2["t"]
     rows = []
+    last = {}  # consensus_radius: (x, y) -> (time, disparity) of the pixel's last match
     for i, e1 in enumerate(ev1):
         t, x, y = int(e1["t"]), int(e1["x"]), int(e1["y"])
         s = 1 if e1["p"] else -1
         k = t // prm.level_window_us
         if d1[i] is None or not abs(d1[i]) >= threshold[k][ref]:
             continue
-        minimum = None
+        disparities = []
         lo = int(np.searchsorted(t2_all, t - window[k], side="left"))
         hi = int(np.searchsorted(t2_all, t + window[k], side="right"))
         for j in range(lo, hi):  # events e2 with |t2 - t| <= the window in force
@@ -112,10 +141,14 @@ def event_time_reference(left: np.ndarray, right: np.ndarray, params: EventTimeP
                 continue
             if abs(x2 - x) > prm.max_disparity:
                 continue
-            if minimum is None or abs(x2 - x) <= minimum:
-                minimum = abs(x2 - x)
-        if minimum is not None:
-            rows.append((t, x, y, int(e1["p"]), ref, float(minimum)))
+            disparities.append(abs(x2 - x))
+        if not disparities:
+            continue
+        consensus = _consensus(last, x, y, t, prm) if prm.consensus_radius > 0 else None
+        chosen = _choose(disparities, consensus)
+        if chosen is not None:
+            last[(x, y)] = (t, chosen)
+            rows.append((t, x, y, int(e1["p"]), ref, float(chosen)))
     if not rows:
         return empty_matches()
     return make_matches(*zip(*rows, strict=True))
