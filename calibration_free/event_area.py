@@ -58,7 +58,7 @@ from numba import njit
 
 from calibration_free._event_common import MergedEventMatcher, emit_match
 from calibration_free.params import EventAreaParams
-from cvstereo.dynamic_frames import advance_summed, column_sums, splat_summed, sum_drift
+from cvstereo.dynamic_frames import SUM_REBUILD, advance_due_summed, column_sums, splat_summed, sum_drift
 
 
 @njit(cache=True)
@@ -88,8 +88,12 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
         cam, i, t, x, y, p, slot = stream[0, k], stream[1, k], stream[2, k], stream[3, k], stream[4, k], \
             stream[5, k], stream[6, k]
         other = 1 - cam
-        advance_summed(stored, scale, clock, sums, mass, pending, cam, t, decay, period, half)
-        advance_summed(stored, scale, clock, sums, mass, pending, other, t, decay, period, half)
+        # advance()'s test (or a rebuild of the sums due) written out here: an inlined helper holding it kept
+        # atomic reference counting of the six state arrays around every event (12 calls); the call below is
+        # taken about once per decay tick.
+        for c in (cam, other):
+            if clock[c, 1] == 0 or clock[c, 0] * period <= t or pending[c] >= SUM_REBUILD:
+                advance_due_summed(stored, scale, clock, sums, mass, pending, c, t, decay, period, half)
         c1 = scale[cam]
         c2 = scale[other]
         value = stored[cam, slot, y, x] * c1

@@ -346,18 +346,15 @@ def rebuild_sums(sums, mass, pending, stored, cam, half):
 @njit(cache=True)
 def advance_due_summed(stored, scale, clock, sums, mass, pending, cam, t, decay, period, half):
     """:func:`advance_due`, then a rebuild of camera ``cam``'s column sums if its frames were rescaled (the scale
-    jumps up) or :data:`SUM_REBUILD` splats have passed since the last rebuild."""
+    jumps up) or :data:`SUM_REBUILD` splats have passed since the last rebuild.
+
+    A caller tests first whether there is anything to do (as :func:`advance` does, or a rebuild due), in its own
+    code: an inlined helper holding the test kept reference counting of the six arrays around every event.
+    """
     before = scale[cam]
     advance_due(stored, scale, clock, cam, t, decay, period)
     if scale[cam] > before or pending[cam] >= SUM_REBUILD:
         rebuild_sums(sums, mass, pending, stored, cam, half)
-
-
-@njit(cache=True, inline="always")
-def advance_summed(stored, scale, clock, sums, mass, pending, cam, t, decay, period, half):
-    """:func:`advance_due_summed` when it has anything to do (the test of :func:`advance`, or a rebuild due)."""
-    if clock[cam, 1] == 0 or clock[cam, 0] * period <= t or pending[cam] >= SUM_REBUILD:
-        advance_due_summed(stored, scale, clock, sums, mass, pending, cam, t, decay, period, half)
 
 
 @njit(cache=True, inline="always")

@@ -140,7 +140,7 @@ def test_fast_equals_reference(seed, mode, gaussian, decay, read_after, gap):
 
 def _splat_stream(seed, n, *, height=7, width=20, half=2, decay=0.99, gap=False):
     """Random events through :func:`splat_summed` (separate frames, 3x3 Gaussian); the state after them."""
-    from cvstereo.dynamic_frames import advance_summed, column_sums, splat_summed
+    from cvstereo.dynamic_frames import advance_due_summed, column_sums, splat_summed
 
     rng = np.random.default_rng(seed)
     t = np.sort(rng.integers(0, 200_000, n))
@@ -151,7 +151,7 @@ def _splat_stream(seed, n, *, height=7, width=20, half=2, decay=0.99, gap=False)
     sums, mass, pending = column_sums(stored)
     for k in range(n):
         x, y, p = int(rng.integers(0, width)), int(rng.integers(0, height)), int(rng.integers(0, 2))
-        advance_summed(stored, scale, clock, sums, mass, pending, 0, int(t[k]), decay, 250, half)
+        advance_due_summed(stored, scale, clock, sums, mass, pending, 0, int(t[k]), decay, 250, half)
         splat_summed(stored, scale, clock, sums, mass, pending, half, 0, p, x, y, 1.0 if p else -1.0, kernel)
     return stored, scale, sums, mass, pending
 
@@ -179,14 +179,14 @@ def test_column_sums_follow_the_frames_within_their_drift_bound(half, decay, gap
 
 
 def test_column_sums_rebuild_when_due():
-    from cvstereo.dynamic_frames import SUM_REBUILD, advance_summed
+    from cvstereo.dynamic_frames import SUM_REBUILD, advance_due_summed
 
     stored, scale, sums, mass, pending = _splat_stream(5, 200)
     clock = np.array([[1 << 40, 1]])  # next tick far ahead: only the count can make the rebuild due
     sums += 1.0  # spoiled: only a rebuild restores them
-    advance_summed(stored, scale, clock, sums, mass, pending, 0, 0, 0.99, 250, 2)
+    advance_due_summed(stored, scale, clock, sums, mass, pending, 0, 0, 0.99, 250, 2)
     assert np.abs(sums - _exact_column_sums(stored, 2)).max() >= 0.5  # not due yet
     pending[0] = SUM_REBUILD
-    advance_summed(stored, scale, clock, sums, mass, pending, 0, 0, 0.99, 250, 2)
+    advance_due_summed(stored, scale, clock, sums, mass, pending, 0, 0, 0.99, 250, 2)
     np.testing.assert_allclose(sums, _exact_column_sums(stored, 2), rtol=0, atol=1e-12)
     assert pending[0] == 0 and mass[0] == pytest.approx(np.abs(stored).sum())
