@@ -130,10 +130,12 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
                         own_abs += abs(v)
             # The other frames' band, summed over its rows per column (for the bound below; the exact SADs
             # read their few pixels): one row of the kept column sums rather than ``block`` rows of the frame.
+            # (Unsigned indices: numba wraps negative signed ones around, which made LLVM gather the row.)
+            ubase = np.uint64(base)
             for q in range(n_planes):
                 s = first_slot + q
-                for k in range(n_cols):
-                    band_col[q, k] = sums[other, s, y, base + k] * c2
+                for k in range(np.uint64(n_cols)):
+                    band_col[q, k] = sums[other, s, y, ubase + k] * c2
             # A lower bound of every candidate's SAD: the SAD of the patches' column sums (triangle
             # inequality), 5 terms per frame instead of 25, for all candidates at once (the loop over e
             # vectorises).
@@ -153,8 +155,10 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
             # disparity, below max_cost) and the uniqueness check are the full search's, whatever the order in
             # which the candidates are visited.
             first = 0
+            least = bound[0]
             for e in range(1, last + 1):
-                if bound[e] < bound[first]:
+                if bound[e] < least:
+                    least = bound[e]
                     first = e
             best = -1
             best_sad = max_cost[cam]
@@ -164,10 +168,9 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
             slack = 10.0 * drift * mass[other] * c2 + 1e-9 * own_abs + 1e-300
             cut = limit + 1e-9 * limit + slack  # a bound above this rules the candidate out
             n_done = 0
-            for f in range(-1, last + 1):
-                e = first if f < 0 else f
-                if f == first or bound[e] > cut:
-                    continue
+            e = first
+            k = -1  # the candidates up to k have been visited (or ruled out), besides the first
+            while e >= 0:
                 d = e if cam == 1 else last - e
                 x2 = base + half + e  # the candidate's centre, x + d or x - d
                 sad = 0.0
@@ -191,6 +194,12 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
                     best = d
                     limit = best_sad * rival
                     cut = limit + 1e-9 * limit + slack
+                # The next candidate whose bound lies within the cut (a tight loop of its own: in the loop over
+                # all candidates the compiler kept its counter in memory).
+                k += 1
+                while k <= last and (bound[k] > cut or k == first):
+                    k += 1
+                e = k if k <= last else -1
             if uniqueness > 0 and best >= 0:
                 for m in range(n_done):
                     if abs(done_d[m] - best) > 1 and done_sad[m] <= best_sad * rival:
