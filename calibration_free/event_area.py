@@ -80,6 +80,9 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
     own_col = np.empty((n_planes, size))
     band_col = np.empty((n_planes, n_d + 2 * half))
     bound = np.empty(n_d)
+    # The bounds' bit patterns: non-negative float64 values order as their int64 bits, and an integer minimum
+    # vectorises where a float one does not (without fast-math).
+    bits = bound.view(np.int64)
     done_d = np.empty(n_d, np.int64)  # the candidates whose exact SAD was computed in full, and their SADs
     done_sad = np.empty(n_d)
     rival = 1.0 + uniqueness  # a candidate within this factor of the best SAD, > 1 px away, makes it ambiguous
@@ -154,12 +157,12 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
             # candidate skipped has a SAD above the best one, so the winner (least SAD, ties to the smaller
             # disparity, below max_cost) and the uniqueness check are the full search's, whatever the order in
             # which the candidates are visited.
-            first = 0
-            least = bound[0]
+            least = bits[0]
             for e in range(1, last + 1):
-                if bound[e] < least:
-                    least = bound[e]
-                    first = e
+                least = min(least, bits[e])
+            first = 0
+            while bits[first] != least:
+                first += 1
             best = -1
             best_sad = max_cost[cam]
             if own_ratio > 0:  # the SAD of an empty candidate patch is own_abs: a match must explain more
