@@ -79,10 +79,11 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
     n_d = min(max_d, width) + 1  # at most this many candidates stay on the sensor
     own_col = np.empty((n_planes, size))
     band_col = np.empty((n_planes, n_d + 2 * half))
-    bound = np.empty(n_d)
+    bound = np.empty(n_d + 1)  # and a scratch entry, where the least bound of the rest is turned into a float
     # The bounds' bit patterns: non-negative float64 values order as their int64 bits, and an integer minimum
     # vectorises where a float one does not (without fast-math).
     bits = bound.view(np.int64)
+    inf_bits = np.int64(0x7FF0000000000000)  # +inf
     done_d = np.empty(n_d, np.int64)  # the candidates whose exact SAD was computed in full, and their SADs
     done_sad = np.empty(n_d)
     rival = 1.0 + uniqueness  # a candidate within this factor of the best SAD, > 1 px away, makes it ambiguous
@@ -163,6 +164,15 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
             first = 0
             while bits[first] != least:
                 first += 1
+            # The least bound of the other candidates: when it exceeds the cut after the first exact SAD (most
+            # events), no other candidate needs a look.
+            second = inf_bits
+            for e in range(first):
+                second = min(second, bits[e])
+            for e in range(first + 1, last + 1):
+                second = min(second, bits[e])
+            bits[n_d] = second
+            rest = bound[n_d]
             best = -1
             best_sad = max_cost[cam]
             if own_ratio > 0:  # the SAD of an empty candidate patch is own_abs: a match must explain more
@@ -200,6 +210,8 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
                 # The next candidate whose bound lies within the cut (a tight loop of its own: in the loop over
                 # all candidates the compiler kept its counter in memory).
                 k += 1
+                if k == 0 and rest > cut:
+                    break
                 while k <= last and (bound[k] > cut or k == first):
                     k += 1
                 e = k if k <= last else -1
