@@ -181,7 +181,7 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
             slack = 10.0 * drift * mass[other] * c2 + 1e-9 * own_abs + 1e-300
             cut = limit + 1e-9 * limit + slack  # a bound above this rules the candidate out
             n_done = 0
-            e = first
+            e = first if bound[first] <= cut else -1  # else no candidate can match
             k = -1  # the candidates up to k have been visited (or ruled out), besides the first
             while e >= 0:
                 d = e if cam == 1 else last - e
