@@ -142,14 +142,19 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
                     band_col[q, k] = sums[other, s, y, ubase + k] * c2
             # A lower bound of every candidate's SAD: the SAD of the patches' column sums (triangle
             # inequality), 5 terms per frame instead of 25, for all candidates at once (the loop over e
-            # vectorises).
+            # vectorises). With two frames (a camera has at most two) both terms go in one pass over the
+            # bounds per column, half the passes.
             for e in range(last + 1):
                 bound[e] = 0.0
-            for q in range(n_planes):
-                for ii in range(size):
-                    o = own_col[q, ii]
+            for ii in range(size):
+                o = own_col[0, ii]
+                if n_planes == 1:
                     for e in range(last + 1):
-                        bound[e] += abs(o - band_col[q, ii + e])
+                        bound[e] += abs(o - band_col[0, ii + e])
+                else:
+                    o1 = own_col[1, ii]
+                    for e in range(last + 1):
+                        bound[e] += abs(o - band_col[0, ii + e]) + abs(o1 - band_col[1, ii + e])
             # The exact SAD first where the bound is least (likely the winner, so that the bound then rules
             # out most others), then of every candidate whose bound does not exceed the best SAD so far (at
             # first the SAD a match must stay below, so that often no exact SAD is needed at all) by more than
