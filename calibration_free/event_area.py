@@ -14,8 +14,9 @@ with the threshold raised to 4.
 Search **[implementation, same result]**: the SAD of the patches' column sums bounds every candidate's SAD from
 below (triangle inequality; 5 terms instead of 25, computed for all candidates at once); the exact SAD is
 computed where that bound is least, then only for candidates whose bound does not exceed the best SAD so far
-(times ``1 + uniqueness``; with a margin beyond float rounding), so that the winner, its tie rule and the
-uniqueness check are the full search's. The other camera's column sums are not summed per event but kept with
+(times ``1 + uniqueness``; with a margin beyond float rounding; none at all when the least bound of the others
+already does, as for most events), so that the winner, its tie rule and the uniqueness check are the full
+search's. The other camera's column sums are not summed per event but kept with
 every splat (:func:`cvstereo.dynamic_frames.splat_summed`: one row of sums read instead of ``block`` rows of
 the frame); they drift from the frames' by float rounding, which the margin covers ten times over
 (:func:`cvstereo.dynamic_frames.sum_drift`).
