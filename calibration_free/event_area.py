@@ -14,8 +14,12 @@ with the threshold raised to 4.
 Search **[implementation, same result]**: the SAD of the patches' column sums bounds every candidate's SAD from
 below (triangle inequality; 5 terms instead of 25, computed for all candidates at once); the exact SAD is
 computed where that bound is least, then only for candidates whose bound does not exceed the best SAD so far
-(times ``1 + uniqueness``; with a margin far beyond float rounding), so that the winner, its tie rule and the
-uniqueness check are the full search's.
+(times ``1 + uniqueness``; with a margin beyond float rounding; none at all when the least bound of the others
+already does, as for most events), so that the winner, its tie rule and the uniqueness check are the full
+search's. The other camera's column sums are not summed per event but kept with
+every splat (:func:`cvstereo.dynamic_frames.splat_summed`: one row of sums read instead of ``block`` rows of
+the frame); they drift from the frames' by float rounding, which the margin covers ten times over
+(:func:`cvstereo.dynamic_frames.sum_drift`).
 
 Both cameras' events are processed in one merged order (by time, left first at equal times), see
 :mod:`calibration_free.merge_order` and :mod:`calibration_free._event_common`. The reference implementation is
@@ -55,15 +59,18 @@ from numba import njit
 
 from calibration_free._event_common import MergedEventMatcher, emit_match
 from calibration_free.params import EventAreaParams
-from cvstereo.dynamic_frames import advance, splat
+from cvstereo.dynamic_frames import SUM_REBUILD, advance_due_summed, column_sums, splat_summed, sum_drift
 
 
 @njit(cache=True)
-def _event_area_kernel(stream, stored, scale, clock, kernel, decay, period, thresholds, half, max_d, max_cost,
-                       all_frames, own_ratio, uniqueness, out_cam, out_index, out_disparity, values_l, values_r):
+def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift, kernel, decay, period, thresholds,
+                       half, max_d, max_cost, all_frames, own_ratio, uniqueness, out_cam, out_index, out_disparity,
+                       values_l, values_r):
     """Process the merged stream (:func:`calibration_free.merge_order.merged_stream`); one output row per matched
     event; returns the count. ``all_frames``: the SAD sums over all of a camera's frames (``sad_frames="all"``),
-    else it compares the event's own frame only."""
+    else it compares the event's own frame only. ``sums``, ``mass``, ``pending``: the frames' column sums of
+    ``block`` rows (:func:`cvstereo.dynamic_frames.column_sums`); ``drift``: the bound of their drift per unit of
+    mass of all the entries one lower bound sums (:func:`cvstereo.dynamic_frames.sum_drift`)."""
     n_frames = stored.shape[1]
     height = stored.shape[2]
     width = stored.shape[3]
@@ -73,8 +80,11 @@ def _event_area_kernel(stream, stored, scale, clock, kernel, decay, period, thre
     n_d = min(max_d, width) + 1  # at most this many candidates stay on the sensor
     own_col = np.empty((n_planes, size))
     band_col = np.empty((n_planes, n_d + 2 * half))
-    band_abs = np.empty(n_d + 2 * half)
-    bound = np.empty(n_d)
+    bound = np.empty(n_d + 1)  # and a scratch entry, where the least bound of the rest is turned into a float
+    # The bounds' bit patterns: non-negative float64 values order as their int64 bits, and an integer minimum
+    # vectorises where a float one does not (without fast-math).
+    bits = bound.view(np.int64)
+    inf_bits = np.int64(0x7FF0000000000000)  # +inf
     done_d = np.empty(n_d, np.int64)  # the candidates whose exact SAD was computed in full, and their SADs
     done_sad = np.empty(n_d)
     rival = 1.0 + uniqueness  # a candidate within this factor of the best SAD, > 1 px away, makes it ambiguous
@@ -83,8 +93,12 @@ def _event_area_kernel(stream, stored, scale, clock, kernel, decay, period, thre
         cam, i, t, x, y, p, slot = stream[0, k], stream[1, k], stream[2, k], stream[3, k], stream[4, k], \
             stream[5, k], stream[6, k]
         other = 1 - cam
-        advance(stored, scale, clock, cam, t, decay, period)
-        advance(stored, scale, clock, other, t, decay, period)
+        # advance()'s test (or a rebuild of the sums due) written out here: an inlined helper holding it kept
+        # atomic reference counting of the six state arrays around every event (12 calls); the call below is
+        # taken about once per decay tick.
+        for c in (cam, other):
+            if clock[c, 1] == 0 or clock[c, 0] * period <= t or pending[c] >= SUM_REBUILD:
+                advance_due_summed(stored, scale, clock, sums, mass, pending, c, t, decay, period, half)
         c1 = scale[cam]
         c2 = scale[other]
         value = stored[cam, slot, y, x] * c1
@@ -120,53 +134,62 @@ def _event_area_kernel(stream, stored, scale, clock, kernel, decay, period, thre
                         own_col[q, ii] += v
                         own_abs += abs(v)
             # The other frames' band, summed over its rows per column (for the bound below; the exact SADs
-            # read their few pixels again).
-            for k in range(n_cols):
-                band_abs[k] = 0.0
+            # read their few pixels): one row of the kept column sums rather than ``block`` rows of the frame.
+            # (Unsigned indices: numba wraps negative signed ones around, which made LLVM gather the row.)
+            ubase = np.uint64(base)
             for q in range(n_planes):
                 s = first_slot + q
-                for k in range(n_cols):
-                    band_col[q, k] = 0.0
-                for jj in range(size):
-                    for k in range(n_cols):
-                        v = stored[other, s, y - half + jj, base + k] * c2
-                        band_col[q, k] += v
-                        band_abs[k] += abs(v)
-            total_abs = own_abs
-            for k in range(n_cols):
-                total_abs += band_abs[k]
+                for k in range(np.uint64(n_cols)):
+                    band_col[q, k] = sums[other, s, y, ubase + k] * c2
             # A lower bound of every candidate's SAD: the SAD of the patches' column sums (triangle
             # inequality), 5 terms per frame instead of 25, for all candidates at once (the loop over e
-            # vectorises).
+            # vectorises). With two frames (a camera has at most two) both terms go in one pass over the
+            # bounds per column, half the passes.
             for e in range(last + 1):
                 bound[e] = 0.0
-            for q in range(n_planes):
-                for ii in range(size):
-                    o = own_col[q, ii]
+            for ii in range(size):
+                o = own_col[0, ii]
+                if n_planes == 1:
                     for e in range(last + 1):
-                        bound[e] += abs(o - band_col[q, ii + e])
+                        bound[e] += abs(o - band_col[0, ii + e])
+                else:
+                    o1 = own_col[1, ii]
+                    for e in range(last + 1):
+                        bound[e] += abs(o - band_col[0, ii + e]) + abs(o1 - band_col[1, ii + e])
             # The exact SAD first where the bound is least (likely the winner, so that the bound then rules
             # out most others), then of every candidate whose bound does not exceed the best SAD so far (at
             # first the SAD a match must stay below, so that often no exact SAD is needed at all) by more than
-            # the rounding of both sums could explain (a relative 1e-9 of the magnitudes summed, ~10^6 times
-            # the worst case): a candidate skipped has a SAD above the best one, so the winner (least SAD, ties
-            # to the smaller disparity, below max_cost) and the uniqueness check are the full search's, whatever
-            # the order in which the candidates are visited.
-            first = 0
+            # the column sums' drift (ten times its bound) and the rounding of both sums could explain (a
+            # relative 1e-9 of the own patch's magnitude and of the SAD, ~10^6 times the worst case): a
+            # candidate skipped has a SAD above the best one, so the winner (least SAD, ties to the smaller
+            # disparity, below max_cost) and the uniqueness check are the full search's, whatever the order in
+            # which the candidates are visited.
+            least = bits[0]
             for e in range(1, last + 1):
-                if bound[e] < bound[first]:
-                    first = e
+                least = min(least, bits[e])
+            first = 0
+            while bits[first] != least:
+                first += 1
+            # The least bound of the other candidates: when it exceeds the cut after the first exact SAD (most
+            # events), no other candidate needs a look.
+            second = inf_bits
+            for e in range(first):
+                second = min(second, bits[e])
+            for e in range(first + 1, last + 1):
+                second = min(second, bits[e])
+            bits[n_d] = second
+            rest = bound[n_d]
             best = -1
             best_sad = max_cost[cam]
             if own_ratio > 0:  # the SAD of an empty candidate patch is own_abs: a match must explain more
                 best_sad = min(best_sad, own_ratio * own_abs)
             limit = best_sad * rival
-            cut = limit + 1e-9 * (total_abs + limit) + 1e-300  # a bound above this rules the candidate out
+            slack = 10.0 * drift * mass[other] * c2 + 1e-9 * own_abs + 1e-300
+            cut = limit + 1e-9 * limit + slack  # a bound above this rules the candidate out
             n_done = 0
-            for f in range(-1, last + 1):
-                e = first if f < 0 else f
-                if f == first or bound[e] > cut:
-                    continue
+            e = first if bound[first] <= cut else -1  # else no candidate can match
+            k = -1  # the candidates up to k have been visited (or ruled out), besides the first
+            while e >= 0:
                 d = e if cam == 1 else last - e
                 x2 = base + half + e  # the candidate's centre, x + d or x - d
                 sad = 0.0
@@ -189,14 +212,22 @@ def _event_area_kernel(stream, stored, scale, clock, kernel, decay, period, thre
                     best_sad = sad
                     best = d
                     limit = best_sad * rival
-                    cut = limit + 1e-9 * (total_abs + limit) + 1e-300
+                    cut = limit + 1e-9 * limit + slack
+                # The next candidate whose bound lies within the cut (a tight loop of its own: in the loop over
+                # all candidates the compiler kept its counter in memory).
+                k += 1
+                if k == 0 and rest > cut:
+                    break
+                while k <= last and (bound[k] > cut or k == first):
+                    k += 1
+                e = k if k <= last else -1
             if uniqueness > 0 and best >= 0:
                 for m in range(n_done):
                     if abs(done_d[m] - best) > 1 and done_sad[m] <= best_sad * rival:
                         best = -1
                         break
             n = emit_match(out_cam, out_index, out_disparity, n, cam, i, best)
-        splat(stored, scale, clock, cam, slot, x, y, 1.0 if p > 0 else -1.0, kernel)
+        splat_summed(stored, scale, clock, sums, mass, pending, half, cam, slot, x, y, 1.0 if p > 0 else -1.0, kernel)
     return n
 
 
@@ -221,9 +252,15 @@ class EventAreaMatcher(MergedEventMatcher):
     anchor = "event"
     method = "event-area"
 
+    def __init__(self, params=None, *, resolution=(128, 128)):
+        super().__init__(params, resolution=resolution)
+        # The column sums of ``block`` rows of the frames, kept by the kernel for its lower bound of the SAD.
+        self._sums = column_sums(self._bank.stored)
+
     def _run_kernel(self, stream, thresholds, out_cam, out_index, out_disparity, out_values) -> int:
         prm, bank = self.params, self._bank
-        return int(_event_area_kernel(stream, bank.stored, bank.scale, bank.clock, bank.kernel,
+        drift = sum_drift(1.0, prm.block) * prm.block * prm.compared_frames  # all entries of one lower bound
+        return int(_event_area_kernel(stream, bank.stored, bank.scale, bank.clock, *self._sums, drift, bank.kernel,
                                       *bank.decay_args, thresholds, prm.block // 2,
                                       int(prm.max_disparity), prm.max_costs(thresholds), prm.sad_frames == "all",
                                       float(prm.own_ratio), float(prm.uniqueness), out_cam, out_index,

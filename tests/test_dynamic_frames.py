@@ -136,3 +136,57 @@ def test_fast_equals_reference(seed, mode, gaussian, decay, read_after, gap):
     ref.advance(later)
     np.testing.assert_array_equal(bank.values(0, later), ref.values())
     assert np.array_equal(bank.clock, clock) and np.array_equal(bank.scale, scale)  # values() reads a copy
+
+
+def _splat_stream(seed, n, *, height=7, width=20, half=2, decay=0.99, gap=False):
+    """Random events through :func:`splat_summed` (separate frames, 3x3 Gaussian); the state after them."""
+    from cvstereo.dynamic_frames import advance_due_summed, column_sums, splat_summed
+
+    rng = np.random.default_rng(seed)
+    t = np.sort(rng.integers(0, 200_000, n))
+    if gap:
+        t[n // 2:] += (FORGET_TICKS + 5) * 250
+    kernel = update_kernel(DynamicFrameParams())
+    stored, scale, clock = np.zeros((1, 2, height, width)), np.ones(1), np.zeros((1, 2), dtype=np.int64)
+    sums, mass, pending = column_sums(stored)
+    for k in range(n):
+        x, y, p = int(rng.integers(0, width)), int(rng.integers(0, height)), int(rng.integers(0, 2))
+        advance_due_summed(stored, scale, clock, sums, mass, pending, 0, int(t[k]), decay, 250, half)
+        splat_summed(stored, scale, clock, sums, mass, pending, half, 0, p, x, y, 1.0 if p else -1.0, kernel)
+    return stored, scale, sums, mass, pending
+
+
+def _exact_column_sums(stored, half):
+    padded = np.pad(stored, ((0, 0), (0, 0), (half, half), (0, 0)))
+    return sum(padded[:, :, j:j + stored.shape[2]] for j in range(2 * half + 1))
+
+
+@pytest.mark.parametrize("half", [1, 2])
+@pytest.mark.parametrize("decay, gap", [(0.99, False), (0.5, False), (0.99, True)])
+def test_column_sums_follow_the_frames_within_their_drift_bound(half, decay, gap):
+    # decay 0.5 renormalises (a rebuild); a gap beyond FORGET_TICKS clears the frames (a rebuild of zeros).
+    from cvstereo.dynamic_frames import sum_drift
+
+    stored, scale, sums, mass, pending = _splat_stream(3, 3000, half=half, decay=decay, gap=gap)
+    exact = _exact_column_sums(stored, half)
+    # The frames ON >= 0 and OFF <= 0 (the kernel is positive), so mass bounds every entry.
+    assert np.abs(exact).max() <= mass[0] and np.abs(stored).max() <= mass[0]
+    drift = np.abs(sums - exact).max()
+    assert drift <= sum_drift(mass[0], 2 * half + 1)
+    assert 0 < pending[0] <= 3000
+    if decay == 0.5:  # renormalised: rebuilt since, so fewer splats pending than events
+        assert pending[0] < 3000 and scale[0] > 1e-100
+
+
+def test_column_sums_rebuild_when_due():
+    from cvstereo.dynamic_frames import SUM_REBUILD, advance_due_summed
+
+    stored, scale, sums, mass, pending = _splat_stream(5, 200)
+    clock = np.array([[1 << 40, 1]])  # next tick far ahead: only the count can make the rebuild due
+    sums += 1.0  # spoiled: only a rebuild restores them
+    advance_due_summed(stored, scale, clock, sums, mass, pending, 0, 0, 0.99, 250, 2)
+    assert np.abs(sums - _exact_column_sums(stored, 2)).max() >= 0.5  # not due yet
+    pending[0] = SUM_REBUILD
+    advance_due_summed(stored, scale, clock, sums, mass, pending, 0, 0, 0.99, 250, 2)
+    np.testing.assert_allclose(sums, _exact_column_sums(stored, 2), rtol=0, atol=1e-12)
+    assert pending[0] == 0 and mass[0] == pytest.approx(np.abs(stored).sum())

@@ -146,3 +146,22 @@ def test_adaptive_checks_together_fast_equals_reference():
     got = feed_cut(EventAreaMatcher(params, resolution=resolution), left, right, range(0, 100_000, 2_777))
     assert expected.size > 100
     np.testing.assert_array_equal(got, expected)
+
+
+@pytest.mark.parametrize("sad_frames", ["own", "all"])
+def test_fast_equals_reference_across_renormalisations_and_a_reset(sad_frames):
+    # decay 0.9 renormalises the frames every ~0.55 s and a gap beyond FORGET_TICKS clears them: both rebuild
+    # the column sums that the kernel's lower bound reads; the matches must stay the reference's.
+    from _event_scenes import random_pair
+
+    from cvstereo.dynamic_frames import FORGET_TICKS
+
+    left, right, resolution = random_pair(11, n=6000, duration_us=2_400_000)
+    for ev in (left, right):
+        ev["t"][ev.size // 2:] += (FORGET_TICKS + 5) * 250
+    params = EventAreaParams(decay=0.9, polarity="separate", sad_frames=sad_frames, max_disparity=20,
+                             threshold=0.1, uniqueness=0.2)
+    expected = event_area_reference(left, right, params, resolution=resolution)
+    got = feed_cut(EventAreaMatcher(params, resolution=resolution), left, right, [700_000, 1_500_000])
+    assert expected.size > 100
+    np.testing.assert_array_equal(got, expected)
