@@ -67,18 +67,19 @@ def _own_vector(stored, bound, cam, slot, y, x, c, threshold):
     A function of its own, not inlined: inlined, its walks kept the atomic reference counting of ``stored`` and
     ``bound`` around them on every matched event; a call passes them borrowed."""
     width = stored.shape[3]
-    # Walk out of x's run, then on to the next above-threshold pixel, on each side.
-    k = x
+    # Walk out of x's run, then on to the next above-threshold pixel, on each side. x is above the threshold
+    # (the kernel asks only then), and a walk ends on a pixel below it or at the border: neither is read twice.
+    k = x - 1
     while k >= 0 and _above(stored, cam, slot, y, k, c, threshold):
         k -= 1
     left = x - k - 1
-    k = skip_below(stored, bound, cam, slot, y, k, -1, -1, c, threshold)
+    k = skip_below(stored, bound, cam, slot, y, max(k - 1, -1), -1, -1, c, threshold)
     a = _sign(stored[cam, slot, y, k] * c) * (x - k) if k >= 0 else 0
-    k = x
+    k = x + 1
     while k < width and _above(stored, cam, slot, y, k, c, threshold):
         k += 1
     right = k - x - 1
-    k = skip_below(stored, bound, cam, slot, y, k, 1, width, c, threshold)
+    k = skip_below(stored, bound, cam, slot, y, min(k + 1, width), 1, width, c, threshold)
     b = _sign(stored[cam, slot, y, k] * c) * (k - x) if k < width else 0
     return a, b, left, right
 
@@ -100,7 +101,7 @@ def _search_runs(stored, bound, other, slot, y, x, cam, lo, hi, c, threshold, s1
         end = xx
         while end + 1 < width and _above(stored, other, slot, y, end + 1, c, threshold):
             end += 1
-        nxt = skip_below(stored, bound, other, slot, y, end + 1, 1, width, c, threshold)
+        nxt = skip_below(stored, bound, other, slot, y, min(end + 2, width), 1, width, c, threshold)  # end + 1 is below
         s_nxt = _sign(stored[other, slot, y, nxt] * c) if nxt < width else 0
         for x2 in range(xx, min(end, hi) + 1):
             if _sign(stored[other, slot, y, x2] * c) != s1:
@@ -235,14 +236,15 @@ def _event_vector_kernel(stream, stored, scale, clock, bound, kernel, decay, per
             k = lo - 1
             if k >= 0 and _above(stored, other, slot, y, k, c2, threshold):
                 last, s_last = k, _sign(stored[other, slot, y, k] * c2)
+                k -= 1
                 while k >= 0 and _above(stored, other, slot, y, k, c2, threshold):
                     k -= 1
                 start = k + 1
-                k = skip_below(stored, bound, other, slot, y, k, -1, -1, c2, threshold)
+                k = skip_below(stored, bound, other, slot, y, max(k - 1, -1), -1, -1, c2, threshold)
                 if k >= 0:
                     prev, s_prev = k, _sign(stored[other, slot, y, k] * c2)
-            else:
-                k = skip_below(stored, bound, other, slot, y, k, -1, -1, c2, threshold)
+            else:  # k is below the threshold or -1: the skip starts beyond it
+                k = skip_below(stored, bound, other, slot, y, max(k - 1, -1), -1, -1, c2, threshold)
                 if k >= 0:
                     last, s_last = k, _sign(stored[other, slot, y, k] * c2)
             if require:
