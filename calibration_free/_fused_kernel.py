@@ -106,7 +106,7 @@ def _pixel_cost(fl, right_rev, yy, xx, pr, row_tol, temporal_weight, out):
     any order, so this equals the reference's ``np.minimum`` over rows."""
     h = fl.shape[1]
     nd = out.size
-    l0, l1 = fl[0, yy, xx], fl[1, yy, xx]
+    l0, l1 = np.float32(fl[0, yy, xx]), np.float32(fl[1, yy, xx])
     j0 = right_rev.shape[2] - nd - 1 - xx
     for d in range(nd):
         out[d] = np.inf
@@ -117,7 +117,7 @@ def _pixel_cost(fl, right_rev, yy, xx, pr, row_tol, temporal_weight, out):
             out[d] = min(out[d], abs(l0 - r0[d]) + abs(l1 - r1[d]))
     if temporal_weight > 0.0 and not np.isnan(pr):
         for d in range(nd):
-            out[d] = out[d] + temporal_weight * min(abs(d - pr), 2.0)
+            out[d] = out[d] + np.float32(temporal_weight * min(abs(d - pr), 2.0))
     return _min4(out)
 
 
@@ -193,12 +193,13 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
         for c in range(2):
             for xx in range(w):
                 right_rev[yy, c, w - 1 - xx] = fr[c, yy, xx]
+    p1, p2 = np.float32(p1), np.float32(p2)  # float32 steps throughout (see the module docstring)
     cost = work[0, :n]
     total = work[1, :n] if paths > 0 else cost
     col_fwd = work[2, :n]
-    cost_min = np.empty(n)
-    row_min = np.empty(n)
-    col_min = np.empty(n)
+    cost_min = np.empty(n, np.float32)
+    row_min = np.empty(n, np.float32)
+    col_min = np.empty(n, np.float32)
     # Forward pass (top to bottom, left to right): cost, the row path from the left, the column path from above.
     for yy in range(h):
         for k in range(row_start[yy], row_start[yy + 1]):
@@ -221,7 +222,7 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
     # does; then the row's answers, while its sums are in the cache.
     row_bwd = rowbuf[0:2, 0]
     col_rows = rowbuf[2:4]
-    col_rows_min = np.empty((2, w))
+    col_rows_min = np.empty((2, w), np.float32)
     out_x = np.empty(n_anchor, np.int64)
     out_y = np.empty(n_anchor, np.int64)
     out_p = np.empty(n_anchor, np.int64)
@@ -237,7 +238,7 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
         if paths > 0:
             below = 1 - cur  # the column path of row yy + 1, where it was active
             rb = 0
-            rb_min = 0.0
+            rb_min = np.float32(0.0)
             for k in range(k1 - 1, k0 - 1, -1):
                 xx = ax[k]
                 if xx < w - 1 and index[yy, xx + 1] >= 0:
@@ -293,7 +294,7 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
                 second = _min4(s[:best - 1])
             if best + 2 < nd:
                 second = min(second, _min4(s[best + 2:]))
-            ratio = 1.0 if second == 0.0 else s[best] / second
+            ratio = 1.0 if second == 0.0 else np.float64(s[best]) / second
             consistent = True
             if lr_tol >= 0:
                 # The right pixel's own winner from the same sums; its row is still in the cache.
@@ -315,7 +316,7 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
                 continue
             disp = float(best)
             if subpixel and 0 < best < nd - 1:
-                a, b, c = s[best - 1], s[best], s[best + 1]
+                a, b, c = np.float64(s[best - 1]), np.float64(s[best]), np.float64(s[best + 1])
                 den = (a - 2.0 * b) + c
                 if den > 0.0:
                     delta = (a - c) / (2.0 * den)
