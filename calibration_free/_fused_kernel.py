@@ -121,6 +121,61 @@ def _pixel_cost(fl, right_rev, yy, xx, pr, row_tol, temporal_weight, out):
     return _min4(out)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _row_pass(fl, right_rev, prior, index, ax, yy, k_first, k_stop, step, row_tol, temporal_weight, p1, p2, paths,
+              total, vecs, cols, cols_min, cur):
+    """One row of one semi-global pass: ``step`` 1 is the forward pass (left to right, the column path comes from
+    above), -1 the backward one (right to left, from below).
+
+    Each pixel's cost is computed here, into ``vecs[0]``, in both passes rather than stored between them: the
+    arithmetic costs less than the memory traffic of a stored (pixels x disparities) array. The row path runs
+    in ``vecs[1:3]`` (current, previous), the column path in ``cols[cur]`` with the previous row's in
+    ``cols[1 - cur]``. The forward pass writes ``total[k] = left (+ above)``, the backward pass adds
+    ``(+ right) (+ below)`` in that order, as the reference sums them; with ``paths`` 0, ``total[k]`` is the
+    cost.
+    """
+    h, w = index.shape
+    nd = total.shape[1]
+    cost = vecs[0]
+    r = 1
+    r_min = np.float32(0.0)
+    y_from = yy - step  # the row the column path comes from
+    for k in range(k_first, k_stop, step):
+        xx = ax[k]
+        out = total[k]
+        _pixel_cost(fl, right_rev, yy, xx, prior[yy, xx], row_tol, temporal_weight, cost)
+        if paths == 0:
+            for d in range(nd):
+                out[d] = cost[d]
+            continue
+        x_from = xx - step
+        if 0 <= x_from < w and index[yy, x_from] >= 0:
+            r_min = _path_step(cost, vecs[3 - r], r_min, vecs[r], p1, p2)
+        else:
+            r_min = _copy(cost, vecs[r])
+        rv = vecs[r]
+        r = 3 - r
+        if paths == 2:
+            if step > 0:
+                for d in range(nd):
+                    out[d] = rv[d]
+            else:
+                for d in range(nd):
+                    out[d] = out[d] + rv[d]
+            continue
+        if 0 <= y_from < h and index[y_from, xx] >= 0:
+            cols_min[cur, xx] = _path_step(cost, cols[1 - cur, xx], cols_min[1 - cur, xx], cols[cur, xx], p1, p2)
+        else:
+            cols_min[cur, xx] = _copy(cost, cols[cur, xx])
+        cv = cols[cur, xx]
+        if step > 0:
+            for d in range(nd):
+                out[d] = rv[d] + cv[d]
+        else:
+            for d in range(nd):
+                out[d] = (out[d] + rv[d]) + cv[d]
+
+
 @njit(cache=True, nogil=True)
 def median_of(vals, c):
     """The median of ``vals[:c]`` (``c > 0``; the mean of the two middle values when ``c`` is even), as the
@@ -167,7 +222,7 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
     Parameters
     ----------
     fl, fr : (2, H, W) float64 ndarray
-        Normalised features of the left and right camera.
+        Normalised features of the left and right camera (rounded to float32 where they are compared).
     counts : (2, H, W) int ndarray
         The left camera's event counts of the window per polarity (anchors: pixels with events).
     active : (H, W) bool ndarray
@@ -180,14 +235,14 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
     max_uncertainty, fill_radius, confirm
         :class:`~calibration_free.fused_params.FusedParams` fields (``isolated_below``: its
         ``isolated_max_uncertainty``; ``confirm``: its ``fill_confirms``).
-    work : (3, n, max_d + 1) float64 ndarray
-        Scratch for at least the n active pixels: cost, row path from the left (then the sum of the paths),
-        column path from above (kept by the caller: fresh pages cost more than the arithmetic).
-    rowbuf : (4, W, max_d + 1) float64 ndarray
-        Scratch: the backward row path's current and previous vector (``rowbuf[0:2, 0]``) and the backward
-        column path's current and previous row (``rowbuf[2:4]``).
+    work : (n, max_d + 1) float32 ndarray
+        Scratch for at least the n active pixels: the sum of their paths (kept by the caller: fresh pages cost
+        more than the arithmetic).
+    rowbuf : tuple of ndarrays
+        Scratch ``(cols, vecs)``, (2, W, max_d + 1) and (3, max_d + 1) float32: the column path's current and
+        previous row, the cost and the row path's current and previous vector (see :func:`_row_pass`).
     planes : tuple of ndarrays
-        Scratch kept between windows: ``(right_rev, index, consistent)``, (H, 2, W + max_d + 1) float64 zeros,
+        Scratch kept between windows: ``(right_rev, index, consistent)``, (H, 2, W + max_d + 1) float32 zeros,
         (H, W) int64, (H, W) float64 all NaN (left so on return).
 
     Returns
@@ -231,35 +286,18 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
             for xx in range(w):
                 right_rev[yy, c, w - 1 - xx] = fr[c, yy, xx]
     p1, p2 = np.float32(p1), np.float32(p2)  # float32 steps throughout (see the module docstring)
-    cost = work[0, :n]
-    total = work[1, :n] if paths > 0 else cost
-    col_fwd = work[2, :n]
-    cost_min = np.empty(n, np.float32)
-    row_min = np.empty(n, np.float32)
-    col_min = np.empty(n, np.float32)
-    # Forward pass (top to bottom, left to right): cost, the row path from the left, the column path from above.
+    total = work[:n]
+    cols, vecs = rowbuf
+    cols_min = np.empty((2, w), np.float32)
+    # Forward pass (top to bottom, left to right): total = row path from the left (+ column path from above).
+    cur = 0
     for yy in range(h):
-        for k in range(row_start[yy], row_start[yy + 1]):
-            xx = ax[k]
-            cost_min[k] = _pixel_cost(fl, right_rev, yy, xx, prior[yy, xx], row_tol, temporal_weight, cost[k])
-            if paths == 0:
-                continue
-            if xx > 0 and index[yy, xx - 1] >= 0:
-                row_min[k] = _path_step(cost[k], total[k - 1], row_min[k - 1], total[k], p1, p2)
-            else:
-                row_min[k] = _copy(cost[k], total[k])
-            if paths == 4:
-                q = index[yy - 1, xx] if yy > 0 else -1
-                if q >= 0:
-                    col_min[k] = _path_step(cost[k], col_fwd[q], col_min[q], col_fwd[k], p1, p2)
-                else:
-                    col_min[k] = _copy(cost[k], col_fwd[k])
-    # Backward pass (bottom to top, right to left): the row path from the right in one vector, the column path
-    # from below in two rows; the paths summed in place, ((left + right) + above) + below, as the reference
-    # does; then the row's answers, while its sums are in the cache.
-    row_bwd = rowbuf[0:2, 0]
-    col_rows = rowbuf[2:4]
-    col_rows_min = np.empty((2, w), np.float32)
+        if row_start[yy] < row_start[yy + 1]:
+            _row_pass(fl, right_rev, prior, index, ax, yy, row_start[yy], row_start[yy + 1], 1, row_tol,
+                      temporal_weight, p1, p2, paths, total, vecs, cols, cols_min, cur)
+            cur = 1 - cur
+    # Backward pass (bottom to top, right to left): the row path from the right and the column path from below
+    # are added; then the row's answers, while its sums are in the cache.
     out_x = np.empty(n_anchor, np.int64)
     out_y = np.empty(n_anchor, np.int64)
     out_p = np.empty(n_anchor, np.int64)
@@ -267,41 +305,13 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
     out_u = np.empty(n_anchor)
     out_ok = np.empty(n_anchor, np.bool_)
     out_has = np.zeros(n_anchor, np.bool_)
-    cur = 0
     for yy in range(h - 1, -1, -1):
         k0, k1 = row_start[yy], row_start[yy + 1]
         if k0 == k1:
             continue
         if paths > 0:
-            below = 1 - cur  # the column path of row yy + 1, where it was active
-            rb = 0
-            rb_min = np.float32(0.0)
-            for k in range(k1 - 1, k0 - 1, -1):
-                xx = ax[k]
-                if xx < w - 1 and index[yy, xx + 1] >= 0:
-                    rb_min = _path_step(cost[k], row_bwd[1 - rb], rb_min, row_bwd[rb], p1, p2)
-                else:
-                    rb_min = _copy(cost[k], row_bwd[rb])
-                fwd = total[k]
-                if paths == 4:
-                    if yy < h - 1 and index[yy + 1, xx] >= 0:
-                        col_rows_min[cur, xx] = _path_step(cost[k], col_rows[below, xx], col_rows_min[below, xx],
-                                                           col_rows[cur, xx], p1, p2)
-                    else:
-                        col_rows_min[cur, xx] = _copy(cost[k], col_rows[cur, xx])
-                    up = col_fwd[k]
-                    down = col_rows[cur, xx]
-                    r = row_bwd[rb]
-                    for d in range(nd):
-                        s = fwd[d] + r[d]
-                        s = s + up[d]
-                        s = s + down[d]
-                        fwd[d] = s
-                else:
-                    r = row_bwd[rb]
-                    for d in range(nd):
-                        fwd[d] = fwd[d] + r[d]
-                rb = 1 - rb
+            _row_pass(fl, right_rev, prior, index, ax, yy, k1 - 1, k0 - 1, -1, row_tol, temporal_weight, p1, p2,
+                      paths, total, vecs, cols, cols_min, cur)
             cur = 1 - cur
         if slot_start[yy] == slot_start[yy + 1]:
             continue

@@ -109,11 +109,12 @@ def aggregate(cost: np.ndarray, active: np.ndarray, prm: FusedParams) -> np.ndar
                 else:
                     out[y, x] = cost[y, x]
         paths[(dy, dx)] = out
-    total = paths[(0, 1)] + paths[(0, -1)]
-    if prm.sgm_paths == 4:
-        total = total + paths[(1, 0)]
-        total = total + paths[(-1, 0)]
-    return total
+    if prm.sgm_paths == 2:
+        return paths[(0, 1)] + paths[(0, -1)]
+    # ((left + above) + right) + below: the kernel's order (its forward pass sums the first two).
+    total = paths[(0, 1)] + paths[(1, 0)]
+    total = total + paths[(0, -1)]
+    return total + paths[(-1, 0)]
 
 
 def choose(total, active, counts, recent, prm: FusedParams):
