@@ -26,6 +26,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from calibration_free._fused_features import select
+
 
 @njit(cache=True, nogil=True, inline="always")
 def _min4(v):
@@ -181,36 +183,18 @@ def median_of(vals, c):
     """The median of ``vals[:c]`` (``c > 0``; the mean of the two middle values when ``c`` is even), as the
     reference's sort gives it; ``vals[:c]`` is reordered.
 
-    Hoare's selection (Wirth's form) in place: O(c) instead of a sort's O(c log c) and no allocation, for the
-    several hundred values of each filled pixel's square. After it, ``vals[k]`` is the k-th least and nothing
-    before it is larger, so the lower middle of an even count is the largest value before ``k``.
+    By :func:`~calibration_free._fused_features.select` (O(c), no allocation) for the several hundred values of
+    each filled pixel's square; after it nothing before ``k`` is larger, so the lower middle of an even count
+    is the largest value before ``k``.
     """
     k = c // 2
-    lo, hi = 0, c - 1
-    while lo < hi:
-        pivot = vals[(lo + hi) // 2]
-        i, j = lo, hi
-        while i <= j:
-            while vals[i] < pivot:
-                i += 1
-            while vals[j] > pivot:
-                j -= 1
-            if i <= j:
-                vals[i], vals[j] = vals[j], vals[i]
-                i += 1
-                j -= 1
-        if k <= j:
-            hi = j
-        elif k >= i:
-            lo = i
-        else:
-            break  # vals[j + 1:i] all equal the pivot, k among them
+    mid = select(vals, c, k)
     if c % 2:
-        return vals[k]
+        return mid
     lower = vals[0]
     for q in range(1, k):
         lower = max(lower, vals[q])
-    return (lower + vals[k]) / 2.0
+    return (lower + mid) / 2.0
 
 
 @njit(cache=True, nogil=True)
