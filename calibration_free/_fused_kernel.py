@@ -53,41 +53,19 @@ def _path_step(cost, prev, mn, out, p1, p2):
     """One semi-global step along a path into vector ``out``; returns ``min(out)``.
 
     ``out[d] = cost[d] + min(prev[d], prev[d+-1] + p1, mn + p2) - mn`` with ``mn = min(prev)`` (Hirschmüller
-    2008, eq. 13). The minima are exact in any order, so this equals the reference; the loop does four
-    disparities at a time with four running minima of ``out`` (see :func:`_min4`)."""
+    2008, eq. 13). The minima are exact in any order, so this equals the reference. The step is one plain
+    element-wise loop, which the compiler vectorises, and its minimum a second pass over the vector while it is
+    in the L1 cache (running minima inside the step keep the compiler from vectorising it)."""
     nd = cost.size
     jump = mn + p2
     if nd == 1:
-        v = cost[0] + (min(prev[0], jump) - mn)
-        out[0] = v
-        return v
-    v = cost[0] + (min(min(prev[0], prev[1] + p1), jump) - mn)
-    out[0] = v
-    m0 = m1 = m2 = m3 = v
-    last = nd - 1
-    d = 1
-    while d + 4 <= last:
-        a0 = cost[d] + (min(min(prev[d], jump), min(prev[d - 1], prev[d + 1]) + p1) - mn)
-        a1 = cost[d + 1] + (min(min(prev[d + 1], jump), min(prev[d], prev[d + 2]) + p1) - mn)
-        a2 = cost[d + 2] + (min(min(prev[d + 2], jump), min(prev[d + 1], prev[d + 3]) + p1) - mn)
-        a3 = cost[d + 3] + (min(min(prev[d + 3], jump), min(prev[d + 2], prev[d + 4]) + p1) - mn)
-        out[d] = a0
-        out[d + 1] = a1
-        out[d + 2] = a2
-        out[d + 3] = a3
-        m0 = min(m0, a0)
-        m1 = min(m1, a1)
-        m2 = min(m2, a2)
-        m3 = min(m3, a3)
-        d += 4
-    while d < last:
-        a0 = cost[d] + (min(min(prev[d], jump), min(prev[d - 1], prev[d + 1]) + p1) - mn)
-        out[d] = a0
-        m0 = min(m0, a0)
-        d += 1
-    v = cost[last] + (min(min(prev[last], prev[last - 1] + p1), jump) - mn)
-    out[last] = v
-    return min(min(min(m0, m1), min(m2, m3)), v)
+        out[0] = cost[0] + (min(prev[0], jump) - mn)
+        return out[0]
+    out[0] = cost[0] + (min(min(prev[0], prev[1] + p1), jump) - mn)
+    for d in range(1, nd - 1):
+        out[d] = cost[d] + (min(min(prev[d], jump), min(prev[d - 1], prev[d + 1]) + p1) - mn)
+    out[nd - 1] = cost[nd - 1] + (min(min(prev[nd - 1], prev[nd - 2] + p1), jump) - mn)
+    return _min4(out)
 
 
 @njit(cache=True, nogil=True, inline="always")
