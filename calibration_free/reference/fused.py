@@ -2,9 +2,9 @@
 
 Readable twin of :mod:`calibration_free._fused_features` and :mod:`calibration_free._fused_kernel`: the time
 surfaces as whole arrays, the support square as a sum of shifted copies, the cost as a dense ``(H, W, D)``
-volume (inf outside the active pixels), the semi-global paths one pixel at a time over numpy vectors of
-disparities. Every floating-point expression is evaluated in the kernel's order, so that the matches are
-bit-identical; it is slow, for short inputs.
+float32 volume, the semi-global paths one pixel at a time over float32 numpy vectors of disparities. Every
+floating-point expression is evaluated in the kernel's order, so that the matches are bit-identical; it is
+slow, for short inputs.
 """
 
 from __future__ import annotations
