@@ -13,8 +13,9 @@ Where the time goes, and why the kernels are shaped as they are (2arms-50cm, 128
   bytes, twice the vector lanes): the sum of its paths. Each of the two passes (:func:`_row_pass`) computes a
   pixel's cost afresh (cheaper than storing and reading it back), keeps its row path in a vector and its column
   path in two sensor rows; the forward pass writes left + above, the backward pass adds right and below.
-  Cost, paths and sums are float32 in the reference too, in the same order (2arms-50cm: a window 6.8-7.1 ->
-  4.2-4.4 ms of CPU under load 3.4-4.0; the 346x260 recording 69 -> 45-48 ms).
+  Cost, paths and sums are float32 in the reference too, in the same order. It pays where the arrays outgrow
+  the caches: the 346x260 recording's windows 62-71 -> 36-38 ms of CPU (load 1.8-2.8); on 2arms-50cm (64
+  disparities, compute-bound) about 1.1x (features + kernel, interleaved in one process: median 5.5 -> 5.0 ms).
 * Each semi-global step is one plain loop over the disparities, which the compiler vectorises; the vector's
   minimum is a second pass over it while it is in the L1 cache (:func:`_path_step`).
 * The left-right check reads, for each anchor, one disparity of many different pixels of its row: it runs as
