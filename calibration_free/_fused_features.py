@@ -65,6 +65,23 @@ def window_masks(x, y, p, last_left, t_recent, path_radius, counts, active, rece
             active[yy, xx] = reach >= yy
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _add_to(acc, v):
+    """``acc += v`` (1-D, contiguous)."""
+    for i in range(acc.size):
+        acc[i] += v[i]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _gather_add(src, dst, radius):
+    """``dst[x] = sum of src[x - radius .. x + radius]`` within the row, terms added in ascending order from 0."""
+    n = src.size
+    dst[:] = 0.0
+    for dx in range(-radius, radius + 1):
+        lo, hi = max(-dx, 0), min(n - dx, n)
+        _add_to(dst[lo:hi], src[lo + dx:hi + dx])
+
+
 @njit(cache=True, nogil=True)
 def surface_features(t, x, y, p, last, t_end, tau, radius, ts, rows, out):
     """Update a camera's last-event times with a window's events; write its support-summed time surfaces.
@@ -92,27 +109,21 @@ def surface_features(t, x, y, p, last, t_end, tau, radius, ts, rows, out):
         for yy in range(h):
             for xx in range(w):
                 age = t_end - last[c, yy, xx]
-                surf[c, yy, xx] = 1.0 - float(age) / float(tau) if age < tau else 0.0
+                v = 1.0 - float(age) / float(tau)
+                surf[c, yy, xx] = v if age < tau else 0.0  # both sides computed: the loop vectorises
     if radius == 0:
         return
-    # Separable: sums along the row first, then of those along the column (the reference's order). Each sum
-    # receives its terms in ascending order, as the reference adds them, and the zeros it skips change nothing.
-    rows[:] = 0.0
+    # Separable: sums along the row first, then of those along the column (the reference's order), each
+    # gathered with its terms in ascending order as the reference adds them: contiguous loops that vectorise.
     for c in range(2):
         for yy in range(h):
-            for x2 in range(w):
-                v = ts[c, yy, x2]
-                if v != 0.0:
-                    for xx in range(max(x2 - radius, 0), min(x2 + radius + 1, w)):
-                        rows[c, yy, xx] += v
-    out[:] = 0.0
+            _gather_add(ts[c, yy], rows[c, yy], radius)
     for c in range(2):
-        for y2 in range(h):
-            for xx in range(w):
-                v = rows[c, y2, xx]
-                if v != 0.0:
-                    for yy in range(max(y2 - radius, 0), min(y2 + radius + 1, h)):
-                        out[c, yy, xx] += v
+        for yy in range(h):
+            acc = out[c, yy]
+            acc[:] = 0.0
+            for y2 in range(max(yy - radius, 0), min(yy + radius + 1, h)):
+                _add_to(acc, rows[c, y2])
 
 
 @njit(cache=True, nogil=True)
@@ -128,11 +139,42 @@ def nonzero_values(features, buf):
 
 
 @njit(cache=True, nogil=True)
+def select(vals, c, k):
+    """The k-th least of ``vals[:c]`` (0-based), reordering ``vals[:c]`` so that nothing before position ``k`` is
+    larger and nothing after it smaller.
+
+    Hoare's selection (Wirth's form) in place: O(c) and no allocation (NumPy's partition copies). Used by the
+    signal level's percentile and by the fill's median (:mod:`calibration_free._fused_kernel`).
+    """
+    lo, hi = 0, c - 1
+    while lo < hi:
+        pivot = vals[(lo + hi) // 2]
+        i, j = lo, hi
+        while i <= j:
+            while vals[i] < pivot:
+                i += 1
+            while vals[j] > pivot:
+                j -= 1
+            if i <= j:
+                vals[i], vals[j] = vals[j], vals[i]
+                i += 1
+                j -= 1
+        if k <= j:
+            hi = j
+        elif k >= i:
+            lo = i
+        else:
+            break  # vals[j + 1:i] all equal the pivot, k among them
+    return vals[k]
+
+
+@njit(cache=True, nogil=True)
 def percentile(values, q):
-    """``np.percentile(values, q)`` (method "linear") of a non-empty float64 vector, bit for bit.
+    """``np.percentile(values, q)`` (method "linear") of a non-empty float64 vector, bit for bit; ``values`` is
+    reordered.
 
     NumPy's steps, in its floating-point order: virtual index ``(n - 1) * (q / 100)``, the two order
-    statistics around it (found by a partial sort, O(n) instead of a full sort), and its interpolation
+    statistics around it (found by :func:`select`, O(n) instead of a full sort), and its interpolation
     between them from the nearer end (``b - (b - a) * (1 - g)`` when ``g >= 0.5``). Called per camera and
     window, where NumPy's own call costs more than the kernels around it.
     """
@@ -141,9 +183,8 @@ def percentile(values, q):
     if virtual >= n - 1:
         return values.max()
     below = int(np.floor(virtual))
-    part = np.partition(values, below)
-    a = part[below]
-    b = part[below + 1:].min()
+    a = select(values, n, below)
+    b = values[below + 1:].min()
     g = virtual - float(below)
     diff = b - a
     if g >= 0.5:

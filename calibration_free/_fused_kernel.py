@@ -6,25 +6,32 @@ is evaluated in the same order as in :mod:`calibration_free.reference.fused`, so
 matches (tests/test_fused.py).
 
 Where the time goes, and why the kernels are shaped as they are (2arms-50cm, 128x128, 64 disparities: about
-6000 active pixels a window; a 346x260 recording at 1 M ev/s: 32000 and 174 disparities):
+6000 active pixels a window; a 346x260 recording at 1 M ev/s: 26000 and 171 disparities):
 
-* The cost and the paths of a window are (active pixels x disparities) arrays of several MB, more than the
-  caches hold, so memory traffic, not arithmetic, sets the pace. Hence one pass per direction that computes
-  the cost and the forward paths together, a backward pass that keeps its row path in one vector and its
-  column path in two rows, and sums the four paths in place; the minimum of each path vector is kept as it
-  is written instead of being searched again by the next step.
+* Memory traffic, not arithmetic, set the pace when the cost and the four paths were stored as (active
+  pixels x disparities) arrays of several MB. Now a window keeps a single such array, in float32 (half the
+  bytes, twice the vector lanes): the sum of its paths. Each of the two passes (:func:`_row_pass`) computes a
+  pixel's cost afresh (cheaper than storing and reading it back), keeps its row path in a vector and its column
+  path in two sensor rows; the forward pass writes left + above, the backward pass adds right and below.
+  Cost, paths and sums are float32 in the reference too, in the same order. It pays where the arrays outgrow
+  the caches: the 346x260 recording's windows 62-71 -> 36-38 ms of CPU (load 1.8-2.8); on 2arms-50cm (64
+  disparities, compute-bound) about 1.1x (features + kernel, interleaved in one process: median 5.5 -> 5.0 ms).
+* Each semi-global step is one plain loop over the disparities, which the compiler vectorises; the vector's
+  minimum is a second pass over it while it is in the L1 cache (:func:`_path_step`).
 * The left-right check reads, for each anchor, one disparity of many different pixels of its row: it runs as
   soon as the backward pass has finished the row, while the row's sums are in the cache.
 * The cost reads the right camera's row backwards (disparity 0, 1, ... is column x, x - 1, ...): a mirrored
   copy of the right features makes those loops contiguous and branch-free, so they vectorise.
-* Sums that skip zeros are exact (``a + 0.0 == a``): the support square is scattered from the non-zero
-  surface values only.
+* The fill's median and the level's percentile select in place (:func:`~calibration_free._fused_features.select`)
+  rather than sort.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+from calibration_free._fused_features import select
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -51,41 +58,19 @@ def _path_step(cost, prev, mn, out, p1, p2):
     """One semi-global step along a path into vector ``out``; returns ``min(out)``.
 
     ``out[d] = cost[d] + min(prev[d], prev[d+-1] + p1, mn + p2) - mn`` with ``mn = min(prev)`` (Hirschmüller
-    2008, eq. 13). The minima are exact in any order, so this equals the reference; the loop does four
-    disparities at a time with four running minima of ``out`` (see :func:`_min4`)."""
+    2008, eq. 13). The minima are exact in any order, so this equals the reference. The step is one plain
+    element-wise loop, which the compiler vectorises, and its minimum a second pass over the vector while it is
+    in the L1 cache (running minima inside the step keep the compiler from vectorising it)."""
     nd = cost.size
     jump = mn + p2
     if nd == 1:
-        v = cost[0] + (min(prev[0], jump) - mn)
-        out[0] = v
-        return v
-    v = cost[0] + (min(min(prev[0], prev[1] + p1), jump) - mn)
-    out[0] = v
-    m0 = m1 = m2 = m3 = v
-    last = nd - 1
-    d = 1
-    while d + 4 <= last:
-        a0 = cost[d] + (min(min(prev[d], jump), min(prev[d - 1], prev[d + 1]) + p1) - mn)
-        a1 = cost[d + 1] + (min(min(prev[d + 1], jump), min(prev[d], prev[d + 2]) + p1) - mn)
-        a2 = cost[d + 2] + (min(min(prev[d + 2], jump), min(prev[d + 1], prev[d + 3]) + p1) - mn)
-        a3 = cost[d + 3] + (min(min(prev[d + 3], jump), min(prev[d + 2], prev[d + 4]) + p1) - mn)
-        out[d] = a0
-        out[d + 1] = a1
-        out[d + 2] = a2
-        out[d + 3] = a3
-        m0 = min(m0, a0)
-        m1 = min(m1, a1)
-        m2 = min(m2, a2)
-        m3 = min(m3, a3)
-        d += 4
-    while d < last:
-        a0 = cost[d] + (min(min(prev[d], jump), min(prev[d - 1], prev[d + 1]) + p1) - mn)
-        out[d] = a0
-        m0 = min(m0, a0)
-        d += 1
-    v = cost[last] + (min(min(prev[last], prev[last - 1] + p1), jump) - mn)
-    out[last] = v
-    return min(min(min(m0, m1), min(m2, m3)), v)
+        out[0] = cost[0] + (min(prev[0], jump) - mn)
+        return out[0]
+    out[0] = cost[0] + (min(min(prev[0], prev[1] + p1), jump) - mn)
+    for d in range(1, nd - 1):
+        out[d] = cost[d] + (min(min(prev[d], jump), min(prev[d - 1], prev[d + 1]) + p1) - mn)
+    out[nd - 1] = cost[nd - 1] + (min(min(prev[nd - 1], prev[nd - 2] + p1), jump) - mn)
+    return _min4(out)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -106,7 +91,7 @@ def _pixel_cost(fl, right_rev, yy, xx, pr, row_tol, temporal_weight, out):
     any order, so this equals the reference's ``np.minimum`` over rows."""
     h = fl.shape[1]
     nd = out.size
-    l0, l1 = fl[0, yy, xx], fl[1, yy, xx]
+    l0, l1 = np.float32(fl[0, yy, xx]), np.float32(fl[1, yy, xx])
     j0 = right_rev.shape[2] - nd - 1 - xx
     for d in range(nd):
         out[d] = np.inf
@@ -117,8 +102,82 @@ def _pixel_cost(fl, right_rev, yy, xx, pr, row_tol, temporal_weight, out):
             out[d] = min(out[d], abs(l0 - r0[d]) + abs(l1 - r1[d]))
     if temporal_weight > 0.0 and not np.isnan(pr):
         for d in range(nd):
-            out[d] = out[d] + temporal_weight * min(abs(d - pr), 2.0)
+            out[d] = out[d] + np.float32(temporal_weight * min(abs(d - pr), 2.0))
     return _min4(out)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _row_pass(fl, right_rev, prior, index, ax, yy, k_first, k_stop, step, row_tol, temporal_weight, p1, p2, paths,
+              total, vecs, cols, cols_min, cur):
+    """One row of one semi-global pass: ``step`` 1 is the forward pass (left to right, the column path comes from
+    above), -1 the backward one (right to left, from below).
+
+    Each pixel's cost is computed here, into ``vecs[0]``, in both passes rather than stored between them: the
+    arithmetic costs less than the memory traffic of a stored (pixels x disparities) array. The row path runs
+    in ``vecs[1:3]`` (current, previous), the column path in ``cols[cur]`` with the previous row's in
+    ``cols[1 - cur]``. The forward pass writes ``total[k] = left (+ above)``, the backward pass adds
+    ``(+ right) (+ below)`` in that order, as the reference sums them; with ``paths`` 0, ``total[k]`` is the
+    cost.
+    """
+    h, w = index.shape
+    nd = total.shape[1]
+    cost = vecs[0]
+    r = 1
+    r_min = np.float32(0.0)
+    y_from = yy - step  # the row the column path comes from
+    for k in range(k_first, k_stop, step):
+        xx = ax[k]
+        out = total[k]
+        _pixel_cost(fl, right_rev, yy, xx, prior[yy, xx], row_tol, temporal_weight, cost)
+        if paths == 0:
+            for d in range(nd):
+                out[d] = cost[d]
+            continue
+        x_from = xx - step
+        if 0 <= x_from < w and index[yy, x_from] >= 0:
+            r_min = _path_step(cost, vecs[3 - r], r_min, vecs[r], p1, p2)
+        else:
+            r_min = _copy(cost, vecs[r])
+        rv = vecs[r]
+        r = 3 - r
+        if paths == 2:
+            if step > 0:
+                for d in range(nd):
+                    out[d] = rv[d]
+            else:
+                for d in range(nd):
+                    out[d] = out[d] + rv[d]
+            continue
+        if 0 <= y_from < h and index[y_from, xx] >= 0:
+            cols_min[cur, xx] = _path_step(cost, cols[1 - cur, xx], cols_min[1 - cur, xx], cols[cur, xx], p1, p2)
+        else:
+            cols_min[cur, xx] = _copy(cost, cols[cur, xx])
+        cv = cols[cur, xx]
+        if step > 0:
+            for d in range(nd):
+                out[d] = rv[d] + cv[d]
+        else:
+            for d in range(nd):
+                out[d] = (out[d] + rv[d]) + cv[d]
+
+
+@njit(cache=True, nogil=True)
+def median_of(vals, c):
+    """The median of ``vals[:c]`` (``c > 0``; the mean of the two middle values when ``c`` is even), as the
+    reference's sort gives it; ``vals[:c]`` is reordered.
+
+    By :func:`~calibration_free._fused_features.select` (O(c), no allocation) for the several hundred values of
+    each filled pixel's square; after it nothing before ``k`` is larger, so the lower middle of an even count
+    is the largest value before ``k``.
+    """
+    k = c // 2
+    mid = select(vals, c, k)
+    if c % 2:
+        return mid
+    lower = vals[0]
+    for q in range(1, k):
+        lower = max(lower, vals[q])
+    return (lower + mid) / 2.0
 
 
 @njit(cache=True, nogil=True)
@@ -130,7 +189,7 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
     Parameters
     ----------
     fl, fr : (2, H, W) float64 ndarray
-        Normalised features of the left and right camera.
+        Normalised features of the left and right camera (rounded to float32 where they are compared).
     counts : (2, H, W) int ndarray
         The left camera's event counts of the window per polarity (anchors: pixels with events).
     active : (H, W) bool ndarray
@@ -143,14 +202,14 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
     max_uncertainty, fill_radius, confirm
         :class:`~calibration_free.fused_params.FusedParams` fields (``isolated_below``: its
         ``isolated_max_uncertainty``; ``confirm``: its ``fill_confirms``).
-    work : (3, n, max_d + 1) float64 ndarray
-        Scratch for at least the n active pixels: cost, row path from the left (then the sum of the paths),
-        column path from above (kept by the caller: fresh pages cost more than the arithmetic).
-    rowbuf : (4, W, max_d + 1) float64 ndarray
-        Scratch: the backward row path's current and previous vector (``rowbuf[0:2, 0]``) and the backward
-        column path's current and previous row (``rowbuf[2:4]``).
+    work : (n, max_d + 1) float32 ndarray
+        Scratch for at least the n active pixels: the sum of their paths (kept by the caller: fresh pages cost
+        more than the arithmetic).
+    rowbuf : tuple of ndarrays
+        Scratch ``(cols, vecs)``, (2, W, max_d + 1) and (3, max_d + 1) float32: the column path's current and
+        previous row, the cost and the row path's current and previous vector (see :func:`_row_pass`).
     planes : tuple of ndarrays
-        Scratch kept between windows: ``(right_rev, index, consistent)``, (H, 2, W + max_d + 1) float64 zeros,
+        Scratch kept between windows: ``(right_rev, index, consistent)``, (H, 2, W + max_d + 1) float32 zeros,
         (H, W) int64, (H, W) float64 all NaN (left so on return).
 
     Returns
@@ -193,35 +252,19 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
         for c in range(2):
             for xx in range(w):
                 right_rev[yy, c, w - 1 - xx] = fr[c, yy, xx]
-    cost = work[0, :n]
-    total = work[1, :n] if paths > 0 else cost
-    col_fwd = work[2, :n]
-    cost_min = np.empty(n)
-    row_min = np.empty(n)
-    col_min = np.empty(n)
-    # Forward pass (top to bottom, left to right): cost, the row path from the left, the column path from above.
+    p1, p2 = np.float32(p1), np.float32(p2)  # float32 steps throughout (see the module docstring)
+    total = work[:n]
+    cols, vecs = rowbuf
+    cols_min = np.empty((2, w), np.float32)
+    # Forward pass (top to bottom, left to right): total = row path from the left (+ column path from above).
+    cur = 0
     for yy in range(h):
-        for k in range(row_start[yy], row_start[yy + 1]):
-            xx = ax[k]
-            cost_min[k] = _pixel_cost(fl, right_rev, yy, xx, prior[yy, xx], row_tol, temporal_weight, cost[k])
-            if paths == 0:
-                continue
-            if xx > 0 and index[yy, xx - 1] >= 0:
-                row_min[k] = _path_step(cost[k], total[k - 1], row_min[k - 1], total[k], p1, p2)
-            else:
-                row_min[k] = _copy(cost[k], total[k])
-            if paths == 4:
-                q = index[yy - 1, xx] if yy > 0 else -1
-                if q >= 0:
-                    col_min[k] = _path_step(cost[k], col_fwd[q], col_min[q], col_fwd[k], p1, p2)
-                else:
-                    col_min[k] = _copy(cost[k], col_fwd[k])
-    # Backward pass (bottom to top, right to left): the row path from the right in one vector, the column path
-    # from below in two rows; the paths summed in place, ((left + right) + above) + below, as the reference
-    # does; then the row's answers, while its sums are in the cache.
-    row_bwd = rowbuf[0:2, 0]
-    col_rows = rowbuf[2:4]
-    col_rows_min = np.empty((2, w))
+        if row_start[yy] < row_start[yy + 1]:
+            _row_pass(fl, right_rev, prior, index, ax, yy, row_start[yy], row_start[yy + 1], 1, row_tol,
+                      temporal_weight, p1, p2, paths, total, vecs, cols, cols_min, cur)
+            cur = 1 - cur
+    # Backward pass (bottom to top, right to left): the row path from the right and the column path from below
+    # are added; then the row's answers, while its sums are in the cache.
     out_x = np.empty(n_anchor, np.int64)
     out_y = np.empty(n_anchor, np.int64)
     out_p = np.empty(n_anchor, np.int64)
@@ -229,41 +272,13 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
     out_u = np.empty(n_anchor)
     out_ok = np.empty(n_anchor, np.bool_)
     out_has = np.zeros(n_anchor, np.bool_)
-    cur = 0
     for yy in range(h - 1, -1, -1):
         k0, k1 = row_start[yy], row_start[yy + 1]
         if k0 == k1:
             continue
         if paths > 0:
-            below = 1 - cur  # the column path of row yy + 1, where it was active
-            rb = 0
-            rb_min = 0.0
-            for k in range(k1 - 1, k0 - 1, -1):
-                xx = ax[k]
-                if xx < w - 1 and index[yy, xx + 1] >= 0:
-                    rb_min = _path_step(cost[k], row_bwd[1 - rb], rb_min, row_bwd[rb], p1, p2)
-                else:
-                    rb_min = _copy(cost[k], row_bwd[rb])
-                fwd = total[k]
-                if paths == 4:
-                    if yy < h - 1 and index[yy + 1, xx] >= 0:
-                        col_rows_min[cur, xx] = _path_step(cost[k], col_rows[below, xx], col_rows_min[below, xx],
-                                                           col_rows[cur, xx], p1, p2)
-                    else:
-                        col_rows_min[cur, xx] = _copy(cost[k], col_rows[cur, xx])
-                    up = col_fwd[k]
-                    down = col_rows[cur, xx]
-                    r = row_bwd[rb]
-                    for d in range(nd):
-                        s = fwd[d] + r[d]
-                        s = s + up[d]
-                        s = s + down[d]
-                        fwd[d] = s
-                else:
-                    r = row_bwd[rb]
-                    for d in range(nd):
-                        fwd[d] = fwd[d] + r[d]
-                rb = 1 - rb
+            _row_pass(fl, right_rev, prior, index, ax, yy, k1 - 1, k0 - 1, -1, row_tol, temporal_weight, p1, p2,
+                      paths, total, vecs, cols, cols_min, cur)
             cur = 1 - cur
         if slot_start[yy] == slot_start[yy + 1]:
             continue
@@ -293,7 +308,7 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
                 second = _min4(s[:best - 1])
             if best + 2 < nd:
                 second = min(second, _min4(s[best + 2:]))
-            ratio = 1.0 if second == 0.0 else s[best] / second
+            ratio = 1.0 if second == 0.0 else np.float64(s[best]) / second
             consistent = True
             if lr_tol >= 0:
                 # The right pixel's own winner from the same sums; its row is still in the cache.
@@ -315,7 +330,7 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
                 continue
             disp = float(best)
             if subpixel and 0 < best < nd - 1:
-                a, b, c = s[best - 1], s[best], s[best + 1]
+                a, b, c = np.float64(s[best - 1]), np.float64(s[best]), np.float64(s[best + 1])
                 den = (a - 2.0 * b) + c
                 if den > 0.0:
                     delta = (a - c) / (2.0 * den)
@@ -343,12 +358,10 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
             for y2 in range(max(out_y[i] - fill_radius, 0), min(out_y[i] + fill_radius + 1, h)):
                 for x2 in range(max(out_x[i] - fill_radius, 0), min(out_x[i] + fill_radius + 1, w)):
                     v = consistent_d[y2, x2]
-                    if not np.isnan(v):
-                        vals[c] = v
-                        c += 1
+                    vals[c] = v  # written always, kept only if a number: no branch to mispredict
+                    c += not np.isnan(v)
             if c > 0:
-                srt = np.sort(vals[:c])
-                med = srt[c // 2] if c % 2 else (srt[c // 2 - 1] + srt[c // 2]) / 2.0
+                med = median_of(vals, c)
                 if confirm and abs(out_d[i] - med) <= lr_tol:
                     out_u[i] = out_u[i] - 0.5  # confirmed by the consistent answers around it
                 else:

@@ -33,8 +33,9 @@ Design, part by part, with the reason for each (bench/results/fused.md measures 
    columns of *active* pixels only: the left pixels within ``path_radius`` px of an event of the window.
    Event images are sparse, so paths end where nothing happened instead of carrying the cost of empty
    background as SGBM does, which is where SGBM's matches at noise and background come from; and the work
-   is proportional to the active pixels, not the sensor. Costs live in a compact (pixels x disparities)
-   array.
+   is proportional to the active pixels, not the sensor. The sums of the paths live in a compact
+   (pixels x disparities) float32 array; costs and paths are float32 too (:mod:`calibration_free._fused_kernel`
+   says why).
 7. **Winner, uniqueness and uncertainty**: the disparity of least aggregated cost. Its *uncertainty* is half
    the ratio of that cost to the best cost more than 1 px away (0: unambiguous, 0.5: a tie; the uniqueness
    ratio of block matching as a number), plus 0.5 where the left-right check fails, so that every
@@ -126,14 +127,15 @@ class Scratch:
         self.counts = np.empty((2, h, w), np.int64)
         self.active = np.empty((h, w), np.bool_)
         self.recent = np.empty((h, w), np.bool_)
-        self.rowbuf = np.empty((4, w, n_disparities))
-        self.planes = (np.zeros((h, 2, w + n_disparities)), np.empty((h, w), np.int64), np.full((h, w), np.nan))
-        self.work = np.empty((3, 0, n_disparities))
+        self.rowbuf = (np.empty((2, w, n_disparities), np.float32), np.empty((3, n_disparities), np.float32))
+        self.planes = (np.zeros((h, 2, w + n_disparities), np.float32), np.empty((h, w), np.int64),
+                       np.full((h, w), np.nan))
+        self.work = np.empty((0, n_disparities), np.float32)
 
     def work_for(self, n_active: int) -> np.ndarray:
-        """Cost and path storage for ``n_active`` pixels (grown by doubling, never shrunk)."""
-        if n_active > self.work.shape[1]:
-            self.work = np.empty((3, max(n_active, 2 * self.work.shape[1]), self.nd))
+        """Path-sum storage for ``n_active`` pixels (grown by doubling, never shrunk)."""
+        if n_active > self.work.shape[0]:
+            self.work = np.empty((max(n_active, 2 * self.work.shape[0]), self.nd), np.float32)
         return self.work
 
 

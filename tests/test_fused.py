@@ -8,6 +8,7 @@ from _event_scenes import feed_cut, moving_edges
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from calibration_free._fused_kernel import median_of
 from calibration_free.fused import FusedMatcher
 from calibration_free.fused_params import FusedParams
 from calibration_free.reference.fused import fused_reference
@@ -231,3 +232,15 @@ def test_match_applies_the_rig_correction(rows, time_us):
     # Uncorrected, rows 3-4 apart are beyond the row tolerance of 1: a third or more of the answers are wrong.
     raw = match(erred, method="fused")
     assert np.mean(np.abs(raw.matches["disparity"] - 5.0) <= 1.0) < 0.75
+
+
+@settings(max_examples=60, deadline=None)
+@given(values=st.lists(st.integers(0, 12).map(lambda v: v / 4.0), min_size=1, max_size=80))
+def test_kernel_median_is_the_sorted_middle(values):
+    """The fill's in-place selection gives the reference's median (sorted middle, mean of two when even), with
+    many ties."""
+    vals = np.array(values + [np.nan] * 3)  # room beyond c, as in the kernel's buffer
+    srt = np.sort(np.array(values))
+    c = len(values)
+    expected = srt[c // 2] if c % 2 else (srt[c // 2 - 1] + srt[c // 2]) / 2.0
+    assert median_of(vals, c) == expected

@@ -2,9 +2,9 @@
 
 Readable twin of :mod:`calibration_free._fused_features` and :mod:`calibration_free._fused_kernel`: the time
 surfaces as whole arrays, the support square as a sum of shifted copies, the cost as a dense ``(H, W, D)``
-volume (inf outside the active pixels), the semi-global paths one pixel at a time over numpy vectors of
-disparities. Every floating-point expression is evaluated in the kernel's order, so that the matches are
-bit-identical; it is slow, for short inputs.
+float32 volume, the semi-global paths one pixel at a time over float32 numpy vectors of disparities. Every
+floating-point expression is evaluated in the kernel's order, so that the matches are bit-identical; it is
+slow, for short inputs.
 """
 
 from __future__ import annotations
@@ -53,30 +53,33 @@ def support_sum(ts: np.ndarray, radius: int) -> np.ndarray:
 
 
 def cost_volume(fl, fr, prior, prm: FusedParams) -> np.ndarray:
-    """(H, W, D) cost of every pixel and disparity: the best L1 over the tolerated rows, plus the temporal term."""
+    """(H, W, D) float32 cost of every pixel and disparity: the best L1 over the tolerated rows, plus the temporal
+    term (rounded to float32 before it is added); the features are rounded to float32 first."""
     _, h, w = fl.shape
     nd = prm.max_disparity + 1
-    cost = np.full((h, w, nd), np.inf)
+    fl, fr = fl.astype(np.float32), fr.astype(np.float32)
+    cost = np.full((h, w, nd), np.inf, np.float32)
     for d in range(nd):
-        shifted = np.zeros(fr.shape)  # right features at x - d, zero beyond the left edge
+        shifted = np.zeros(fr.shape, np.float32)  # right features at x - d, zero beyond the left edge
         shifted[:, :, d:] = fr[:, :, :w - d] if d else fr
         for dy in range(-prm.row_tolerance, prm.row_tolerance + 1):
             rows = np.arange(h) + dy
             ok = (rows >= 0) & (rows < h)
-            other = np.zeros(fr.shape)
+            other = np.zeros(fr.shape, np.float32)
             other[:, ok] = shifted[:, rows[ok]]
             c = np.abs(fl[0] - other[0]) + np.abs(fl[1] - other[1])
-            c = np.where(ok[:, None], c, np.inf)
+            c = np.where(ok[:, None], c, np.float32(np.inf))
             cost[:, :, d] = np.minimum(cost[:, :, d], c)
         if prm.temporal_weight > 0:
             has = ~np.isnan(prior)
-            cost[:, :, d] = np.where(has, cost[:, :, d] + prm.temporal_weight *
-                                     np.minimum(np.abs(d - np.where(has, prior, 0.0)), 2.0), cost[:, :, d])
+            term = (prm.temporal_weight * np.minimum(np.abs(d - np.where(has, prior, 0.0)), 2.0)).astype(np.float32)
+            cost[:, :, d] = np.where(has, cost[:, :, d] + term, cost[:, :, d])
     return cost
 
 
 def path_step(cost: np.ndarray, prev: np.ndarray, p1: float, p2: float) -> np.ndarray:
-    """One semi-global step along a path (Hirschmüller 2008, eq. 13)."""
+    """One semi-global step along a path (Hirschmüller 2008, eq. 13), in float32."""
+    p1, p2 = np.float32(p1), np.float32(p2)
     mn = prev.min()
     m = prev.copy()
     m[1:] = np.minimum(m[1:], prev[:-1] + p1)
@@ -93,7 +96,7 @@ def aggregate(cost: np.ndarray, active: np.ndarray, prm: FusedParams) -> np.ndar
     directions = [(0, 1), (0, -1)] + ([(1, 0), (-1, 0)] if prm.sgm_paths == 4 else [])
     paths = {}
     for dy, dx in directions:
-        out = np.zeros(cost.shape)
+        out = np.zeros(cost.shape, np.float32)
         ys = range(h) if (dy, dx) >= (0, 0) else range(h - 1, -1, -1)
         for y in ys:
             xs = range(w) if (dy, dx) >= (0, 0) else range(w - 1, -1, -1)
@@ -106,11 +109,12 @@ def aggregate(cost: np.ndarray, active: np.ndarray, prm: FusedParams) -> np.ndar
                 else:
                     out[y, x] = cost[y, x]
         paths[(dy, dx)] = out
-    total = paths[(0, 1)] + paths[(0, -1)]
-    if prm.sgm_paths == 4:
-        total = total + paths[(1, 0)]
-        total = total + paths[(-1, 0)]
-    return total
+    if prm.sgm_paths == 2:
+        return paths[(0, 1)] + paths[(0, -1)]
+    # ((left + above) + right) + below: the kernel's order (its forward pass sums the first two).
+    total = paths[(0, 1)] + paths[(1, 0)]
+    total = total + paths[(0, -1)]
+    return total + paths[(-1, 0)]
 
 
 def choose(total, active, counts, recent, prm: FusedParams):
@@ -125,7 +129,7 @@ def choose(total, active, counts, recent, prm: FusedParams):
         best = int(np.argmin(s))
         far = np.abs(np.arange(nd) - best) > 1
         second = s[far].min() if far.any() else np.inf
-        ratio = 1.0 if second == 0.0 else s[best] / second
+        ratio = 1.0 if second == 0.0 else float(s[best]) / float(second)
         consistent = True
         if prm.lr_tolerance >= 0:
             xr = x - best
@@ -142,7 +146,7 @@ def choose(total, active, counts, recent, prm: FusedParams):
             continue  # the noise filter (design part 10): an isolated pixel answers only with a clear match
         disp = float(best)
         if prm.subpixel and 0 < best < nd - 1:
-            a, b, c = s[best - 1], s[best], s[best + 1]
+            a, b, c = float(s[best - 1]), float(s[best]), float(s[best + 1])
             den = (a - 2.0 * b) + c
             if den > 0.0:
                 disp = disp + min(max((a - c) / (2.0 * den), -0.5), 0.5)
