@@ -78,6 +78,25 @@ def emit_match(out_cam, out_index, out_disparity, n, cam, i, disparity):  # prag
     return n + 1
 
 
+class Scratch:
+    """Named 1-D buffers reused from window to window, grown (doubled) when a window needs more.
+
+    The event matchers run their kernel once per 40 ms window; fresh output, value and stream arrays for every
+    window cost allocations and page faults that a reused buffer does not. Whatever a caller keeps beyond the
+    window must be copied out of these views (:func:`matches_at` and :meth:`SignalLevel.add` do).
+    """
+
+    def __init__(self):
+        self._buffers: dict[str, np.ndarray] = {}
+
+    def take(self, name: str, n: int, dtype) -> np.ndarray:
+        """The first ``n`` elements of buffer ``name`` (contiguous, contents undefined)."""
+        buf = self._buffers.get(name)
+        if buf is None or buf.size < n or buf.dtype != dtype:
+            buf = self._buffers[name] = np.empty(max(n, 2 * (0 if buf is None else buf.size)), dtype)
+        return buf[:n]
+
+
 class MergedEventMatcher(StreamMatcher):
     """Base of the matchers that process both cameras' events in one merged order (one numba kernel call
     per packet).
@@ -92,6 +111,7 @@ class MergedEventMatcher(StreamMatcher):
         self._held = (empty_events(), empty_events())
         self._level = SignalLevel(self.params, absolute=self.params.threshold, unit=dynamic_unit(self.params),
                                   value_name="dynamic-frame value")
+        self._scratch = Scratch()
 
     def diagnostics(self) -> dict:
         """The signal-level diagnostics of the run so far (:meth:`cvstereo.signal_level.SignalLevel.diagnostics`)."""
@@ -121,13 +141,15 @@ class MergedEventMatcher(StreamMatcher):
     def _process_window(self, k: int, left: np.ndarray, right: np.ndarray) -> np.ndarray:
         """The events of one level window: the thresholds in force for it, then the kernel, then the level."""
         n = left.size + right.size
-        out_cam = np.empty(n, dtype=np.int64)
-        out_index = np.empty(n, dtype=np.int64)
-        out_disparity = np.empty(n)
-        values = (np.full(left.size, np.nan), np.full(right.size, np.nan))
+        scratch = self._scratch
+        out_cam, out_index = scratch.take("cam", n, np.int64), scratch.take("index", n, np.int64)
+        out_disparity = scratch.take("disparity", n, np.float64)
+        values = (scratch.take("values_l", left.size, np.float64), scratch.take("values_r", right.size, np.float64))
+        for v in values:
+            v.fill(np.nan)  # where the kernel writes nothing (a dropped polarity)
         thresholds = self._level.thresholds(k)
         columns = (event_matrix(left), event_matrix(right))
-        stream = merged_stream(*columns[0], *columns[1], self._bank.slot_of_p)
+        stream = merged_stream(*columns[0], *columns[1], self._bank.slot_of_p, scratch.take("stream", 7 * n, np.int64))
         m = self._run_kernel(stream, thresholds, out_cam, out_index, out_disparity, values)
         for cam in (0, 1):
             self._level.add(k, cam, values[cam])
