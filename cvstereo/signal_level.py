@@ -211,7 +211,7 @@ class SignalLevel:
             for cam, parts in enumerate(chunks):
                 if not parts:
                     continue
-                v = np.concatenate(parts)
+                v = parts[0] if len(parts) == 1 else np.concatenate(parts)  # add() copied them: no need to again
                 self._remember(cam, v)
                 top = float(v.max())
                 reached |= bool(top >= thr[cam])
