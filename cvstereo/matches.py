@@ -50,7 +50,13 @@ def make_matches(t, x, y, p, camera, disparity) -> np.ndarray:
 def concat_matches(parts) -> np.ndarray:
     """Concatenate matches arrays (an empty list gives an empty array)."""
     parts = [p for p in parts if p is not None and p.size]
-    return np.concatenate(parts) if parts else empty_matches()
+    if not parts:
+        return empty_matches()
+    if any(p.dtype != MATCH_DTYPE for p in parts):
+        return np.concatenate(parts)
+    # As bytes: numpy copies this packed dtype (unaligned fields) field by field, element by element, ~20x slower
+    # than the plain copy of the same bytes (10 ms of event-area's 0.7 s per second of data at 640x480).
+    return np.concatenate([np.ascontiguousarray(p).view(np.uint8) for p in parts]).view(MATCH_DTYPE)
 
 
 def sort_matches(matches: np.ndarray) -> np.ndarray:
