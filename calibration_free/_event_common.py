@@ -20,21 +20,21 @@ import numpy as np
 from numba import njit
 
 from calibration_free.merge_order import merged_stream
-from cvstereo.dynamic_frames import FrameBank, block_bounds, dynamic_unit, event_matrix
+from cvstereo.dynamic_frames import FrameBank, block_bounds, dynamic_unit
 from cvstereo.events import empty_events
 from cvstereo.matcher import StreamMatcher
 from cvstereo.matches import concat_matches, empty_matches
 from cvstereo.signal_level import SignalLevel, window_segments
 
 
-def matches_at(columns: tuple[np.ndarray, np.ndarray], cam: np.ndarray, index: np.ndarray,
+def matches_at(events: tuple[np.ndarray, np.ndarray], cam: np.ndarray, index: np.ndarray,
                disparity: np.ndarray) -> np.ndarray:
     """Matches anchored at the events ``index[k]`` of camera ``cam[k]``, in the given order.
 
     Parameters
     ----------
-    columns : (left, right) (4, N) int64 ndarrays
-        Each camera's events as the rows t, x, y, p of :func:`cvstereo.dynamic_frames.event_matrix`.
+    events : (left, right) ndarrays of EVENT_DTYPE
+        Each camera's events.
     cam, index : (M,) int64 ndarray
     disparity : (M,) float64 ndarray
 
@@ -44,24 +44,21 @@ def matches_at(columns: tuple[np.ndarray, np.ndarray], cam: np.ndarray, index: n
     """
     out = empty_matches(cam.size)
     if cam.size:
-        _fill_matches(out, columns[0], columns[1], cam, index, disparity)
+        _fill_matches(out, events[0], events[1], cam, index, disparity)
     return out
 
 
 @njit(cache=True)
 def _fill_matches(out, left, right, cam, index, disparity):  # pragma: no cover - compiled
-    """Write match ``n`` from column ``index[n]`` of ``left`` or ``right`` (by ``cam[n]``), one pass.
+    """Write match ``n`` from event ``index[n]`` of ``left`` or ``right`` (by ``cam[n]``), one pass.
 
     Numpy's way (a mask per camera, then a fancy-indexed copy of each structured field) cost ~100 ns a match,
     a tenth of event-vector's time at 640x480.
     """
     for n in range(cam.shape[0]):
-        i = index[n]
+        ev = left[index[n]] if cam[n] == 0 else right[index[n]]
         row = out[n]
-        if cam[n] == 0:
-            row.t, row.x, row.y, row.p = left[0, i], left[1, i], left[2, i], left[3, i]
-        else:
-            row.t, row.x, row.y, row.p = right[0, i], right[1, i], right[2, i], right[3, i]
+        row.t, row.x, row.y, row.p = ev.t, ev.x, ev.y, ev.p
         row.camera = cam[n]
         row.disparity = disparity[n]
 
@@ -76,6 +73,11 @@ def emit_match(out_cam, out_index, out_disparity, n, cam, i, disparity):  # prag
     out_index[n] = i
     out_disparity[n] = disparity
     return n + 1
+
+
+def _fields(events: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The fields t, x, y, p of an event array (views)."""
+    return events["t"], events["x"], events["y"], events["p"]
 
 
 class Scratch:
@@ -148,12 +150,13 @@ class MergedEventMatcher(StreamMatcher):
         for v in values:
             v.fill(np.nan)  # where the kernel writes nothing (a dropped polarity)
         thresholds = self._level.thresholds(k)
-        columns = (event_matrix(left), event_matrix(right))
-        stream = merged_stream(*columns[0], *columns[1], self._bank.slot_of_p, scratch.take("stream", 7 * n, np.int64))
+        # Merged straight from the events' fields: no int64 copy of the columns first (half the merge's time).
+        stream = merged_stream(*_fields(left), *_fields(right), self._bank.slot_of_p,
+                               scratch.take("stream", 7 * n, np.int64))
         m = self._run_kernel(stream, thresholds, out_cam, out_index, out_disparity, values)
         for cam in (0, 1):
             self._level.add(k, cam, values[cam])
-        return matches_at(columns, out_cam[:m], out_index[:m], out_disparity[:m])
+        return matches_at((left, right), out_cam[:m], out_index[:m], out_disparity[:m])
 
     def _feed(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:
         ready, held = [], []

@@ -64,8 +64,9 @@ def merged_stream(tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p, buffer=None):
 
     Parameters
     ----------
-    tl, xl, yl, pl, tr, xr, yr, pr : int64 ndarray
-        Columns of the left and the right camera's events (:func:`cvstereo.dynamic_frames.event_columns`).
+    tl, xl, yl, pl, tr, xr, yr, pr : int ndarray
+        Columns of the left and the right camera's events (:func:`cvstereo.dynamic_frames.event_columns`, or
+        the fields of the event arrays themselves).
     slot_of_p : (2,) int64 ndarray
         Frame slot of p = 0 (OFF) and p = 1 (ON); -1 where the polarity mode drops it.
     buffer : 1-D int64 ndarray, optional
