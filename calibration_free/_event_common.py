@@ -23,7 +23,7 @@ from calibration_free.merge_order import merged_stream
 from cvstereo.dynamic_frames import FrameBank, block_bounds, dynamic_unit
 from cvstereo.events import empty_events
 from cvstereo.matcher import StreamMatcher
-from cvstereo.matches import concat_matches, empty_matches
+from cvstereo.matches import MATCH_DTYPE, concat_matches, empty_matches
 from cvstereo.signal_level import SignalLevel, window_segments
 
 
@@ -42,7 +42,7 @@ def matches_at(events: tuple[np.ndarray, np.ndarray], cam: np.ndarray, index: np
     -------
     (M,) ndarray of MATCH_DTYPE
     """
-    out = empty_matches(cam.size)
+    out = np.empty(cam.size, dtype=MATCH_DTYPE)  # every field of every row is written: no zero fill first
     if cam.size:
         _fill_matches(out, events[0], events[1], cam, index, disparity)
     return out
