@@ -75,6 +75,19 @@ def emit_match(out_cam, out_index, out_disparity, n, cam, i, disparity):  # prag
     return n + 1
 
 
+def _count_before(t: np.ndarray, watermark: int | None) -> int:
+    """How many of the time-ordered ``t`` lie before ``watermark`` (none when there is no watermark yet).
+
+    Usually all of them (the packet's ``until`` is the watermark): then without a search, which would first
+    copy the strided field.
+    """
+    if watermark is None or t.size == 0:
+        return 0
+    if t[-1] < watermark:
+        return t.size
+    return int(np.searchsorted(t, watermark, side="left"))
+
+
 def _fields(events: np.ndarray) -> tuple[np.ndarray, ...]:
     """The fields t, x, y, p of an event array (views)."""
     return events["t"], events["x"], events["y"], events["p"]
@@ -162,8 +175,7 @@ class MergedEventMatcher(StreamMatcher):
         ready, held = [], []
         for old, new in zip(self._held, (left, right), strict=True):
             events = np.concatenate([old, new]) if old.size else new
-            cut = int(np.searchsorted(events["t"], self.watermark, side="left")) if self.watermark is not None \
-                else 0
+            cut = _count_before(events["t"], self.watermark)
             ready.append(events[:cut])
             held.append(events[cut:])
         self._held = (held[0], held[1])

@@ -302,6 +302,8 @@ def window_segments(t: np.ndarray, window_us: int) -> list[tuple[int, int, int]]
         return []
     w = int(window_us)
     k0, k1 = int(t[0]) // w, int(t[-1]) // w
+    if k0 == k1:  # the usual packet: no search (it would copy a strided field first)
+        return [(k0, 0, int(t.size))]
     ks = np.arange(k0, k1 + 1, dtype=np.int64)
     cuts = np.searchsorted(t, ks[1:] * w, side="left")  # first element of each window after the first
     starts = np.concatenate([[0], cuts]).tolist()
