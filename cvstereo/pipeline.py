@@ -174,17 +174,29 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
                                   packets.dropped_times}
     if rectified is not None:
         meta["rectification"] = {**rectification.describe(), "dropped_events": sum(rectified.dropped)}
-    order = np.argsort(matches["t"], kind="stable")  # sort_matches' order, applied to per-match arrays too
-    matches = matches[order]
+    order = _time_order(matches["t"])  # sort_matches' order (None: already in it), for per-match arrays too
+    if order is not None:
+        matches = matches[order]
     arrays = {}
     if hasattr(matcher, "take_uncertainty"):  # matchers that rate their matches (formats.md: `uncertainty`)
         uncertainty = matcher.take_uncertainty()
-        if uncertainty.size == order.size:
-            arrays["uncertainty"] = uncertainty[order]
+        if uncertainty.size == matches.size:
+            arrays["uncertainty"] = uncertainty if order is None else uncertainty[order]
         else:  # a stage in between (rectification) dropped matches: the values no longer line up
             meta["uncertainty"] = "not stored: a stage between matcher and output changed the matches"
     meta["diagnostics"] = _diagnostics(matcher, counted.windows, matches, meta)
     return MatchResult(matches, meta, arrays)
+
+
+def _time_order(t: np.ndarray) -> np.ndarray | None:
+    """The stable order that sorts the times ``t``, or None when they are in order already.
+
+    Matchers return time-ordered matches (the feed contract), so the stable argsort would be the identity; the
+    check is one pass, where the argsort and the gather of every match cost ~5 % of event-area's time at 640x480.
+    """
+    if t.size < 2 or bool(np.all(t[1:] >= t[:-1])):
+        return None
+    return np.argsort(t, kind="stable")
 
 
 def _diagnostics(matcher, event_windows: set[int], matches, meta: dict) -> dict:

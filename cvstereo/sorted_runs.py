@@ -2,9 +2,10 @@
 
 :class:`cvstereo.signal_level.SignalLevel` needs, once per 40 ms window, the 0.9 quantile of the last second's
 values (up to a few hundred thousand at 640x480). ``np.quantile`` over their concatenation costs a full
-partition each time; here each window's values are sorted once when they arrive, kept as one run of a flat
-buffer, and an order statistic is found by a binary search over the values (their float64 bit patterns, which
-order non-negative floats as the floats) that counts, in each run, the values below it. The quantile is then
+partition each time; here each window's values are kept as one run of a flat buffer and sorted once (by the
+first quantile after they arrived), and an order statistic is found by a binary search over the values (their
+float64 bit patterns, which order non-negative floats as the floats) that counts, in each run, the values below
+it. The quantile is then
 numpy's ``linear`` method (its default) from the two order statistics around the quantile's position, with
 numpy's own arithmetic, so that it equals ``np.quantile`` of the concatenated values bit for bit.
 
@@ -27,7 +28,9 @@ class SortedRuns:
     """Runs of non-negative, non-NaN float64 values: append a run at the end, drop the oldest; quantiles.
 
     The runs live one after another in one buffer; dropping a run only moves the start, and the live part is
-    moved to the front (or to a larger buffer) when an appended run does not fit.
+    moved to the front (or to a larger buffer) when an appended run does not fit. A run is sorted by the first
+    :meth:`quantile` after it arrived, not on :meth:`append`: a history whose quantile nobody asks for (the
+    signal level in absolute mode, which keeps only its size) never pays for the sorts.
     """
 
     def __init__(self):
@@ -35,13 +38,14 @@ class SortedRuns:
         self._lo = 0  # start of the oldest run in the buffer
         self._hi = 0  # end of the newest run
         self._stops: deque[int] = deque()  # end of each run, oldest first (buffer positions)
+        self._unsorted = 0  # the newest this many runs are not sorted yet
         self.size = 0
 
     def __len__(self) -> int:
         return len(self._stops)
 
     def append(self, values: np.ndarray) -> None:
-        """Add a run: ``values`` (non-negative, no NaN, any order; sorted here)."""
+        """Add a run: ``values`` (non-negative, no NaN, any order; sorted when a quantile needs it)."""
         n = values.size
         if self._hi + n > self._buf.size:
             live = self._hi - self._lo
@@ -52,9 +56,9 @@ class SortedRuns:
             self._stops = deque(s - self._lo for s in self._stops)
             self._buf, self._lo, self._hi = buf, 0, live
         self._buf[self._hi: self._hi + n] = values
-        self._buf[self._hi: self._hi + n].sort()
         self._hi += n
         self._stops.append(self._hi)
+        self._unsorted += 1
         self.size += n
 
     def first_size(self) -> int:
@@ -66,6 +70,7 @@ class SortedRuns:
         stop = self._stops.popleft()
         self.size -= stop - self._lo
         self._lo = stop
+        self._unsorted = min(self._unsorted, len(self._stops))
 
     def quantile(self, q: float) -> float:
         """``float(np.quantile(all values, q))`` (method ``linear``) without concatenating or partitioning."""
@@ -74,6 +79,9 @@ class SortedRuns:
             raise ValueError("SortedRuns.quantile: no values (append a run first).")
         stops = np.fromiter(self._stops, np.int64, len(self._stops))
         starts = np.concatenate(([self._lo], stops[:-1]))
+        for r in range(len(stops) - self._unsorted, len(stops)):
+            self._buf[starts[r]: stops[r]].sort()
+        self._unsorted = 0
         virtual = (n - 1) * float(q)
         a, b = _neighbours(self._buf, self._buf.view(np.int64), starts, stops, n, virtual)
         return _lerp(a, b, virtual)

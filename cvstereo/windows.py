@@ -21,7 +21,7 @@ import numpy as np
 from cvstereo.events import DEFAULT_RESOLUTION, distinct_sorted, empty_events
 from cvstereo.frames import check_filter_params
 from cvstereo.matcher import StreamMatcher
-from cvstereo.matches import concat_matches, empty_matches
+from cvstereo.matches import concat_matches, empty_matches, join_records
 from cvstereo.params import AliasedParams
 
 
@@ -137,7 +137,7 @@ class WindowAccumulator:
             if not chunks:
                 parts.append(empty_events())
                 continue
-            ev = chunks[0] if len(chunks) == 1 else _join(chunks)
+            ev = chunks[0] if len(chunks) == 1 else join_records(chunks)
             t = ev["t"]
             if t_cut is None or t[-1] < t_cut:
                 n = ev.size
@@ -166,21 +166,6 @@ class WindowAccumulator:
             Window(int(k), int(k) * w, (int(k) + 1) * w, left[a:b], right[c:d])
             for k, a, b, c, d in zip(ks, lo_l, hi_l, lo_r, hi_r, strict=True)
         ]
-
-
-def _join(chunks: list[np.ndarray]) -> np.ndarray:
-    """np.concatenate for event arrays, without its per-call structured-dtype promotion (slow for small chunks).
-
-    The chunks are copied as raw records (a void view): numpy copies a structured array field by field, some
-    50 times slower (0.7 ms for 2 x 16k events at 640x480).
-    """
-    out = np.empty(sum(c.size for c in chunks), dtype=chunks[0].dtype)
-    raw = out.view(np.void)
-    i = 0
-    for c in chunks:
-        raw[i: i + c.size] = c.view(np.void)
-        i += c.size
-    return out
 
 
 class FrameMatcher(StreamMatcher):

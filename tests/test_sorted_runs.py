@@ -36,6 +36,21 @@ def test_quantile_equals_numpy_of_the_live_runs(rng, kind, q):
             assert np.signbit(got) == np.signbit(expected)
 
 
+def test_runs_sorted_late_give_the_same_quantiles(rng):
+    """Runs are sorted by the first quantile after they arrive: quantiles asked only now and then, after
+    unsorted runs were dropped or moved to a larger buffer, still equal numpy's."""
+    runs, live = SortedRuns(), []
+    for step in range(300):
+        v = _values(rng, int(rng.integers(0, 900)), "continuous")
+        runs.append(v)
+        live.append(v)
+        while len(live) > 1 and rng.random() < 0.45:
+            runs.popleft()
+            live.pop(0)
+        if rng.random() < 0.15 and runs.size:
+            assert runs.quantile(0.9) == float(np.quantile(np.concatenate(live), 0.9)), step
+
+
 def test_small_cases_by_hand():
     runs = SortedRuns()
     runs.append(np.array([5.0, 1.0, 3.0]))  # any order: the run is sorted on arrival
