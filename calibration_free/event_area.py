@@ -79,7 +79,6 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
     own = np.empty((n_planes, size, size))
     n_d = min(max_d, width) + 1  # at most this many candidates stay on the sensor
     own_col = np.empty((n_planes, size))
-    band_col = np.empty((n_planes, n_d + 2 * half))
     bound = np.empty(n_d + 1)  # and a scratch entry, where the least bound of the rest is turned into a float
     # The bounds' bit patterns: non-negative float64 values order as their int64 bits, and an integer minimum
     # vectorises where a float one does not (without fast-math).
@@ -120,7 +119,6 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
             else:
                 last = min(max_d, x - half)
                 base = x - last - half
-            n_cols = last + size
             # Values are products stored * scale, computed once per pixel: the same numbers as the reference.
             own_abs = 0.0
             for q in range(n_planes):
@@ -133,29 +131,33 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
                         own[q, jj, ii] = v
                         own_col[q, ii] += v
                         own_abs += abs(v)
-            # The other frames' band, summed over its rows per column (for the bound below; the exact SADs
-            # read their few pixels): one row of the kept column sums rather than ``block`` rows of the frame.
-            # (Unsigned indices: numba wraps negative signed ones around, which made LLVM gather the row.)
-            ubase = np.uint64(base)
-            for q in range(n_planes):
-                s = first_slot + q
-                for k in range(np.uint64(n_cols)):
-                    band_col[q, k] = sums[other, s, y, ubase + k] * c2
             # A lower bound of every candidate's SAD: the SAD of the patches' column sums (triangle
             # inequality), 5 terms per frame instead of 25, for all candidates at once (the loop over e
-            # vectorises). With two frames (a camera has at most two) both terms go in one pass over the
-            # bounds per column, half the passes.
+            # vectorises). The other frames' column sums are the kept ones (one row read instead of ``block``
+            # rows of the frame), read in place in their stored units (unsigned indices: numba wraps negative
+            # signed ones around, which made LLVM gather the row): the own column sums are divided by the
+            # other camera's scale instead, and so is the cut below, which changes the bound's rounding only
+            # (~1e-16 relative, far inside the cut's margin). With two frames (a camera has at most two) both
+            # terms go in one pass over the bounds per column, half the passes.
+            inv2 = 1.0 / c2
+            for q in range(n_planes):
+                for ii in range(size):
+                    own_col[q, ii] *= inv2
+            ubase = np.uint64(base)
+            row0 = sums[other, first_slot, y]
+            row1 = sums[other, first_slot + n_planes - 1, y]
             for e in range(last + 1):
                 bound[e] = 0.0
             for ii in range(size):
                 o = own_col[0, ii]
+                uii = ubase + np.uint64(ii)
                 if n_planes == 1:
-                    for e in range(last + 1):
-                        bound[e] += abs(o - band_col[0, ii + e])
+                    for e in range(np.uint64(last + 1)):
+                        bound[e] += abs(o - row0[uii + e])
                 else:
                     o1 = own_col[1, ii]
-                    for e in range(last + 1):
-                        bound[e] += abs(o - band_col[0, ii + e]) + abs(o1 - band_col[1, ii + e])
+                    for e in range(np.uint64(last + 1)):
+                        bound[e] += abs(o - row0[uii + e]) + abs(o1 - row1[uii + e])
             # The exact SAD first where the bound is least (likely the winner, so that the bound then rules
             # out most others), then of every candidate whose bound does not exceed the best SAD so far (at
             # first the SAD a match must stay below, so that often no exact SAD is needed at all) by more than
@@ -185,7 +187,7 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
                 best_sad = min(best_sad, own_ratio * own_abs)
             limit = best_sad * rival
             slack = 10.0 * drift * mass[other] * c2 + 1e-9 * own_abs + 1e-300
-            cut = limit + 1e-9 * limit + slack  # a bound above this rules the candidate out
+            cut = (limit + 1e-9 * limit + slack) * inv2  # a bound above this rules the candidate out (stored units)
             n_done = 0
             e = first if bound[first] <= cut else -1  # else no candidate can match
             k = -1  # the candidates up to k have been visited (or ruled out), besides the first
@@ -212,7 +214,7 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
                     best_sad = sad
                     best = d
                     limit = best_sad * rival
-                    cut = limit + 1e-9 * limit + slack
+                    cut = (limit + 1e-9 * limit + slack) * inv2
                 # The next candidate whose bound lies within the cut (a tight loop of its own: in the loop over
                 # all candidates the compiler kept its counter in memory).
                 k += 1
