@@ -85,37 +85,41 @@ def _nearest(row_t, row_x, row_p, row_v, start, first, y0, y1, t_end, p, v, tol,
 
 
 @njit(cache=True)
-def _veto(last, x, y, t, best, radius, window, min_agree, buf):
+def _veto(last, x, y, t, best, radius, window, min_agree, hist):
     """The consensus of the recent matches around (x, y) if it lies more than 1 px from ``best``, else -1.
 
     The last match of each pixel within ``radius`` (own pixel included; ``last[y, x]``: its time and disparity)
     counts if it is at most ``window`` us old; their lower median m is the consensus when at least ``min_agree``
-    of them, and more than half, lie within 1 px of it. ``buf`` holds at least (2 radius + 1)^2 entries.
+    of them, and more than half, lie within 1 px of it. ``hist`` (zeros, at least ``max_disparity`` + 3
+    entries) counts disparity d at ``hist[d + 1]`` and is left zeroed again.
     """
     height, width = last.shape[0], last.shape[1]
     y0, y1, x0, x1 = max(0, y - radius), min(height, y + radius + 1), max(0, x - radius), min(width, x + radius + 1)
     since = t - window  # NO_TIME (no match yet) lies before any such time
-    n = near = 0
-    for r in range(y0, y1):
-        for c in range(x0, x1):
-            recent = last[r, c, 0] >= since
-            n += recent
-            near += recent & (abs(last[r, c, 1] - best) <= 1)
-    # More than half within 1 px of best puts the lower median there too: no veto, and no sort (the common case).
-    if n == 0 or n < min_agree or 2 * near > n:
-        return -1
-    n = 0
+    # Disparities are small non-negative integers: a histogram over the range they span gives the lower median
+    # and the counts within 1 px of it without a sort (most calls reach the median: a sort per call cost more
+    # than the rest of the matcher on a dense scene).
+    n, lo, hi = 0, hist.shape[0], -1
     for r in range(y0, y1):
         for c in range(x0, x1):
             if last[r, c, 0] >= since:
-                buf[n] = last[r, c, 1]
+                d = last[r, c, 1] + 1
+                hist[d] += 1
                 n += 1
-    b = np.sort(buf[:n])
-    m = b[(n - 1) // 2]
-    agree = 0
-    for k in range(n):
-        agree += abs(b[k] - m) <= 1
-    return m if agree >= min_agree and 2 * agree > n and abs(m - best) > 1 else -1
+                lo, hi = min(lo, d), max(hi, d)
+    if n == 0:
+        return -1
+    near = hist[best] + hist[best + 1] + hist[best + 2]
+    m = -1
+    if n >= min_agree and 2 * near <= n:  # else more than half lie within 1 px of best, and so does the median
+        below, m = 0, lo
+        while below + hist[m] <= (n - 1) // 2:
+            below += hist[m]
+            m += 1
+        agree = hist[m - 1] + hist[m] + hist[m + 1]
+        m = m - 1 if agree >= min_agree and 2 * agree > n and abs(m - 1 - best) > 1 else -1
+    hist[lo:hi + 1] = 0
+    return m
 
 
 @njit(cache=True)
@@ -152,7 +156,7 @@ def _resolve(pt, px, py, pp, pv, n, ct, cx, cy, cp, cv, height, window, max_wind
     row_t, row_x, row_p, row_v = ct[order], cx[order], cp[order], cv[order]
     lo = start[:height].copy()
     first = lo.copy()  # per row: the first candidate at or after t - w of the last pending event that scanned it
-    buf = np.empty((2 * radius + 1) ** 2, dtype=np.int64)
+    hist = np.zeros(max_d + 3, dtype=np.int64)
     for i in range(n):
         t = pt[i]
         w = window[i]
@@ -171,7 +175,7 @@ def _resolve(pt, px, py, pp, pv, n, ct, cx, cy, cp, cv, height, window, max_wind
         best = _nearest(row_t, row_x, row_p, row_v, start, first, y0, y1, t + w, pp[i], pv[i], value_tol[i], px[i],
                         side, max_d, 0)
         if best >= 0 and radius > 0:
-            cons = _veto(last, px[i], py[i], t, best, radius, c_window, c_min, buf)
+            cons = _veto(last, px[i], py[i], t, best, radius, c_window, c_min, hist)
             if cons >= 0:
                 # A look-alike where the neighbourhood agrees on another disparity: the candidate nearest it, if any.
                 best = _nearest(row_t, row_x, row_p, row_v, start, first, y0, y1, t + w, pp[i], pv[i],
