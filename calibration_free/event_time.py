@@ -90,36 +90,53 @@ def _veto(last, x, y, t, best, radius, window, min_agree, hist):
 
     The last match of each pixel within ``radius`` (own pixel included; ``last[y, x]``: its time and disparity)
     counts if it is at most ``window`` us old; their lower median m is the consensus when at least ``min_agree``
-    of them, and more than half, lie within 1 px of it. ``hist`` (zeros, at least ``max_disparity`` + 3
-    entries) counts disparity d at ``hist[d + 1]`` and is left zeroed again.
+    of them, and more than half, lie within 1 px of it (:func:`_consensus`, whose ``hist`` this is).
     """
     height, width = last.shape[0], last.shape[1]
     y0, y1, x0, x1 = max(0, y - radius), min(height, y + radius + 1), max(0, x - radius), min(width, x + radius + 1)
     since = t - window  # NO_TIME (no match yet) lies before any such time
-    # Disparities are small non-negative integers: a histogram over the range they span gives the lower median
-    # and the counts within 1 px of it without a sort (most calls reach the median: a sort per call cost more
-    # than the rest of the matcher on a dense scene).
-    n, lo, hi = 0, hist.shape[0], -1
+    # First only count, in a branch-free pass: the lower median, the ((n - 1) // 2)-th of the n recent
+    # disparities in ascending order, lies more than 1 px from best only if more than that many lie below
+    # best - 1, or at most that many at or below best + 1. Else best stands, with no histogram (2 calls in 5 on
+    # the motorcycle, 49 in 50 at 640x480).
+    n = below = upto = 0
     for r in range(y0, y1):
         for c in range(x0, x1):
-            if last[r, c, 0] >= since:
-                d = last[r, c, 1] + 1
-                hist[d] += 1
-                n += 1
-                lo, hi = min(lo, d), max(hi, d)
-    if n == 0:
+            recent = last[r, c, 0] >= since
+            d = last[r, c, 1]
+            n += recent
+            below += recent & (d < best - 1)
+            upto += recent & (d <= best + 1)
+    k = (n - 1) // 2
+    if n == 0 or n < min_agree or (below <= k < upto):
         return -1
-    near = hist[best] + hist[best + 1] + hist[best + 2]
-    m = -1
-    if n >= min_agree and 2 * near <= n:  # else more than half lie within 1 px of best, and so does the median
-        below, m = 0, lo
-        while below + hist[m] <= (n - 1) // 2:
-            below += hist[m]
-            m += 1
-        agree = hist[m - 1] + hist[m] + hist[m + 1]
-        m = m - 1 if agree >= min_agree and 2 * agree > n and abs(m - 1 - best) > 1 else -1
+    return _consensus(last, y0, y1, x0, x1, since, n, min_agree, hist)
+
+
+@njit(cache=True)
+def _consensus(last, y0, y1, x0, x1, since, n, min_agree, hist):
+    """The lower median m of the ``n`` disparities of ``last[y0:y1, x0:x1]`` at least ``since`` recent if at
+    least ``min_agree`` of them, and more than half, lie within 1 px of it, else -1.
+
+    Disparities are small non-negative integers: a histogram over the range they span gives the median and the
+    counts near it without a sort (a sort per call cost more than the rest of the matcher on a dense scene).
+    ``hist`` (zeros, at least ``max_disparity`` + 3 entries) counts disparity d at ``hist[d + 1]`` and is left
+    zeroed again.
+    """
+    lo, hi = hist.shape[0], -1
+    for r in range(y0, y1):
+        for c in range(x0, x1):
+            recent = last[r, c, 0] >= since
+            d = last[r, c, 1] + 1
+            hist[d] += recent
+            lo, hi = min(lo, d if recent else lo), max(hi, d if recent else hi)
+    below, m = 0, lo
+    while below + hist[m] <= (n - 1) // 2:
+        below += hist[m]
+        m += 1
+    agree = hist[m - 1] + hist[m] + hist[m + 1]
     hist[lo:hi + 1] = 0
-    return m
+    return m - 1 if agree >= min_agree and 2 * agree > n else -1
 
 
 @njit(cache=True)
