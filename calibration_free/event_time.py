@@ -66,9 +66,10 @@ NO_TIME = np.iinfo(np.int64).min
 
 
 @njit(cache=True)
-def _nearest(row_t, row_x, row_p, row_v, start, first, y0, y1, t_end, p, v, tol, x, side, max_d, target):
-    """The candidate disparity nearest ``target`` (ties: the smaller; -1: none) in rows y0 .. y1, each scanned
-    from ``first[r]`` up to time ``t_end``: with ``target`` 0 the smallest distance, Algorithm 1's rule."""
+def _nearest(row_t, row_x, row_p, row_v, start, first, y0, y1, t_end, p, v, tol, x, side, max_d, seen, stamp):
+    """The smallest candidate disparity (Algorithm 1's rule; -1: none) in rows y0 .. y1, each scanned from
+    ``first[r]`` up to time ``t_end``; ``seen[d] = stamp`` marks every candidate disparity d on the way, so that
+    the candidate nearest another disparity needs no second scan (:func:`_nearest_to`)."""
     best = -1
     for r in range(y0, y1 + 1):
         k = first[r]
@@ -77,11 +78,23 @@ def _nearest(row_t, row_x, row_p, row_v, start, first, y0, y1, t_end, p, v, tol,
                 dx = row_x[k] - x
                 if not ((side > 0 and dx < 0) or (side < 0 and dx > 0)):
                     d = abs(dx)
-                    if d <= max_d and (best < 0 or abs(d - target) < abs(best - target)
-                                       or (abs(d - target) == abs(best - target) and d < best)):
-                        best = d
+                    if d <= max_d:
+                        seen[d] = stamp
+                        if best < 0 or d < best:
+                            best = d
             k += 1
     return best
+
+
+@njit(cache=True)
+def _nearest_to(seen, stamp, target):
+    """The candidate disparity marked ``stamp`` in ``seen`` (:func:`_nearest`) within 1 px of ``target``, the
+    nearest (ties: the smaller), or -1 if none."""
+    if seen[target] == stamp:
+        return target
+    if target >= 1 and seen[target - 1] == stamp:
+        return target - 1
+    return target + 1 if seen[target + 1] == stamp else -1
 
 
 @njit(cache=True)
@@ -174,6 +187,7 @@ def _resolve(pt, px, py, pp, pv, n, ct, cx, cy, cp, cv, height, window, max_wind
     lo = start[:height].copy()
     first = lo.copy()  # per row: the first candidate at or after t - w of the last pending event that scanned it
     hist = np.zeros(max_d + 3, dtype=np.int64)
+    seen = np.full(max_d + 2, -1, dtype=np.int64)  # stamped with the pending event's index i
     for i in range(n):
         t = pt[i]
         w = window[i]
@@ -190,15 +204,12 @@ def _resolve(pt, px, py, pp, pv, n, ct, cx, cy, cp, cv, height, window, max_wind
                 k += 1
             first[r] = k
         best = _nearest(row_t, row_x, row_p, row_v, start, first, y0, y1, t + w, pp[i], pv[i], value_tol[i], px[i],
-                        side, max_d, 0)
+                        side, max_d, seen, i)
         if best >= 0 and radius > 0:
             cons = _veto(last, px[i], py[i], t, best, radius, c_window, c_min, hist)
             if cons >= 0:
                 # A look-alike where the neighbourhood agrees on another disparity: the candidate nearest it, if any.
-                best = _nearest(row_t, row_x, row_p, row_v, start, first, y0, y1, t + w, pp[i], pv[i],
-                                value_tol[i], px[i], side, max_d, cons)
-                if abs(best - cons) > 1:
-                    best = -1
+                best = _nearest_to(seen, i, cons)
             if best >= 0:
                 last[py[i], px[i], 0] = t
                 last[py[i], px[i], 1] = best
