@@ -66,9 +66,10 @@ NO_TIME = np.iinfo(np.int64).min
 
 
 @njit(cache=True)
-def _nearest(row_t, row_x, row_p, row_v, start, first, y0, y1, t_end, p, v, tol, x, side, max_d, target):
-    """The candidate disparity nearest ``target`` (ties: the smaller; -1: none) in rows y0 .. y1, each scanned
-    from ``first[r]`` up to time ``t_end``: with ``target`` 0 the smallest distance, Algorithm 1's rule."""
+def _nearest(row_t, row_x, row_p, row_v, start, first, y0, y1, t_end, p, v, tol, x, side, max_d, seen, stamp):
+    """The smallest candidate disparity (Algorithm 1's rule; -1: none) in rows y0 .. y1, each scanned from
+    ``first[r]`` up to time ``t_end``; ``seen[d] = stamp`` marks every candidate disparity d on the way, so that
+    the candidate nearest another disparity needs no second scan (:func:`_nearest_to`)."""
     best = -1
     for r in range(y0, y1 + 1):
         k = first[r]
@@ -77,45 +78,78 @@ def _nearest(row_t, row_x, row_p, row_v, start, first, y0, y1, t_end, p, v, tol,
                 dx = row_x[k] - x
                 if not ((side > 0 and dx < 0) or (side < 0 and dx > 0)):
                     d = abs(dx)
-                    if d <= max_d and (best < 0 or abs(d - target) < abs(best - target)
-                                       or (abs(d - target) == abs(best - target) and d < best)):
-                        best = d
+                    if d <= max_d:
+                        seen[d] = stamp
+                        if best < 0 or d < best:
+                            best = d
             k += 1
     return best
 
 
 @njit(cache=True)
-def _veto(last, x, y, t, best, radius, window, min_agree, buf):
+def _nearest_to(seen, stamp, target):
+    """The candidate disparity marked ``stamp`` in ``seen`` (:func:`_nearest`) within 1 px of ``target``, the
+    nearest (ties: the smaller), or -1 if none."""
+    if seen[target] == stamp:
+        return target
+    if target >= 1 and seen[target - 1] == stamp:
+        return target - 1
+    return target + 1 if seen[target + 1] == stamp else -1
+
+
+@njit(cache=True)
+def _veto(last, x, y, t, best, radius, window, min_agree, hist):
     """The consensus of the recent matches around (x, y) if it lies more than 1 px from ``best``, else -1.
 
     The last match of each pixel within ``radius`` (own pixel included; ``last[y, x]``: its time and disparity)
     counts if it is at most ``window`` us old; their lower median m is the consensus when at least ``min_agree``
-    of them, and more than half, lie within 1 px of it. ``buf`` holds at least (2 radius + 1)^2 entries.
+    of them, and more than half, lie within 1 px of it (:func:`_consensus`, whose ``hist`` this is).
     """
     height, width = last.shape[0], last.shape[1]
     y0, y1, x0, x1 = max(0, y - radius), min(height, y + radius + 1), max(0, x - radius), min(width, x + radius + 1)
     since = t - window  # NO_TIME (no match yet) lies before any such time
-    n = near = 0
+    # First only count, in a branch-free pass: the lower median, the ((n - 1) // 2)-th of the n recent
+    # disparities in ascending order, lies more than 1 px from best only if more than that many lie below
+    # best - 1, or at most that many at or below best + 1. Else best stands, with no histogram (2 calls in 5 on
+    # the motorcycle, 49 in 50 at 640x480).
+    n = below = upto = 0
     for r in range(y0, y1):
         for c in range(x0, x1):
             recent = last[r, c, 0] >= since
+            d = last[r, c, 1]
             n += recent
-            near += recent & (abs(last[r, c, 1] - best) <= 1)
-    # More than half within 1 px of best puts the lower median there too: no veto, and no sort (the common case).
-    if n == 0 or n < min_agree or 2 * near > n:
+            below += recent & (d < best - 1)
+            upto += recent & (d <= best + 1)
+    k = (n - 1) // 2
+    if n == 0 or n < min_agree or (below <= k < upto):
         return -1
-    n = 0
+    return _consensus(last, y0, y1, x0, x1, since, n, min_agree, hist)
+
+
+@njit(cache=True)
+def _consensus(last, y0, y1, x0, x1, since, n, min_agree, hist):
+    """The lower median m of the ``n`` disparities of ``last[y0:y1, x0:x1]`` at least ``since`` recent if at
+    least ``min_agree`` of them, and more than half, lie within 1 px of it, else -1.
+
+    Disparities are small non-negative integers: a histogram over the range they span gives the median and the
+    counts near it without a sort (a sort per call cost more than the rest of the matcher on a dense scene).
+    ``hist`` (zeros, at least ``max_disparity`` + 3 entries) counts disparity d at ``hist[d + 1]`` and is left
+    zeroed again.
+    """
+    lo, hi = hist.shape[0], -1
     for r in range(y0, y1):
         for c in range(x0, x1):
-            if last[r, c, 0] >= since:
-                buf[n] = last[r, c, 1]
-                n += 1
-    b = np.sort(buf[:n])
-    m = b[(n - 1) // 2]
-    agree = 0
-    for k in range(n):
-        agree += abs(b[k] - m) <= 1
-    return m if agree >= min_agree and 2 * agree > n and abs(m - best) > 1 else -1
+            recent = last[r, c, 0] >= since
+            d = last[r, c, 1] + 1
+            hist[d] += recent
+            lo, hi = min(lo, d if recent else lo), max(hi, d if recent else hi)
+    below, m = 0, lo
+    while below + hist[m] <= (n - 1) // 2:
+        below += hist[m]
+        m += 1
+    agree = hist[m - 1] + hist[m] + hist[m + 1]
+    hist[lo:hi + 1] = 0
+    return m - 1 if agree >= min_agree and 2 * agree > n else -1
 
 
 @njit(cache=True)
@@ -152,7 +186,8 @@ def _resolve(pt, px, py, pp, pv, n, ct, cx, cy, cp, cv, height, window, max_wind
     row_t, row_x, row_p, row_v = ct[order], cx[order], cp[order], cv[order]
     lo = start[:height].copy()
     first = lo.copy()  # per row: the first candidate at or after t - w of the last pending event that scanned it
-    buf = np.empty((2 * radius + 1) ** 2, dtype=np.int64)
+    hist = np.zeros(max_d + 3, dtype=np.int64)
+    seen = np.full(max_d + 2, -1, dtype=np.int64)  # stamped with the pending event's index i
     for i in range(n):
         t = pt[i]
         w = window[i]
@@ -169,15 +204,12 @@ def _resolve(pt, px, py, pp, pv, n, ct, cx, cy, cp, cv, height, window, max_wind
                 k += 1
             first[r] = k
         best = _nearest(row_t, row_x, row_p, row_v, start, first, y0, y1, t + w, pp[i], pv[i], value_tol[i], px[i],
-                        side, max_d, 0)
+                        side, max_d, seen, i)
         if best >= 0 and radius > 0:
-            cons = _veto(last, px[i], py[i], t, best, radius, c_window, c_min, buf)
+            cons = _veto(last, px[i], py[i], t, best, radius, c_window, c_min, hist)
             if cons >= 0:
                 # A look-alike where the neighbourhood agrees on another disparity: the candidate nearest it, if any.
-                best = _nearest(row_t, row_x, row_p, row_v, start, first, y0, y1, t + w, pp[i], pv[i],
-                                value_tol[i], px[i], side, max_d, cons)
-                if abs(best - cons) > 1:
-                    best = -1
+                best = _nearest_to(seen, i, cons)
             if best >= 0:
                 last[py[i], px[i], 0] = t
                 last[py[i], px[i], 1] = best

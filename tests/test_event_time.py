@@ -202,6 +202,9 @@ def _veto_scene(probe_partners, neighbour_disparities=(5, 5)):
     ((2, 5), (5, 9), {}, 2),  # neighbours that disagree (5 and 9) veto nothing
     ((2, 5), (5, 5), {"consensus_window_us": 1500, "consensus_min": 1}, 5),  # ... unless one suffices
     ((4, 5), (5, 5), {}, 4),  # within 1 px of the consensus: no veto
+    ((2, 4, 6), (5, 5), {}, 4),  # none at 5, two 1 px from it: the smaller
+    ((2, 6), (5, 5), {}, 6),  # none at 5 or 4: the one 1 px above
+    ((5,), (2, 2), {}, None),  # a consensus below the smallest distance: no candidate can be near it
 ])
 def test_the_neighbours_consensus_vetoes_a_look_alike(partners, neighbours, overrides, expected):
     """By hand: the neighbour matches (d = 5 each unless said otherwise) and the probe's candidates; fast at
