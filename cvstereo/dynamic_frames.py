@@ -280,15 +280,17 @@ def splat_bounded(stored, scale, clock, bound, cam, slot, x, y, sign, kernel):
 def skip_below(stored, bound, cam, slot, y, k, step, end, c, threshold):
     """From column ``k`` (included) in direction ``step`` (+1 or -1) of row ``y`` of frame ``slot``, the first
     column whose value ``|stored * c|`` is >= ``threshold``, or ``end`` (-1 or the width) if none; blocks whose
-    bound says that they hold none are skipped whole."""
+    bound says that they hold none are skipped whole, the others are read without testing their bound again
+    at every pixel."""
     while k != end:
         b = k >> BOUND_SHIFT
-        if bound[cam, slot, y, b] * c < threshold:
-            k = (b << BOUND_SHIFT) - 1 if step < 0 else min(end, (b + 1) << BOUND_SHIFT)
-            continue
-        if abs(stored[cam, slot, y, k] * c) >= threshold:
-            return k
-        k += step
+        beyond = max(end, (b << BOUND_SHIFT) - 1) if step < 0 else min(end, (b + 1) << BOUND_SHIFT)
+        if bound[cam, slot, y, b] * c >= threshold:
+            while k != beyond:
+                if abs(stored[cam, slot, y, k] * c) >= threshold:
+                    return k
+                k += step
+        k = beyond
     return end
 
 
