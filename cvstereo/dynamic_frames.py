@@ -253,17 +253,26 @@ def splat_bounded(stored, scale, clock, bound, cam, slot, x, y, sign, kernel):
 
     The same float64 operations as :func:`splat`, in one loop over the kernel's window on the sensor rather than
     :func:`splat` followed by a second loop: in that form numba kept atomic reference counting of the arrays
-    around every call (~30 ns an event).
+    around every call (~30 ns an event). A block's bound is read and written once per row of the window (raised
+    to the largest new |stored| of the row's pixels in it) rather than compared per pixel: the same bounds,
+    ~10 % less time an event with the 5x5 splat. (Caching ``kernel / c`` between decay ticks instead of
+    dividing per pixel measured slower, not faster.)
     """
     r = kernel.shape[0] // 2
     c = scale[cam]
+    x0, x1 = max(0, x - r), min(stored.shape[3], x + r + 1)
     for yy in range(max(0, y - r), min(stored.shape[2], y + r + 1)):
-        for xx in range(max(0, x - r), min(stored.shape[3], x + r + 1)):
+        b = x0 >> BOUND_SHIFT
+        m = bound[cam, slot, yy, b]
+        for xx in range(x0, x1):
             v = stored[cam, slot, yy, xx] + sign * kernel[yy - y + r, xx - x + r] / c
             stored[cam, slot, yy, xx] = v
-            b = xx >> BOUND_SHIFT
-            if abs(v) > bound[cam, slot, yy, b]:
-                bound[cam, slot, yy, b] = abs(v)
+            if xx >> BOUND_SHIFT != b:  # the window's row crosses into the next block
+                bound[cam, slot, yy, b] = m
+                b = xx >> BOUND_SHIFT
+                m = bound[cam, slot, yy, b]
+            m = max(m, abs(v))
+        bound[cam, slot, yy, b] = m
     clock[cam, 1] = 1
 
 
@@ -271,15 +280,17 @@ def splat_bounded(stored, scale, clock, bound, cam, slot, x, y, sign, kernel):
 def skip_below(stored, bound, cam, slot, y, k, step, end, c, threshold):
     """From column ``k`` (included) in direction ``step`` (+1 or -1) of row ``y`` of frame ``slot``, the first
     column whose value ``|stored * c|`` is >= ``threshold``, or ``end`` (-1 or the width) if none; blocks whose
-    bound says that they hold none are skipped whole."""
+    bound says that they hold none are skipped whole, the others are read without testing their bound again
+    at every pixel."""
     while k != end:
         b = k >> BOUND_SHIFT
-        if bound[cam, slot, y, b] * c < threshold:
-            k = (b << BOUND_SHIFT) - 1 if step < 0 else min(end, (b + 1) << BOUND_SHIFT)
-            continue
-        if abs(stored[cam, slot, y, k] * c) >= threshold:
-            return k
-        k += step
+        beyond = max(end, (b << BOUND_SHIFT) - 1) if step < 0 else min(end, (b + 1) << BOUND_SHIFT)
+        if bound[cam, slot, y, b] * c >= threshold:
+            while k != beyond:
+                if abs(stored[cam, slot, y, k] * c) >= threshold:
+                    return k
+                k += step
+        k = beyond
     return end
 
 

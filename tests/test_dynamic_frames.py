@@ -190,3 +190,44 @@ def test_column_sums_rebuild_when_due():
     advance_due_summed(stored, scale, clock, sums, mass, pending, 0, 0, 0.99, 250, 2)
     np.testing.assert_allclose(sums, _exact_column_sums(stored, 2), rtol=0, atol=1e-12)
     assert pending[0] == 0 and mass[0] == pytest.approx(np.abs(stored).sum())
+
+
+def test_splat_bounded_adds_as_splat_does_and_bounds_each_block_by_its_maximum():
+    """ON events only (no cancellation, no rescale): every pixel only grows, so the bounds kept per splat row must
+    equal the exact block maxima of |stored|; the frame must equal :func:`splat`'s bit for bit. A 5x5 kernel on a
+    sensor of 3 blocks puts windows across block edges and the sensor border."""
+    from cvstereo.dynamic_frames import BOUND_SHIFT, block_bounds, splat, splat_bounded
+
+    rng = np.random.default_rng(7)
+    kernel = update_kernel(DynamicFrameParams(kernel_size=5, kernel_sigma=1.5))
+    height, width = 6, 40
+    stored = np.zeros((1, 1, height, width))
+    plain = stored.copy()
+    bound = block_bounds(stored)
+    scale, clock = np.array([0.37]), np.zeros((1, 2), dtype=np.int64)
+    for x, y in zip(rng.integers(0, width, 300), rng.integers(0, height, 300), strict=True):
+        splat_bounded(stored, scale, clock, bound, 0, 0, int(x), int(y), 1.0, kernel)
+        splat(plain, scale, clock, 0, 0, int(x), int(y), 1.0, kernel)
+    np.testing.assert_array_equal(stored, plain)
+    for b in range(bound.shape[3]):
+        block = np.abs(stored[..., b << BOUND_SHIFT:(b + 1) << BOUND_SHIFT]).max(axis=-1)
+        np.testing.assert_array_equal(bound[..., b], block)
+
+
+def test_skip_below_stops_at_an_end_inside_the_row():
+    """The search's forward skips end at hi + 1, anywhere in a block: the first column at or above the threshold
+    before ``end``, by brute force, or ``end``."""
+    from cvstereo.dynamic_frames import BOUND_SHIFT, skip_below
+
+    rng = np.random.default_rng(11)
+    width = 70
+    for _ in range(300):
+        stored = np.where(rng.random((1, 1, 1, width)) < 0.08, rng.normal(0, 2, (1, 1, 1, width)), 0.0)
+        bound = np.abs(stored).reshape(-1)
+        bound = np.array([bound[b << BOUND_SHIFT:(b + 1) << BOUND_SHIFT].max()
+                          for b in range(-(-width >> BOUND_SHIFT))]).reshape(1, 1, 1, -1)
+        c, threshold = float(rng.uniform(0.5, 2)), float(rng.uniform(0.5, 1.5))
+        start = int(rng.integers(0, width))
+        end = int(rng.integers(start, width + 1))
+        hits = [k for k in range(start, end) if abs(stored[0, 0, 0, k] * c) >= threshold]
+        assert skip_below(stored, bound, 0, 0, 0, start, 1, end, c, threshold) == (hits[0] if hits else end)
