@@ -21,10 +21,10 @@ from numba import njit
 
 from calibration_free.merge_order import merged_stream
 from cvstereo.dynamic_frames import FrameBank, block_bounds, dynamic_unit
-from cvstereo.events import empty_events
+from cvstereo.events import count_before, empty_events, paired_window_segments
 from cvstereo.matcher import StreamMatcher
 from cvstereo.matches import MATCH_DTYPE, concat_matches, empty_matches
-from cvstereo.signal_level import SignalLevel, window_segments
+from cvstereo.signal_level import SignalLevel
 
 
 def matches_at(events: tuple[np.ndarray, np.ndarray], cam: np.ndarray, index: np.ndarray,
@@ -73,19 +73,6 @@ def emit_match(out_cam, out_index, out_disparity, n, cam, i, disparity):  # prag
     out_index[n] = i
     out_disparity[n] = disparity
     return n + 1
-
-
-def _count_before(t: np.ndarray, watermark: int | None) -> int:
-    """How many of the time-ordered ``t`` lie before ``watermark`` (none when there is no watermark yet).
-
-    Usually all of them (the packet's ``until`` is the watermark): then without a search, which would first
-    copy the strided field.
-    """
-    if watermark is None or t.size == 0:
-        return 0
-    if t[-1] < watermark:
-        return t.size
-    return int(np.searchsorted(t, watermark, side="left"))
 
 
 def _fields(events: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -145,12 +132,8 @@ class MergedEventMatcher(StreamMatcher):
             return empty_matches()
         # Each camera's runs of one level window (its events are time-ordered): a few searches per packet
         # rather than a sort of every event's window index.
-        runs = [{k: (a, b) for k, a, b in window_segments(ev["t"], self.params.level_window_us)}
-                for ev in (left, right)]
-        parts = []
-        for k in sorted(runs[0].keys() | runs[1].keys()):
-            (al, bl), (ar, br) = runs[0].get(k, (0, 0)), runs[1].get(k, (0, 0))
-            parts.append(self._process_window(k, left[al:bl], right[ar:br]))
+        parts = [self._process_window(k, left[al:bl], right[ar:br]) for k, (al, bl), (ar, br)
+                 in paired_window_segments(left["t"], right["t"], self.params.level_window_us)]
         return parts[0] if len(parts) == 1 else concat_matches(parts)
 
     def _process_window(self, k: int, left: np.ndarray, right: np.ndarray) -> np.ndarray:
@@ -175,7 +158,7 @@ class MergedEventMatcher(StreamMatcher):
         ready, held = [], []
         for old, new in zip(self._held, (left, right), strict=True):
             events = np.concatenate([old, new]) if old.size else new
-            cut = _count_before(events["t"], self.watermark)
+            cut = count_before(events["t"], self.watermark)
             ready.append(events[:cut])
             held.append(events[cut:])
         self._held = (held[0], held[1])

@@ -57,9 +57,10 @@ from numba import njit
 
 from calibration_free.params import EventTimeParams
 from cvstereo.dynamic_frames import FrameBank, dynamic_unit, event_matrix
+from cvstereo.events import paired_window_segments
 from cvstereo.matcher import StreamMatcher
 from cvstereo.matches import empty_matches
-from cvstereo.signal_level import SignalLevel, window_segments
+from cvstereo.signal_level import SignalLevel
 
 #: "No event yet" in the tables of event times: below any time stamp (time stamps may be negative).
 NO_TIME = np.iinfo(np.int64).min
@@ -334,15 +335,14 @@ class EventTimeMatcher(StreamMatcher):
         packets = (left, right)
         # Each camera's frame depends on its own events only: no merged order is needed here. The level
         # windows are taken in time order, both cameras' part of a window before the next window's thresholds.
-        segments = {cam: window_segments(packets[cam]["t"], prm.level_window_us) for cam in (0, 1)}
-        for k in sorted({seg[0] for cam in (0, 1) for seg in segments[cam]}):
+        for k, *runs in paired_window_segments(left["t"], right["t"], prm.level_window_us):
             threshold = self._level.thresholds(k)
             tolerance = self._level.relative(k, absolute=prm.value_tolerance, scale=prm.value_tolerance_scale)[ref]
             window = self._window(k)
             for cam in (ref, 1 - ref):
-                for kk, a, b in segments[cam]:
-                    if kk == k:
-                        self._take(cam, packets[cam][a:b], k, threshold[cam], tolerance, window)
+                a, b = runs[cam]
+                if b > a:
+                    self._take(cam, packets[cam][a:b], k, threshold[cam], tolerance, window)
         if self.watermark is None:
             return empty_matches()
         # Every later event has t >= watermark: a pending event is final once watermark > t + its window; the

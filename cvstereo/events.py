@@ -277,6 +277,56 @@ def distinct_sorted(values: np.ndarray) -> np.ndarray:
     return values[np.concatenate([[True], values[1:] != values[:-1]])]
 
 
+def is_time_ordered(t: np.ndarray) -> bool:
+    """Whether the times ``t`` never decrease (one pass; the matchers' output and every stream are)."""
+    return t.size < 2 or bool(np.all(t[1:] >= t[:-1]))
+
+
+def count_before(t: np.ndarray, cut: int | None) -> int:
+    """How many of the time-ordered ``t`` lie before ``cut`` (none when there is no cut yet).
+
+    Usually all or none of them (a packet's ``until`` is the cut): then without a search, which would first copy
+    a strided field.
+    """
+    if cut is None or t.size == 0 or t[0] >= cut:
+        return 0
+    if t[-1] < cut:
+        return t.size
+    return int(np.searchsorted(t, cut, side="left"))
+
+
+def window_segments(t: np.ndarray, window_us: int) -> list[tuple[int, int, int]]:
+    """Split a time-ordered array into runs of one absolute window: ``[(k, start, stop), ...]``.
+
+    The runs' ends come from a binary search for each window start between the first and the last time, not
+    from the window index of every element (an int64 division per event: a few % of the event matchers'
+    time outside their kernels at 640x480).
+    """
+    if t.size == 0:
+        return []
+    w = int(window_us)
+    k0, k1 = int(t[0]) // w, int(t[-1]) // w
+    if k0 == k1:  # the usual packet: no search (it would copy a strided field first)
+        return [(k0, 0, int(t.size))]
+    ks = np.arange(k0, k1 + 1, dtype=np.int64)
+    cuts = np.searchsorted(t, ks[1:] * w, side="left")  # first element of each window after the first
+    starts = np.concatenate([[0], cuts]).tolist()
+    stops = np.concatenate([cuts, [t.size]]).tolist()
+    return [(k, a, b) for k, a, b in zip(ks.tolist(), starts, stops, strict=True) if b > a]
+
+
+def paired_window_segments(t_left: np.ndarray, t_right: np.ndarray, window_us: int
+                           ) -> list[tuple[int, tuple[int, int], tuple[int, int]]]:
+    """Both cameras' runs of each absolute window that holds an event of either: ``[(k, (a, b), (c, d)), ...]``
+    in window order, ``t_left[a:b]`` and ``t_right[c:d]`` the window's times (``(0, 0)``: none).
+
+    >>> paired_window_segments(np.array([5, 15, 25]), np.array([12, 14]), 10)
+    [(0, (0, 1), (0, 0)), (1, (1, 2), (0, 2)), (2, (2, 3), (0, 0))]
+    """
+    runs = [{k: (a, b) for k, a, b in window_segments(t, window_us)} for t in (t_left, t_right)]
+    return [(k, runs[0].get(k, (0, 0)), runs[1].get(k, (0, 0))) for k in sorted(runs[0].keys() | runs[1].keys())]
+
+
 class StereoPacket(NamedTuple):
     """A time slice of both cameras.
 

@@ -9,7 +9,7 @@ from collections.abc import Iterator
 import numpy as np
 
 import cvstereo
-from cvstereo.events import StereoPacket, distinct_sorted
+from cvstereo.events import StereoPacket, distinct_sorted, is_time_ordered
 from cvstereo.matches import MatchResult, concat_matches
 from cvstereo.recording import Recording
 from cvstereo.registry import METHODS, create_matcher
@@ -194,7 +194,7 @@ def _time_order(t: np.ndarray) -> np.ndarray | None:
     Matchers return time-ordered matches (the feed contract), so the stable argsort would be the identity; the
     check is one pass, where the argsort and the gather of every match cost ~5 % of event-area's time at 640x480.
     """
-    if t.size < 2 or bool(np.all(t[1:] >= t[:-1])):
+    if is_time_ordered(t):
         return None
     return np.argsort(t, kind="stable")
 

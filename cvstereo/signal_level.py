@@ -52,6 +52,7 @@ from typing import Literal
 
 import numpy as np
 
+from cvstereo.events import is_time_ordered, window_segments
 from cvstereo.sorted_runs import SortedRuns
 
 #: Threshold modes: the thesis' absolute numbers, or a multiple of the recording's signal level.
@@ -291,26 +292,6 @@ def window_index(t: np.ndarray, window_us: int) -> np.ndarray:
     return np.asarray(t, dtype=np.int64) // int(window_us)
 
 
-def window_segments(t: np.ndarray, window_us: int) -> list[tuple[int, int, int]]:
-    """Split a time-ordered array into runs of one absolute window: ``[(k, start, stop), ...]``.
-
-    The runs' ends come from a binary search for each window start between the first and the last time, not
-    from the window index of every element (an int64 division per event: a few % of the event matchers'
-    time outside their kernels at 640x480).
-    """
-    if t.size == 0:
-        return []
-    w = int(window_us)
-    k0, k1 = int(t[0]) // w, int(t[-1]) // w
-    if k0 == k1:  # the usual packet: no search (it would copy a strided field first)
-        return [(k0, 0, int(t.size))]
-    ks = np.arange(k0, k1 + 1, dtype=np.int64)
-    cuts = np.searchsorted(t, ks[1:] * w, side="left")  # first element of each window after the first
-    starts = np.concatenate([[0], cuts]).tolist()
-    stops = np.concatenate([cuts, [t.size]]).tolist()
-    return [(k, a, b) for k, a, b in zip(ks.tolist(), starts, stops, strict=True) if b > a]
-
-
 def coverage_of_windows(event_windows, matches: np.ndarray, meta: dict, window_us: int = 40_000) -> tuple[int, int]:
     """(windows with matches, windows with events) on the absolute clock of ``window_us``.
 
@@ -327,7 +308,7 @@ def coverage_of_windows(event_windows, matches: np.ndarray, meta: dict, window_u
 def _windows_with(t: np.ndarray, window_us: int) -> int:
     """Number of absolute windows that hold one of the times ``t``: from their runs when ``t`` is ordered (matches
     are time-ordered), which saves ``np.unique``'s hash table over every match."""
-    if t.size > 1 and not bool(np.all(t[1:] >= t[:-1])):
+    if not is_time_ordered(t):
         return int(np.unique(window_index(t, window_us)).size)
     return len(window_segments(t, window_us))
 

@@ -18,7 +18,7 @@ from typing import ClassVar, NamedTuple
 
 import numpy as np
 
-from cvstereo.events import DEFAULT_RESOLUTION, distinct_sorted, empty_events
+from cvstereo.events import DEFAULT_RESOLUTION, count_before, empty_events, paired_window_segments
 from cvstereo.frames import check_filter_params
 from cvstereo.matcher import StreamMatcher
 from cvstereo.matches import concat_matches, empty_matches, join_records
@@ -131,41 +131,20 @@ class WindowAccumulator:
         w = self.window_us
         if t_cut is not None and not any(c and c[0]["t"][0] < t_cut for c in self._pending):
             return []  # nothing complete yet: leave the chunks unjoined
-        parts, ks = [], []
+        parts = []
         for i in range(2):
             chunks = self._pending[i]
             if not chunks:
                 parts.append(empty_events())
                 continue
             ev = chunks[0] if len(chunks) == 1 else join_records(chunks)
-            t = ev["t"]
-            if t_cut is None or t[-1] < t_cut:
-                n = ev.size
-            else:
-                n = 0 if t[0] >= t_cut else int(np.searchsorted(t, t_cut, side="left"))
+            n = ev.size if t_cut is None else count_before(ev["t"], t_cut)
             parts.append(ev[:n])
             self._pending[i] = [ev[n:]] if n < ev.size else []
-            if n:
-                k0, k1 = int(t[0]) // w, int(t[n - 1]) // w
-                # Usually one window closes at a time: skip the unique for that case.
-                ks.append(np.array([k0]) if k0 == k1 else distinct_sorted(t[:n] // w))
         left, right = parts
-        if not ks:
-            return []
-        ks = ks[0] if len(ks) == 1 or np.array_equal(ks[0], ks[1]) else np.union1d(ks[0], ks[1])
-        if ks.size == 1:
-            k = int(ks[0])
-            return [Window(k, k * w, (k + 1) * w, left, right)]
-        bounds = ks * w
         # Each window's events are a contiguous slice of the time-ordered arrays.
-        lo_l = np.searchsorted(left["t"], bounds, side="left")
-        hi_l = np.searchsorted(left["t"], bounds + w, side="left")
-        lo_r = np.searchsorted(right["t"], bounds, side="left")
-        hi_r = np.searchsorted(right["t"], bounds + w, side="left")
-        return [
-            Window(int(k), int(k) * w, (int(k) + 1) * w, left[a:b], right[c:d])
-            for k, a, b, c, d in zip(ks, lo_l, hi_l, lo_r, hi_r, strict=True)
-        ]
+        return [Window(k, k * w, (k + 1) * w, left[a:b], right[c:d])
+                for k, (a, b), (c, d) in paired_window_segments(left["t"], right["t"], w)]
 
 
 class FrameMatcher(StreamMatcher):
