@@ -41,10 +41,11 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from calibration_free.fused import FusedMatcher  # noqa: E402
+from calibration_free.fused_params import FusedParams  # noqa: E402
 from cvstereo.evaluate import evaluate, match_truth  # noqa: E402
 from cvstereo.matches import concat_matches  # noqa: E402
 from cvstereo.pipeline import match  # noqa: E402
-from cvstereo.registry import available_methods  # noqa: E402
+from cvstereo.registry import available_methods, parse_param_strings  # noqa: E402
 from cvstereo.timing import MAX_RUNS, load_average, measure  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / "results" / "fused.md"
@@ -366,9 +367,7 @@ def main(argv=None) -> int:
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="a fused parameter for every run (repeatable), e.g. --set fill_radius=8")
     args = ap.parse_args(argv)
-    for item in args.set:
-        name, _, value = item.partition("=")
-        FUSED_SET[name] = json.loads(value.lower() if value.lower() in ("true", "false") else value)
+    FUSED_SET.update(parse_param_strings(FusedParams, args.set))  # typed and checked, as the CLI's --param
     cv2.setNumThreads(1)
     out = Path(args.output)
     peer_path = out / "fused-peers.json"

@@ -83,7 +83,7 @@ def _copy(src, dst):
 
 @njit(cache=True, nogil=True, inline="always")
 def _pixel_cost(fl, right_rev, yy, xx, pr, row_tol, temporal_weight, out):
-    """Cost of every disparity at left pixel (xx, yy) into ``out``; returns its minimum.
+    """Cost of every disparity at left pixel (xx, yy) into ``out``.
 
     ``right_rev[y, c, j]`` is the right feature at column ``W - 1 - j`` (zero for ``j >= W``, beyond the left
     edge), so that disparities 0, 1, ... read it forwards from ``j = W - 1 - xx``: contiguous loops without
@@ -103,7 +103,6 @@ def _pixel_cost(fl, right_rev, yy, xx, pr, row_tol, temporal_weight, out):
     if temporal_weight > 0.0 and not np.isnan(pr):
         for d in range(nd):
             out[d] = out[d] + np.float32(temporal_weight * min(abs(d - pr), 2.0))
-    return _min4(out)
 
 
 @njit(cache=True, nogil=True, inline="always")
