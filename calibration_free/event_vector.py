@@ -211,8 +211,8 @@ def _event_vector_kernel(stream, stored, scale, clock, bound, kernel, decay, per
         cam, i, t, x, y, p, slot = stream[0, j], stream[1, j], stream[2, j], stream[3, j], stream[4, j], \
             stream[5, j], stream[6, j]
         other = 1 - cam
-        # advance_bounded()'s test written out: inlined, the helper bound the four arrays to new variables and
-        # numba kept their atomic reference counting around it on every event (8 atomics, ~30 ns).
+        # advance()'s test written out before advance_due_bounded: an inlined helper holding it bound the four
+        # arrays to new variables and numba kept their atomic reference counting on every event (8 atomics, ~30 ns).
         for cc in (cam, other):
             if clock[cc, 1] == 0 or clock[cc, 0] * period <= t:
                 advance_due_bounded(stored, scale, clock, bound, cc, t, decay, period)

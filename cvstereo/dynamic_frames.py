@@ -18,11 +18,11 @@ renormalised (``S *= c; c = 1``). A gap of more than :data:`FORGET_TICKS` ticks 
 their values would be below 1e-4000 of what they were, i.e. zero in float64. A frame that never received an
 event skips its ticks (it is zero anyway), so that a stream starting at t = 10^12 us costs nothing.
 
-This module is the fast path: :class:`FrameBank` with numba kernels (:func:`advance`, :func:`splat`,
-:func:`process_events`) that the fast matchers call from their own kernels, and their variants that keep
-derived state with the frames: block bounds of |stored| (:func:`splat_bounded`, event-vector) and column sums
-of a patch's rows (:func:`splat_summed`, event-area). Its reference twin, which does
-exactly the same float64 operations in the same order so that both agree bit for bit, is plain Python:
+This module is the fast path: :class:`FrameBank` with numba kernels (:func:`advance_due` behind the cheap test
+of :func:`advance`, :func:`splat`, :func:`process_events`) that the fast matchers call from their own kernels,
+and their variants that keep derived state with the frames: block bounds of |stored| (:func:`splat_bounded`,
+event-vector) and column sums of a patch's rows (:func:`splat_summed`, event-area). Its reference twin, which
+does exactly the same float64 operations in the same order so that both agree bit for bit, is plain Python:
 :class:`calibration_free.reference.dynamic_frames.DynamicFrames`.
 
 >>> bank = FrameBank(1, DynamicFrameParams())
@@ -139,14 +139,21 @@ def dynamic_unit(params) -> float:
 
 @njit(cache=True)
 def advance_due(stored, scale, clock, cam, t, decay, period):
-    """Apply the due decay ticks of camera ``cam`` up to time ``t`` (reference: ``DynamicFrames.advance``)."""
+    """Apply the due decay ticks of camera ``cam`` up to time ``t`` (reference: ``DynamicFrames.advance``).
+
+    Returns whether the stored values were rewritten (a reset after a long gap, or a renormalisation), after
+    which whatever a caller keeps derived from them (block bounds, column sums) must be rebuilt. The scale alone
+    does not tell: a reset while the scale is still 1.0 (no tick since the last one) leaves it unchanged.
+    """
+    rewritten = False
     if clock[cam, 1] != 0 and t // period + 1 - clock[cam, 0] > FORGET_TICKS:
         stored[cam] = 0.0
         scale[cam] = 1.0
         clock[cam, 1] = 0
+        rewritten = True
     if clock[cam, 1] == 0:
         clock[cam, 0] = t // period + 1
-        return
+        return rewritten
     k = clock[cam, 0]
     while k * period <= t:
         scale[cam] = scale[cam] * decay
@@ -158,8 +165,10 @@ def advance_due(stored, scale, clock, cam, t, decay, period):
                     for xx in range(frames.shape[2]):
                         frames[f, yy, xx] *= c
             scale[cam] = 1.0
+            rewritten = True
         k += 1
     clock[cam, 0] = k
+    return rewritten
 
 
 @njit(cache=True, inline="always")
@@ -232,19 +241,10 @@ def rebuild_bounds(bound, stored, cam):
 
 @njit(cache=True)
 def advance_due_bounded(stored, scale, clock, bound, cam, t, decay, period):
-    """:func:`advance_due`, keeping camera ``cam``'s block bounds valid: a renormalisation or a reset rescales the
-    stored values (the scale jumps up), after which the bounds are rebuilt."""
-    before = scale[cam]
-    advance_due(stored, scale, clock, cam, t, decay, period)
-    if scale[cam] > before:
+    """:func:`advance_due`, keeping camera ``cam``'s block bounds valid: they are rebuilt after a renormalisation
+    or a reset rewrote the stored values."""
+    if advance_due(stored, scale, clock, cam, t, decay, period):
         rebuild_bounds(bound, stored, cam)
-
-
-@njit(cache=True, inline="always")
-def advance_bounded(stored, scale, clock, bound, cam, t, decay, period):
-    """:func:`advance_due_bounded` when it has anything to do (the test of :func:`advance`)."""
-    if clock[cam, 1] == 0 or clock[cam, 0] * period <= t:
-        advance_due_bounded(stored, scale, clock, bound, cam, t, decay, period)
 
 
 @njit(cache=True, inline="always")
@@ -356,15 +356,14 @@ def rebuild_sums(sums, mass, pending, stored, cam, half):
 
 @njit(cache=True)
 def advance_due_summed(stored, scale, clock, sums, mass, pending, cam, t, decay, period, half):
-    """:func:`advance_due`, then a rebuild of camera ``cam``'s column sums if its frames were rescaled (the scale
-    jumps up) or :data:`SUM_REBUILD` splats have passed since the last rebuild.
+    """:func:`advance_due`, then a rebuild of camera ``cam``'s column sums if its stored values were rewritten (a
+    renormalisation or a reset) or :data:`SUM_REBUILD` splats have passed since the last rebuild.
 
     A caller tests first whether there is anything to do (as :func:`advance` does, or a rebuild due), in its own
     code: an inlined helper holding the test kept reference counting of the six arrays around every event.
     """
-    before = scale[cam]
-    advance_due(stored, scale, clock, cam, t, decay, period)
-    if scale[cam] > before or pending[cam] >= SUM_REBUILD:
+    # advance_due first, always: the test after ``or`` must not skip it.
+    if advance_due(stored, scale, clock, cam, t, decay, period) or pending[cam] >= SUM_REBUILD:
         rebuild_sums(sums, mass, pending, stored, cam, half)
 
 

@@ -165,3 +165,30 @@ def test_fast_equals_reference_across_renormalisations_and_a_reset(sad_frames):
     got = feed_cut(EventAreaMatcher(params, resolution=resolution), left, right, [700_000, 1_500_000])
     assert expected.size > 100
     np.testing.assert_array_equal(got, expected)
+
+
+@pytest.mark.parametrize("param_set", ["thesis", "adaptive"])
+def test_a_reset_before_any_decay_tick_rebuilds_the_column_sums(param_set):
+    # A burst inside the first 250 us tick (the scale is still exactly 1.0), a gap beyond FORGET_TICKS that
+    # clears the frames, then the same burst again: the reset leaves the scale unchanged, and the column sums of
+    # the cleared frames must still be rebuilt, or the SAD's lower bound prunes real winners (the fast path gave
+    # 146 of the reference's 292 matches before).
+    from cvstereo.dynamic_frames import FORGET_TICKS
+    from cvstereo.param_sets import resolve
+
+    rng = np.random.default_rng(0)
+    shift, gap = 12, (FORGET_TICKS + 5) * 250
+
+    def burst(t0, n, duration):
+        t = np.sort(rng.integers(t0, t0 + duration, n))
+        return t, 60 + rng.integers(0, 4, n), 4 + rng.integers(0, 2, n)
+
+    bursts = [burst(0, 80, 200), burst(gap, 80, 3000)]
+    t, x, y = (np.concatenate(column) for column in zip(*bursts, strict=True))
+    left, right = make_events(t, x, y, np.ones(t.size, int)), make_events(t, x - shift, y, np.ones(t.size, int))
+    variant, values = resolve("event-area", None, param_set)
+    params = EventAreaMatcher.make_params(variant, **{**values, "max_disparity": 30})
+    expected = event_area_reference(left, right, params, resolution=(120, 10))
+    got = feed_cut(EventAreaMatcher(params, resolution=(120, 10)), left, right, [])
+    assert expected.size > 100 and np.all(expected["disparity"][expected["t"] >= gap] == shift)
+    np.testing.assert_array_equal(got, expected)
