@@ -154,18 +154,18 @@ def _consensus(last, y0, y1, x0, x1, since, n, min_agree, hist):
 
 
 @njit(cache=True)
-def _resolve(pt, px, py, pp, pv, n, ct, cx, cy, cp, cv, height, window, max_window, row_tol, value_tol, side, max_d,
-             last, radius, c_window, c_min, out):
+def _resolve(pt, px, py, pp, pv, n, ct, cx, cy, cp, cv, height, window, row_tol, value_tol, side, max_d, last, radius,
+             c_window, c_min, out):
     """Disparity of the first ``n`` pending reference events (-1: no candidate, or vetoed).
 
     Pending events (pt, px, py, pp, pv: time, x, y, p, D1; window and value_tol: each one's time window and
     maximum ``|D1 - D2|``) and candidates (ct, ... cv: the other camera's events that passed the threshold and
     sign tests, D2 just after their update) are both time-ordered. Candidates are bucketed by row (a stable
     counting sort keeps each row time-ordered), so each pending event scans only rows y - row_tol .. y + row_tol,
-    from its own ``t - window`` on: a per-row pointer that only moves forward skips candidates older than
-    ``t - max_window``, which no later pending event can reach whatever its own window, and a second one
-    follows ``t - window`` (a paced window may be 300 us where ``max_window`` is 20 ms). The winner, the
-    smallest distance, does not depend on the scan order. ``side`` is +1 (x2 >= x), -1 (x2 <= x) or 0 (either side).
+    from its own ``t - window`` on: a per-row pointer follows ``t - window``, forwards as the pending events'
+    times grow and back only where a longer window begins (a paced window may be 300 us in one level window
+    and 20 ms in the next). The winner, the smallest distance, does not depend on the scan order. ``side`` is +1
+    (x2 >= x), -1 (x2 <= x) or 0 (either side).
 
     With ``radius`` > 0 (``consensus_radius``), a winner more than 1 px from the consensus of the recent matches
     around it (:func:`_veto`; ``last``: each pixel's last match, time and disparity, updated here in time
@@ -185,8 +185,7 @@ def _resolve(pt, px, py, pp, pv, n, ct, cx, cy, cp, cv, height, window, max_wind
         fill[cy[j]] += 1
     # The candidates in row order, as the scans read them.
     row_t, row_x, row_p, row_v = ct[order], cx[order], cp[order], cv[order]
-    lo = start[:height].copy()
-    first = lo.copy()  # per row: the first candidate at or after t - w of the last pending event that scanned it
+    first = start[:height].copy()  # per row: the first candidate at or after t - w of the last event that scanned it
     hist = np.zeros(max_d + 3, dtype=np.int64)
     seen = np.full(max_d + 2, -1, dtype=np.int64)  # stamped with the pending event's index i
     for i in range(n):
@@ -194,12 +193,10 @@ def _resolve(pt, px, py, pp, pv, n, ct, cx, cy, cp, cv, height, window, max_wind
         w = window[i]
         y0, y1 = max(0, py[i] - row_tol), min(height - 1, py[i] + row_tol)
         for r in range(y0, y1 + 1):
-            while lo[r] < start[r + 1] and row_t[lo[r]] < t - max_window:
-                lo[r] += 1
             # t - w only grows while the window stays (one level window): the first candidate moves forward,
             # and back only where a longer window begins.
-            k = max(first[r], lo[r])
-            while k > lo[r] and row_t[k - 1] >= t - w:
+            k = first[r]
+            while k > start[r] and row_t[k - 1] >= t - w:
                 k -= 1
             while k < start[r + 1] and row_t[k] < t - w:
                 k += 1
@@ -364,8 +361,6 @@ class EventTimeMatcher(StreamMatcher):
     def _take(self, cam: int, events: np.ndarray, k: int, threshold: float, tolerance: float, window: int) -> None:
         """Run one camera's events of level window ``k`` through its frame; keep the ones that pass."""
         cols = event_matrix(events)
-        if self.params.paced and cam != self.params.reference_camera:
-            self._pace.add(k, cam, self._intervals(cols))
         if cam == self.params.reference_camera:
             v1 = self._bank.process_columns(cam, cols, read=self.params.reference_read)
             keep = _passing(v1, cols[3], float(threshold), False)
@@ -375,6 +370,8 @@ class EventTimeMatcher(StreamMatcher):
             self._pending_window = np.concatenate([self._pending_window, np.full(keep.size, window, np.int64)])
             self._level.add(k, cam, v1)
         else:
+            if self.params.paced:  # the pace of the other camera's events, whose window holds the candidates
+                self._pace.add(k, cam, self._intervals(cols))
             v2 = self._bank.process_columns(cam, cols, read="after")
             keep = _passing(v2, cols[3], float(threshold), True)
             self._cands = np.concatenate([self._cands, cols[:, keep]], axis=1)
@@ -406,9 +403,9 @@ class EventTimeMatcher(StreamMatcher):
         pend, cands = self._pending, self._cands
         max_window = prm.max_time_window_us()
         _resolve(pend[0], pend[1], pend[2], pend[3], self._pending_value, n, cands[0], cands[1], cands[2],
-                 cands[3], self._cand_value, self.resolution[1], self._pending_window, max_window,
-                 int(prm.row_tolerance), self._pending_tol, side, int(prm.max_disparity), self._last_match,
-                 int(prm.consensus_radius), int(prm.consensus_window_us), int(prm.consensus_min), out)
+                 cands[3], self._cand_value, self.resolution[1], self._pending_window, int(prm.row_tolerance),
+                 self._pending_tol, side, int(prm.max_disparity), self._last_match, int(prm.consensus_radius),
+                 int(prm.consensus_window_us), int(prm.consensus_min), out)
         found = np.flatnonzero(out >= 0)
         matches = empty_matches(found.size)
         for row, name in enumerate(("t", "x", "y", "p")):

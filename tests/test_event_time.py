@@ -143,8 +143,6 @@ def test_the_time_window_follows_the_pace(scale, found):
         assert matches.size == 0
 
 
-
-
 def test_windows_that_shrink_and_grow_keep_fast_equal_to_reference():
     """A pace that changes (periods 2 ms, 0.5 ms, 3 ms, 0.5 ms; 100 ms each) gives long time windows, then the
     300 us floor, then long ones again. Where a window grows, a pending event (B, 50 us into a 5 ms level
@@ -175,13 +173,6 @@ def test_windows_that_shrink_and_grow_keep_fast_equal_to_reference():
     for step in (410_000, 2_999, 7_001, 40_000):
         got = feed_cut(EventTimeMatcher(prm, resolution=(64, 48)), left, right, range(0, 410_000, step))
         np.testing.assert_array_equal(got, expected)
-
-
-def _shifted(events: np.ndarray, dt: int) -> np.ndarray:
-    """``events`` ``dt`` us later."""
-    out = events.copy()
-    out["t"] += dt
-    return out
 
 
 def _veto_scene(probe_partners, neighbour_disparities=(5, 5)):
