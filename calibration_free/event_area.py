@@ -59,7 +59,7 @@ from numba import njit
 
 from calibration_free._event_common import MergedEventMatcher, emit_match
 from calibration_free.params import EventAreaParams
-from cvstereo.dynamic_frames import SUM_REBUILD, advance_due_summed, column_sums, splat_summed, sum_drift
+from cvstereo.dynamic_frames import SUM_REBUILD, advance_due_summed, column_sums, splat_summed, sum_drift, tick_due
 
 
 @njit(cache=True)
@@ -92,11 +92,10 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
         cam, i, t, x, y, p, slot = stream[0, k], stream[1, k], stream[2, k], stream[3, k], stream[4, k], \
             stream[5, k], stream[6, k]
         other = 1 - cam
-        # advance()'s test (or a rebuild of the sums due) written out here: an inlined helper holding it kept
-        # atomic reference counting of the six state arrays around every event (12 calls); the call below is
-        # taken about once per decay tick.
+        # The test here, the call below only about once per decay tick: an inlined helper holding both kept
+        # atomic reference counting of the six state arrays around every event (12 calls).
         for c in (cam, other):
-            if clock[c, 1] == 0 or clock[c, 0] * period <= t or pending[c] >= SUM_REBUILD:
+            if tick_due(clock[c, 0], clock[c, 1], t, period) or pending[c] >= SUM_REBUILD:
                 advance_due_summed(stored, scale, clock, sums, mass, pending, c, t, decay, period, half)
         c1 = scale[cam]
         c2 = scale[other]

@@ -172,13 +172,24 @@ def advance_due(stored, scale, clock, cam, t, decay, period):
 
 
 @njit(cache=True, inline="always")
+def tick_due(next_tick, touched, t, period):
+    """Whether :func:`advance_due` has anything to do at time ``t``: a decay tick at or before ``t``, or frames
+    never touched (``next_tick``, ``touched``: a camera's row of the clock).
+
+    Scalars only: a kernel calls it with ``clock[cam, 0], clock[cam, 1]``, so that inlining it binds no array
+    (an inlined helper taking the arrays kept numba's atomic reference counting around every event).
+    """
+    return touched == 0 or next_tick * period <= t
+
+
+@njit(cache=True, inline="always")
 def advance(stored, scale, clock, cam, t, decay, period):
     """:func:`advance_due` when it has anything to do: a tick at or before ``t``, or frames never touched.
 
     Otherwise (most events: a tick every 250 us) the next tick lies after ``t``, so neither a tick nor the
     forgetting of a long gap applies. The work stays in a function of its own, not inlined (see above).
     """
-    if clock[cam, 1] == 0 or clock[cam, 0] * period <= t:
+    if tick_due(clock[cam, 0], clock[cam, 1], t, period):
         advance_due(stored, scale, clock, cam, t, decay, period)
 
 
@@ -402,8 +413,7 @@ def process_events(stored, scale, clock, cam, t, x, y, p, slot_of_p, kernel, dec
         if slot < 0:
             out[i] = np.nan
             continue
-        # advance()'s test written out: the inlined helper kept reference counting around it here (see above).
-        if clock[cam, 1] == 0 or clock[cam, 0] * period <= t[i]:
+        if tick_due(clock[cam, 0], clock[cam, 1], t[i], period):
             advance_due(stored, scale, clock, cam, t[i], decay, period)
         if not read_after:
             out[i] = stored[cam, slot, y[i], x[i]] * scale[cam]
