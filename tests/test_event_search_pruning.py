@@ -105,3 +105,36 @@ def test_block_bounds_stay_above_every_stored_value():
             block = stored[..., b << BOUND_SHIFT:(b + 1) << BOUND_SHIFT].max(axis=-1)
             assert np.all(bound[..., b] >= block)
         assert stored.max() > 0
+
+
+def dense_pair(seed: int, n_events: int = 2500):
+    """Rows 200 px wide crowded with runs of every length (a few px to over 100, across the 64-px words of
+    event-vector's bit masks and the edges of its 64-px window around an event), of both polarities side by
+    side, the right camera's shifted left by 0..40 px; a few rows empty."""
+    rng = np.random.default_rng(seed)
+    t = np.sort(rng.integers(0, 60_000, n_events))
+    y = rng.integers(0, HEIGHT - 2, n_events)  # the last two rows stay empty
+    centre = rng.integers(0, WIDTH, n_events // 50)[np.arange(n_events) // 50]  # clusters that drift along rows
+    spread = rng.choice([2, 8, 40, 90], n_events // 50)[np.arange(n_events) // 50]
+    x = np.clip(centre + rng.integers(-spread, spread + 1), 0, WIDTH - 1)
+    p = (x // int(rng.integers(3, 9)) + y) % 2  # stripes of ON and OFF within a run
+    shift = rng.integers(0, 41, n_events // 50)[np.arange(n_events) // 50]
+    return make_events(t, x, y, p), make_events(t, np.clip(x - shift, 0, WIDTH - 1), y, p)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("extra", [
+    {},
+    {"run_ends": True, "tie_break": "centre", "cost_ratio": 0.3, "cost_slack": 2.0},
+    {"polarity": "separate", "run_ends": True, "kernel_size": 5, "kernel_sigma": 1.5},
+])
+def test_event_vector_search_equals_reference_on_dense_wide_rows(extra, seed):
+    # The other side of the sparse rows above: long runs, runs of both signs, rows that are mostly above the
+    # threshold, where the bit masks' words, the window of the event's own vector and the walks beyond them meet.
+    cls = matcher_class("event-vector")
+    params = cls.make_params(None, max_disparity=120, threshold=0.3, **extra)
+    left, right = dense_pair(seed)
+    expected = event_vector_reference(left, right, params, resolution=(WIDTH, HEIGHT))
+    got = feed_cut(cls(params, resolution=(WIDTH, HEIGHT)), left, right, [20_000, 41_001])
+    assert expected.size > 500
+    np.testing.assert_array_equal(got, expected)
