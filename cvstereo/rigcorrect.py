@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cvstereo.events import DEFAULT_RESOLUTION, StereoPacket, empty_events
+from cvstereo.events import DEFAULT_RESOLUTION, StereoPacket, count_before, empty_events
 from cvstereo.matches import MATCH_DTYPE
 
 
@@ -183,7 +183,7 @@ class CorrectedStream(Iterator[StereoPacket]):
         self._until = until
         out, truth = [], []
         for cam in (0, 1):
-            n = int(np.searchsorted(self._held[cam]["t"], until, side="left"))
+            n = count_before(self._held[cam]["t"], until)
             out.append(self._held[cam][:n])
             self._held[cam] = self._held[cam][n:]
             tr = self._truth[cam]

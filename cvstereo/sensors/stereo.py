@@ -17,7 +17,7 @@ from typing import Literal
 
 import numpy as np
 
-from cvstereo.events import EVENT_DTYPE, StereoPacket
+from cvstereo.events import EVENT_DTYPE, StereoPacket, count_before
 from cvstereo.sensors.edvs import EDVS, Chunk, host_us
 from cvstereo.sensors.protocol import DEFAULT_BAUD, ProtocolSettings
 
@@ -204,7 +204,7 @@ class StereoEDVS:
                 if late.any():
                     self.late_events += int(late.sum())
                     ev = ev[~late]
-            k = int(np.searchsorted(ev["t"], until, side="left"))
+            k = count_before(ev["t"], until)
             out.append(ev[:k])
             side.buf = [ev[k:]] if k < ev.size else []
         self.watermark = until
