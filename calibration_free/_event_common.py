@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 from calibration_free.merge_order import merged_stream
-from cvstereo.dynamic_frames import FrameBank, block_bounds, dynamic_unit
+from cvstereo.dynamic_frames import FrameBank, dynamic_unit
 from cvstereo.events import count_before, empty_events, paired_window_segments
 from cvstereo.matcher import StreamMatcher
 from cvstereo.matches import MATCH_DTYPE, concat_matches, empty_matches
@@ -109,7 +109,6 @@ class MergedEventMatcher(StreamMatcher):
     def __init__(self, params=None, *, resolution=(128, 128)):
         super().__init__(params, resolution=resolution)
         self._bank = FrameBank(2, self.params.frame_params(), resolution=self.resolution)
-        self._bound = block_bounds(self._bank.stored)  # kept by the kernels (dynamic_frames.splat_bounded)
         self._held = (empty_events(), empty_events())
         self._level = SignalLevel(self.params, absolute=self.params.threshold, unit=dynamic_unit(self.params),
                                   value_name="dynamic-frame value")

@@ -55,7 +55,7 @@ from numba.cpython.unsafe.numbers import leading_zeros, trailing_zeros
 
 from calibration_free._event_common import MergedEventMatcher, emit_match
 from calibration_free.params import EventVectorParams
-from cvstereo.dynamic_frames import BOUND_SHIFT, advance_due_bounded, skip_below, splat_bounded, tick_due
+from cvstereo.dynamic_frames import BOUND_SHIFT, advance_due_bounded, block_bounds, skip_below, splat_bounded, tick_due
 
 
 @njit(cache=True, inline="always")
@@ -428,6 +428,10 @@ class EventVectorMatcher(MergedEventMatcher):
     anchor = "event"
     Params = EventVectorParams
     variants: ClassVar[dict[str, dict]] = {"default": {}}
+
+    def __init__(self, params=None, *, resolution=(128, 128)):
+        super().__init__(params, resolution=resolution)
+        self._bound = block_bounds(self._bank.stored)  # kept by the kernel (dynamic_frames.splat_bounded)
 
     def _run_kernel(self, stream, thresholds, out_cam, out_index, out_disparity, out_values) -> int:
         prm, bank = self.params, self._bank
