@@ -59,10 +59,19 @@ class FusedParams:
         An isolated pixel (fewer than ``min_neighbours``) still answers when its uncertainty is below this: a clear,
         unique and left-right consistent match is evidence enough that the event is not noise; 0: every isolated
         pixel is dropped.
+    occlusion_margin : float
+        Occlusion test, px: an answer of uncertainty at most 0.5 (left-right consistent or confirmed) lies in the
+        left view's half-occlusion when ``occlusion_support`` such answers further right in its row map to right
+        pixels at least this far left of its own (``x' - d' <= x - d - margin``: a nearer surface hides it from
+        the right camera); its uncertainty then gets the left-right penalty 0.5. -1 disables.
+    occlusion_support : int
+        How many answers must cross an answer for the occlusion test to hide it: a surface has more than one,
+        while a single crossing answer is often an outlier (a noise event's) that would hide a whole run of
+        its row.
     max_uncertainty : float
         Matches whose uncertainty exceeds this are dropped. Uncertainty = half the ratio of the best to the
-        second-best aggregated cost more than 1 px away (0..0.5), plus 0.5 where the left-right check fails;
-        the default 0.5 keeps the consistent matches, 1 keeps all.
+        second-best aggregated cost more than 1 px away (0..0.5), plus 0.5 where the left-right check or the
+        occlusion test fails; the default 0.5 keeps the consistent matches, 1 keeps all.
     """
 
     window_us: int = 40_000
@@ -81,6 +90,8 @@ class FusedParams:
     subpixel: bool = True
     min_neighbours: int = 2
     isolated_max_uncertainty: float = 0.1
+    occlusion_margin: float = 1.0
+    occlusion_support: int = 2
     max_uncertainty: float = 0.5
 
     def __post_init__(self):
@@ -114,6 +125,12 @@ class FusedParams:
         if not 0 <= self.isolated_max_uncertainty <= 1:
             raise ValueError(f"{where}: isolated_max_uncertainty must be in [0, 1] (0: isolated pixels never answer), "
                              f"got {self.isolated_max_uncertainty}.")
+        if not (self.occlusion_margin == -1 or 0 <= self.occlusion_margin <= 16):
+            raise ValueError(f"{where}: occlusion_margin must be -1 (off) or in [0, 16] px (e.g. 1), "
+                             f"got {self.occlusion_margin}.")
+        if int(self.occlusion_support) != self.occlusion_support or not 1 <= self.occlusion_support <= 8:
+            raise ValueError(f"{where}: occlusion_support must be a whole number in 1..8 (e.g. 2), "
+                             f"got {self.occlusion_support}.")
         if not 0 < self.max_uncertainty <= 1:
             raise ValueError(f"{where}: max_uncertainty must be in (0, 1] (0.5: consistent matches, 1: all), "
                              f"got {self.max_uncertainty}.")

@@ -56,7 +56,8 @@ PARAM_AXES = {
     "sgm_paths": [0, 2, 4], "lr_tolerance": [-1, 0, 1], "subpixel": [True, False], "temporal_weight": [0.0, 0.3],
     "support_radius": [0, 1, 2], "path_radius": [0, 1, 3], "fill_radius": [0, 2, 12], "row_tolerance": [0, 1],
     "min_neighbours": [1, 3], "max_uncertainty": [1.0, 0.5, 0.3], "fill_confirms": [True, False],
-    "isolated_max_uncertainty": [0.0, 0.1, 0.3],
+    "isolated_max_uncertainty": [0.0, 0.1, 0.3], "occlusion_margin": [-1, 0.0, 1.0, 2.5],
+    "occlusion_support": [1, 2, 3],
     "max_disparity": [12, 20],
 }
 
@@ -107,8 +108,8 @@ def test_left_right_failures_rank_behind_consistent_matches():
     left, right, resolution = textured_pair(4, windows=6)
     runs = {}
     for tol in (-1, 1):
-        m = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0, lr_tolerance=tol, fill_radius=0),
-                         resolution=resolution)
+        m = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0, lr_tolerance=tol, fill_radius=0,
+                                     occlusion_margin=-1), resolution=resolution)
         runs[tol] = (feed_cut(m, left, right, []), m.take_uncertainty())
     # Same winners; the check only adds 0.5 to the uncertainty of the inconsistent ones, and some fail it.
     np.testing.assert_array_equal(runs[1][0], runs[-1][0])
@@ -154,6 +155,102 @@ def test_a_failed_winner_that_agrees_with_its_fill_is_confirmed():
     assert np.all(np.abs(confirmed["disparity"][lifted] - filled["disparity"][lifted]) <= 1.0 + 1e-6)
 
 
+def half_occlusion(seed: int, *, windows: int = 4, size: tuple[int, int] = (64, 12)):
+    """A flickering background at disparity 2 behind a foreground bar at disparity 8 over left columns 24..47.
+
+    Every scene point fires at its own random times, seen at the same instants by each camera that sees it: the
+    right camera sees the bar over columns 16..39, which hides the background of left columns 18..23 (the left
+    view's half-occlusion); the background behind the bar's right end shows in the right view only. Returns
+    left, right and the resolution.
+    """
+    rng = np.random.default_rng(seed)
+    w, h = size
+    cams = [[], []]
+    points = [(x, 8) for x in range(24, 48)] + [(x, 2) for x in range(w)]  # (left column, disparity)
+    for x, d in points:
+        seen = (d == 8 or not 24 <= x < 48, d == 8 or not 16 <= x - 2 < 40)  # by the left, by the right camera
+        for y in range(h):
+            n = windows * 4
+            t = np.sort(rng.choice(windows * 40_000, n, replace=False))
+            p = rng.integers(0, 2, n)
+            for cam, xc in ((0, x), (1, x - d)):
+                if seen[cam] and 0 <= xc < w:
+                    cams[cam].append((t, np.full(n, xc), np.full(n, y), p))
+    out = []
+    for cam in cams:
+        t, x, y, p = (np.concatenate(c) for c in zip(*cam, strict=True))
+        order = np.argsort(t, kind="stable")
+        out.append(make_events(t[order], x[order], y[order], p[order]))
+    return out[0], out[1], size
+
+
+def test_occlusion_test_ranks_the_hidden_background_behind():
+    left, right, resolution = half_occlusion(5)
+    runs = {}
+    for margin in (-1, 1.0):
+        # Low penalties: the flicker's costs differ little between disparities, and the default p2 would carry
+        # the background's disparity across the bar.
+        m = FusedMatcher(FusedParams(max_uncertainty=1.0, p1=0.5, p2=2.0, occlusion_margin=margin),
+                         resolution=resolution)
+        runs[margin] = (feed_cut(m, left, right, []), m.take_uncertainty().astype(np.float64))
+    (got, u_off), (got_on, u_on) = runs[-1], runs[1.0]
+    np.testing.assert_array_equal(got_on, got)  # the test changes uncertainties only, and the prior not at all
+    x, d = got["x"].astype(int), got["disparity"]
+    truth = np.where((x >= 24) & (x < 48), 8.0, 2.0)
+    right_answer = (np.abs(d - truth) <= 0.5) & (u_off <= 0.5)
+    bar_seen = np.zeros(got.size, bool)  # a right answer of the bar in the same window and row
+    for i in np.flatnonzero(right_answer & (x >= 24) & (x < 48)):
+        bar_seen |= (got["t"] == got["t"][i]) & (got["y"] == got["y"][i])
+    # By the geometry alone: a background answer of left columns 19..23 maps to right column 17..21, and the
+    # bar's answers map to 16..39: at least 1 px left of it, so it is hidden ...
+    hidden = right_answer & (x >= 19) & (x < 24) & bar_seen
+    assert hidden.sum() > 20
+    np.testing.assert_allclose(u_on[hidden], u_off[hidden] + 0.5)
+    # ... and the right answers away from the band are not (the bar's answers spill up to 3 px over the band,
+    # as semi-global matchers' foregrounds do, and may hide a few of the background answers left of it).
+    seen = right_answer & ((x < 14) | (x >= 24))
+    assert seen.sum() > 500
+    np.testing.assert_array_equal(u_on[seen], u_off[seen])
+
+
+@pytest.mark.parametrize(("margin", "support", "max_uncertainty"), [(0.0, 1, 1.0), (1.0, 2, 0.5), (2.5, 3, 0.7)])
+def test_fast_equals_reference_with_hidden_answers(margin, support, max_uncertainty):
+    # textured_pair has one disparity, so nothing there is hidden: the occlusion test's branch needs this scene.
+    left, right, resolution = half_occlusion(7, windows=3)
+    params = FusedParams(p1=0.5, p2=2.0, occlusion_margin=margin, occlusion_support=support,
+                         max_uncertainty=max_uncertainty)
+    expected, unc_expected = fused_reference(left, right, params, resolution=resolution, with_uncertainty=True)
+    matcher = FusedMatcher(params, resolution=resolution)
+    np.testing.assert_array_equal(feed_cut(matcher, left, right, [50_000]), expected)
+    np.testing.assert_array_equal(matcher.take_uncertainty(), unc_expected)
+    off = FusedMatcher(FusedParams(p1=0.5, p2=2.0, occlusion_margin=-1, max_uncertainty=1.0), resolution=resolution)
+    feed_cut(off, left, right, [])
+    assert np.count_nonzero(off.take_uncertainty() <= 0.5) > np.count_nonzero(unc_expected <= 0.5)  # some hidden
+
+
+@pytest.mark.parametrize("support", [1, 2, 4])
+def test_occlusion_test_penalises_exactly_the_crossed_answers(support):
+    # Whole-pixel disparities (no sub-pixel) make the rule's comparison exact on the output's float32 values.
+    left, right, resolution = half_occlusion(6)
+    runs = {}
+    for margin in (-1, 2.0):
+        m = FusedMatcher(FusedParams(max_uncertainty=1.0, p1=0.5, p2=2.0, subpixel=False, occlusion_margin=margin,
+                                     occlusion_support=support), resolution=resolution)
+        runs[margin] = (feed_cut(m, left, right, []), m.take_uncertainty().astype(np.float64))
+    (got, u_off), (got_on, u_on) = runs[-1], runs[2.0]
+    np.testing.assert_array_equal(got_on, got)
+    # Every pair of answers of one window and row, both of uncertainty <= 0.5: j right of i crossing it.
+    r = got["x"].astype(np.float64) - got["disparity"]
+    ok = u_off <= 0.5
+    same_row = (got["t"][:, None] == got["t"][None, :]) & (got["y"][:, None] == got["y"][None, :])
+    crossed = same_row & ok[:, None] & ok[None, :] & (got["x"][None, :] > got["x"][:, None]) & \
+        (r[None, :] <= r[:, None] - 2.0)
+    hidden = crossed.sum(axis=1) >= support
+    assert 0 < hidden.sum() < ok.sum()
+    np.testing.assert_array_equal(u_on - u_off > 0.25, hidden)
+    np.testing.assert_allclose(u_on, np.where(hidden, u_off + 0.5, u_off), atol=1e-6)  # float32 uncertainties
+
+
 def test_isolated_noise_gets_no_answer():
     # One event per pixel, far apart: no pixel has a neighbour that fired. The right camera's events lie rows
     # away, so no left event has a partner: every cost is flat, and the noise filter answers nowhere.
@@ -190,6 +287,8 @@ def test_registered_and_window_anchored():
 @pytest.mark.parametrize(("field", "value", "words"), [
     ("sgm_paths", 3, "sgm_paths"), ("p2", 0.1, "p1 <= p2"), ("max_uncertainty", 0.0, "max_uncertainty"),
     ("tau_us", 0, "tau_us"), ("row_tolerance", 5, "row_tolerance"), ("lr_tolerance", -2, "lr_tolerance"),
+    ("occlusion_margin", -0.5, "occlusion_margin"), ("occlusion_margin", float("nan"), "occlusion_margin"),
+    ("occlusion_support", 0, "occlusion_support"), ("occlusion_support", 1.5, "occlusion_support"),
 ])
 def test_bad_parameters_say_which(field, value, words):
     with pytest.raises(ValueError, match=words):

@@ -118,7 +118,8 @@ def aggregate(cost: np.ndarray, active: np.ndarray, prm: FusedParams) -> np.ndar
 
 
 def choose(total, active, counts, recent, prm: FusedParams):
-    """Winner, uncertainty, noise filter, left-right check and sub-pixel at every left event pixel."""
+    """Winner, uncertainty, noise filter, left-right check, sub-pixel and occlusion test at every left event pixel:
+    the answers kept, and the answers before the occlusion test (the next window's prior)."""
     h, w, nd = total.shape
     out = []
     for y, x in zip(*np.nonzero(counts.sum(axis=0)), strict=True):
@@ -143,7 +144,7 @@ def choose(total, active, counts, recent, prm: FusedParams):
         # Inconsistent winners rank behind every consistent one (design part 7).
         u = 0.5 * ratio if consistent else 0.5 * ratio + 0.5
         if isolated and not u < prm.isolated_max_uncertainty:
-            continue  # the noise filter (design part 10): an isolated pixel answers only with a clear match
+            continue  # the noise filter (design part 11): an isolated pixel answers only with a clear match
         disp = float(best)
         if prm.subpixel and 0 < best < nd - 1:
             a, b, c = float(s[best - 1]), float(s[best]), float(s[best + 1])
@@ -171,7 +172,18 @@ def choose(total, active, counts, recent, prm: FusedParams):
                 row[4] = row[4] - 0.5  # confirmed by the consistent answers around it: no left-right penalty
             else:
                 row[3] = med
-    return [tuple(row[:5]) for row in out if row[4] <= prm.max_uncertainty]
+    # Occlusion test: an answer that nearer answers further right in its row hide from the right camera gets the
+    # left-right penalty; both sides of the test are the answers of uncertainty at most 0.5 before it.
+    # The next window's prior is the answers before the test (design part 9).
+    prior = [tuple(row[:5]) for row in out if row[4] <= prm.max_uncertainty]
+    if prm.occlusion_margin >= 0:
+        hides = [(row[1], row[0], row[0] - row[3]) for row in out if row[4] <= 0.5]
+        for row in out:
+            x, y, r = row[0], row[1], row[0] - row[3]
+            crossing = sum(y2 == y and x2 > x and r2 <= r - prm.occlusion_margin for y2, x2, r2 in hides)
+            if row[4] <= 0.5 and crossing >= prm.occlusion_support:
+                row[4] = row[4] + 0.5
+    return [tuple(row[:5]) for row in out if row[4] <= prm.max_uncertainty], prior
 
 
 def fused_reference(left: np.ndarray, right: np.ndarray, params: FusedParams | None = None, *,
@@ -215,9 +227,9 @@ def fused_reference(left: np.ndarray, right: np.ndarray, params: FusedParams | N
                 active |= padded[dy:dy + h, dx:dx + w]
         use_prior = prior if prior_end == t_end - prm.window_us else np.full((h, w), np.nan)
         total = aggregate(cost_volume(feats[0], feats[1], use_prior, prm), active, prm)
-        found = choose(total, active, counts, recent, prm)
+        found, answers = choose(total, active, counts, recent, prm)
         prior, prior_end = np.full((h, w), np.nan), t_end
-        for x, y, _, disp, _ in found:
+        for x, y, _, disp, _ in answers:
             prior[y, x] = disp
         if found:
             x, y, p, disp, u = (np.array(c) for c in zip(*found, strict=True))
