@@ -11,18 +11,8 @@ never to one file. They lie below the thesis' threshold over the level of thesis
 0.76 for the frame matcher on 1arm-100cm): at the thesis' density ``adaptive`` keeps more pixels at about the
 same error. Besides the scales, ``adaptive`` adds checks that the thesis does not make (each a parameter field whose
 thesis value switches it off), chosen so that its median bad2 over the robustness suite is at most the
-thesis' while it covers more: the frame matcher keeps a match only with 3 agreeing neighbours
-(``min_support``, :mod:`cvstereo.support`); frame-area matches OFF and ON frames each on its own and keeps a
-disparity only where the other camera's scan agrees (``polarity="separate"``, ``lr_check``); event-area keeps OFF
-and ON dynamic frames apart but sums its SAD over both (``polarity="separate"``, ``sad_frames="all"``), bounds the
-SAD relative to the threshold in force and to the own patch (``cost_scale``, ``own_ratio``) and drops ambiguous
-matches (``uniqueness``); event-time reads D1 just after e1's own update, as D2 is read (``reference_read``), and
-sets its time window to 0.5 times the other camera's pace, the median time between neighbouring events
-(``time_window_scale``), so that the window widens as events per edge thin out, and vetoes a partner more than
-1 px from the disparity its recent neighbour matches agree on (``consensus_radius``); event-vector matches OFF and ON
-frames apart, extends each vector by the pixel's place in its own run, reports the middle of equally good
-disparities and bounds the cost by a slack plus a share of the vector's length (``polarity="separate"``,
-``run_ends``, ``tie_break="centre"``, ``cost_slack``, ``cost_ratio``). The rig check's time offset is NOT applied
+thesis' while it covers more. Which fields and values, and why, is said once per method, in :data:`ADAPTIVE`
+(its ``params`` and ``why``; ``cvstereo match --list-methods`` prints them). The rig check's time offset is NOT applied
 by default: on Fan_disp8 it finds +0.01 ms at confidence 0.25 (no offset to apply), and forcing -3 ms or +3 ms
 made every matcher worse under ``adaptive`` (event-area 59 % -> 28 % within 1 px of 8); what cancelled the
 fan's blades was ON and OFF events sharing one frame. A set gives the defaults; ``--param key=value`` overrides
