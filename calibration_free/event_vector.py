@@ -29,9 +29,10 @@ a test per pixel mispredicted at every change). The event's own vector comes fro
 it; with ``require_candidate_threshold`` the other row's mask covers the candidate range, and only runs holding a
 candidate are visited (a run's pixels share the ends of their vectors; the least cost of a run's candidates is
 one branch-free loop). Where a run or gap reaches beyond a mask, a walk in the frame goes on, skipping blocks
-(:func:`cvstereo.dynamic_frames.skip_below`). Against the per-pixel walks this replaced (same process,
-interleaved, CPU time, load 2.4): the dense motorcycle scene 1.24x (thesis) and 1.01x (adaptive), 640x480 with a
-128 px range 1.03x / 0.92x, the suite's sparser 128x128 and 346x260 recordings 0.94-1.02x / 0.91-0.92x.
+(:func:`cvstereo.dynamic_frames.skip_below`). Against the per-pixel walks this replaced (bench_speed --quick,
+old and new interleaved, one core, load 0.8): the dense motorcycle scene 1.25x (thesis) and 1.01x (adaptive),
+640x480 with a 128 px range 1.05x / 0.99x; on sparse rows, where a walk met few pixels, the masks cost more than
+they save: the suite's 128x128 base 0.89x / 0.87x (still 4.8 / 3.6 M events/s), 346x260 0.98x / 0.93x.
 
 Both cameras' events are processed in one merged order (by time, left first at equal times), see
 :mod:`calibration_free.merge_order` and :mod:`calibration_free._event_common`. The reference implementation is
