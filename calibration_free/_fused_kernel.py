@@ -9,13 +9,15 @@ Where the time goes, and why the kernels are shaped as they are (2arms-50cm, 128
 6000 active pixels a window; a 346x260 recording at 1 M ev/s: 26000 and 171 disparities):
 
 * Memory traffic, not arithmetic, set the pace when the cost and the four paths were stored as (active
-  pixels x disparities) arrays of several MB. Now a window keeps a single such array, in float32 (half the
-  bytes, twice the vector lanes): the sum of its paths. Each of the two passes (:func:`_row_pass`) computes a
-  pixel's cost afresh (cheaper than storing and reading it back), keeps its row path in a vector and its column
-  path in two sensor rows; the forward pass writes left + above, the backward pass adds right and below.
-  Cost, paths and sums are float32 in the reference too, in the same order. It pays where the arrays outgrow
-  the caches: the 346x260 recording's windows 62-71 -> 36-38 ms of CPU (load 1.8-2.8); on 2arms-50cm (64
-  disparities, compute-bound) about 1.1x (features + kernel, interleaved in one process: median 5.5 -> 5.0 ms).
+  pixels x disparities) arrays of several MB. Now a window keeps two such arrays, in float32 (half the
+  bytes, twice the vector lanes): the cost and the sum of its paths. Each pass (:func:`_row_pass`) keeps its
+  row path in a vector and its column path in two sensor rows; the forward pass computes the cost, stores it
+  and writes left + above, the backward pass reads the cost back and adds right and below.
+  Cost, paths and sums are float32 in the reference too, in the same order. Keeping the paths out of memory
+  paid where the arrays outgrow the caches: the 346x260 recording's windows 62-71 -> 36-38 ms of CPU (load
+  1.8-2.8); on 2arms-50cm (64 disparities, compute-bound) about 1.1x. Storing the cost (rather than computing
+  it again in the backward pass, half a millisecond of the ~3 ms a 2arms-50cm window took) is about 1.1x there
+  (kernel alone, same inputs, one CPU, load 4: 3.00 -> 2.68 ms a window) and 1.03x on the 346x260 windows.
 * Each semi-global step is one plain loop over the disparities, which the compiler vectorises; the vector's
   minimum is a second pass over it while it is in the L1 cache (:func:`_path_step`).
 * The left-right check reads, for each anchor, one disparity of many different pixels of its row: it runs as
@@ -107,38 +109,38 @@ def _pixel_cost(fl, right_rev, yy, xx, pr, row_tol, temporal_weight, out):
 
 @njit(cache=True, nogil=True, inline="always")
 def _row_pass(fl, right_rev, prior, index, ax, yy, k_first, k_stop, step, row_tol, temporal_weight, p1, p2, paths,
-              total, vecs, cols, cols_min, cur):
+              total, costs, vecs, cols, cols_min, cur):
     """One row of one semi-global pass: ``step`` 1 is the forward pass (left to right, the column path comes from
     above), -1 the backward one (right to left, from below).
 
-    Each pixel's cost is computed here, into ``vecs[0]``, in both passes rather than stored between them: the
-    arithmetic costs less than the memory traffic of a stored (pixels x disparities) array. The row path runs
-    in ``vecs[1:3]`` (current, previous), the column path in ``cols[cur]`` with the previous row's in
+    The forward pass computes each pixel's cost into ``costs[k]``, the backward pass reads it back. The row path runs
+    in ``vecs`` (current and previous, taking turns), the column path in ``cols[cur]`` with the previous row's in
     ``cols[1 - cur]``. The forward pass writes ``total[k] = left (+ above)``, the backward pass adds
     ``(+ right) (+ below)`` in that order, as the reference sums them; with ``paths`` 0, ``total[k]`` is the
     cost.
     """
     h, w = index.shape
     nd = total.shape[1]
-    cost = vecs[0]
-    r = 1
+    r = 0
     r_min = np.float32(0.0)
     y_from = yy - step  # the row the column path comes from
     for k in range(k_first, k_stop, step):
         xx = ax[k]
         out = total[k]
-        _pixel_cost(fl, right_rev, yy, xx, prior[yy, xx], row_tol, temporal_weight, cost)
+        cost = costs[k]
+        if step > 0:
+            _pixel_cost(fl, right_rev, yy, xx, prior[yy, xx], row_tol, temporal_weight, cost)
         if paths == 0:
             for d in range(nd):
                 out[d] = cost[d]
             continue
         x_from = xx - step
         if 0 <= x_from < w and index[yy, x_from] >= 0:
-            r_min = _path_step(cost, vecs[3 - r], r_min, vecs[r], p1, p2)
+            r_min = _path_step(cost, vecs[1 - r], r_min, vecs[r], p1, p2)
         else:
             r_min = _copy(cost, vecs[r])
         rv = vecs[r]
-        r = 3 - r
+        r = 1 - r
         if paths == 2:
             if step > 0:
                 for d in range(nd):
@@ -201,12 +203,12 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
     max_uncertainty, fill_radius, confirm
         :class:`~calibration_free.fused_params.FusedParams` fields (``isolated_below``: its
         ``isolated_max_uncertainty``; ``confirm``: its ``fill_confirms``).
-    work : (n, max_d + 1) float32 ndarray
-        Scratch for at least the n active pixels: the sum of their paths (kept by the caller: fresh pages cost
-        more than the arithmetic).
+    work : (2, n, max_d + 1) float32 ndarray
+        Scratch for at least the n active pixels: the sum of their paths and their cost (kept by the caller:
+        fresh pages cost more than the arithmetic).
     rowbuf : tuple of ndarrays
-        Scratch ``(cols, vecs)``, (2, W, max_d + 1) and (3, max_d + 1) float32: the column path's current and
-        previous row, the cost and the row path's current and previous vector (see :func:`_row_pass`).
+        Scratch ``(cols, vecs)``, (2, W, max_d + 1) and (2, max_d + 1) float32: the column path's current and
+        previous row, the row path's current and previous vector (see :func:`_row_pass`).
     planes : tuple of ndarrays
         Scratch kept between windows: ``(right_rev, index, consistent)``, (H, 2, W + max_d + 1) float32 zeros,
         (H, W) int64, (H, W) float64 all NaN (left so on return).
@@ -252,7 +254,7 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
             for xx in range(w):
                 right_rev[yy, c, w - 1 - xx] = fr[c, yy, xx]
     p1, p2 = np.float32(p1), np.float32(p2)  # float32 steps throughout (see the module docstring)
-    total = work[:n]
+    total, costs = work[0, :n], work[1, :n]
     cols, vecs = rowbuf
     cols_min = np.empty((2, w), np.float32)
     # Forward pass (top to bottom, left to right): total = row path from the left (+ column path from above).
@@ -260,7 +262,7 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
     for yy in range(h):
         if row_start[yy] < row_start[yy + 1]:
             _row_pass(fl, right_rev, prior, index, ax, yy, row_start[yy], row_start[yy + 1], 1, row_tol,
-                      temporal_weight, p1, p2, paths, total, vecs, cols, cols_min, cur)
+                      temporal_weight, p1, p2, paths, total, costs, vecs, cols, cols_min, cur)
             cur = 1 - cur
     # Backward pass (bottom to top, right to left): the row path from the right and the column path from below
     # are added; then the row's answers, while its sums are in the cache.
@@ -277,7 +279,7 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
             continue
         if paths > 0:
             _row_pass(fl, right_rev, prior, index, ax, yy, k1 - 1, k0 - 1, -1, row_tol, temporal_weight, p1, p2,
-                      paths, total, vecs, cols, cols_min, cur)
+                      paths, total, costs, vecs, cols, cols_min, cur)
             cur = 1 - cur
         if slot_start[yy] == slot_start[yy + 1]:
             continue
