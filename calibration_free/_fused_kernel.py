@@ -37,74 +37,30 @@ from calibration_free._fused_features import select
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _min4(v):
-    """``min(v)`` of a non-empty vector, with four running minima: a single one is a chain of dependent
+def _min4(v, i, lo, hi):
+    """``min(v[i, lo:hi])`` (``lo < hi``), with four running minima: a single one is a chain of dependent
     instructions that takes several cycles per element, four overlap (the minimum is exact in any order)."""
-    nd = v.size
-    m0 = m1 = m2 = m3 = v[0]
-    d = 0
-    while d + 4 <= nd:
-        m0 = min(m0, v[d])
-        m1 = min(m1, v[d + 1])
-        m2 = min(m2, v[d + 2])
-        m3 = min(m3, v[d + 3])
+    m0 = m1 = m2 = m3 = v[i, lo]
+    d = lo
+    while d + 4 <= hi:
+        m0 = min(m0, v[i, d])
+        m1 = min(m1, v[i, d + 1])
+        m2 = min(m2, v[i, d + 2])
+        m3 = min(m3, v[i, d + 3])
         d += 4
-    while d < nd:
-        m0 = min(m0, v[d])
+    while d < hi:
+        m0 = min(m0, v[i, d])
         d += 1
     return min(min(m0, m1), min(m2, m3))
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _path_step(cost, prev, mn, out, p1, p2):
-    """One semi-global step along a path into vector ``out``; returns ``min(out)``.
-
-    ``out[d] = cost[d] + min(prev[d], prev[d+-1] + p1, mn + p2) - mn`` with ``mn = min(prev)`` (Hirschmüller
-    2008, eq. 13). The minima are exact in any order, so this equals the reference. The step is one plain
-    element-wise loop, which the compiler vectorises, and its minimum a second pass over the vector while it is
-    in the L1 cache (running minima inside the step keep the compiler from vectorising it)."""
-    nd = cost.size
-    jump = mn + p2
-    if nd == 1:
-        out[0] = cost[0] + (min(prev[0], jump) - mn)
-        return out[0]
-    out[0] = cost[0] + (min(min(prev[0], prev[1] + p1), jump) - mn)
-    for d in range(1, nd - 1):
-        out[d] = cost[d] + (min(min(prev[d], jump), min(prev[d - 1], prev[d + 1]) + p1) - mn)
-    out[nd - 1] = cost[nd - 1] + (min(min(prev[nd - 1], prev[nd - 2] + p1), jump) - mn)
-    return _min4(out)
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _copy(src, dst):
-    """``dst[:] = src``; returns ``min(src)``."""
-    for d in range(src.size):
-        dst[d] = src[d]
-    return _min4(src)
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _pixel_cost(fl, right_rev, yy, xx, pr, row_tol, temporal_weight, out):
-    """Cost of every disparity at left pixel (xx, yy) into ``out``.
-
-    ``right_rev[y, c, j]`` is the right feature at column ``W - 1 - j`` (zero for ``j >= W``, beyond the left
-    edge), so that disparities 0, 1, ... read it forwards from ``j = W - 1 - xx``: contiguous loops without
-    branches, which the compiler turns into vector instructions. The least over the tolerated rows is exact in
-    any order, so this equals the reference's ``np.minimum`` over rows."""
-    h = fl.shape[1]
-    nd = out.size
-    l0, l1 = np.float32(fl[0, yy, xx]), np.float32(fl[1, yy, xx])
-    j0 = right_rev.shape[2] - nd - 1 - xx
-    for d in range(nd):
-        out[d] = np.inf
-    for y2 in range(max(yy - row_tol, 0), min(yy + row_tol + 1, h)):
-        r0 = right_rev[y2, 0, j0:j0 + nd]
-        r1 = right_rev[y2, 1, j0:j0 + nd]
-        for d in range(nd):
-            out[d] = min(out[d], abs(l0 - r0[d]) + abs(l1 - r1[d]))
-    if temporal_weight > 0.0 and not np.isnan(pr):
-        for d in range(nd):
-            out[d] = out[d] + np.float32(temporal_weight * min(abs(d - pr), 2.0))
+def _step(c, before, at, after, jump, p1, mn):
+    """One disparity of a semi-global step: ``c + min(prev[d], prev[d+-1] + p1, mn + p2) - mn`` (Hirschmüller 2008,
+    eq. 13), with ``before, at, after = prev[d - 1], prev[d], prev[d + 1]`` (inf beyond the range) and ``jump = mn +
+    p2``. The minima are exact in any order, so this equals the reference. Scalars only: an inlined helper that
+    takes an array binds it to a new variable, which numba counts with two atomic instructions per call."""
+    return c + (min(min(at, jump), min(before, after) + p1) - mn)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -114,52 +70,117 @@ def _row_pass(fl, right_rev, prior, index, ax, yy, k_first, k_stop, step, row_to
     above), -1 the backward one (right to left, from below).
 
     The forward pass computes each pixel's cost into ``costs[k]``, the backward pass reads it back. The row path runs
-    in ``vecs`` (current and previous, taking turns), the column path in ``cols[cur]`` with the previous row's in
-    ``cols[1 - cur]``. The forward pass writes ``total[k] = left (+ above)``, the backward pass adds
-    ``(+ right) (+ below)`` in that order, as the reference sums them; with ``paths`` 0, ``total[k]`` is the
-    cost.
+    in ``vecs[0:2]`` (current and previous, taking turns), the column path in ``cols[cur * W + x]`` with the previous
+    row's in ``cols[(1 - cur) * W + x]``. A path without a predecessor starts at the cost: it steps from the zero row
+    (``vecs[2]``, ``cols[2 * W]``) with minimum 0, which adds exactly 0 (``p1, p2 >= 0``). The forward pass writes
+    ``total[k] = left (+ above)``, the backward pass adds ``(+ right) (+ below)`` in that order, as the reference
+    sums them; with ``paths`` 0, ``total[k]`` is the cost.
+
+    Every per-pixel loop is written out here rather than in helpers that take arrays: each such call bound its
+    arrays to new variables, and numba's two atomic reference-count updates per binding cost more than the
+    arithmetic (the module docstring has the figures).
     """
     h, w = index.shape
     nd = total.shape[1]
+    inf = np.float32(np.inf)
+    zero = np.float32(0.0)
     r = 0
-    r_min = np.float32(0.0)
+    r_min = zero
     y_from = yy - step  # the row the column path comes from
     for k in range(k_first, k_stop, step):
         xx = ax[k]
-        out = total[k]
-        cost = costs[k]
         if step > 0:
-            _pixel_cost(fl, right_rev, yy, xx, prior[yy, xx], row_tol, temporal_weight, cost)
+            # The cost of every disparity: right_rev[y, c, j] is the right feature at column W - 1 - j (zero for
+            # j >= W, beyond the left edge), so that disparities 0, 1, ... read it forwards from j = W - 1 - xx:
+            # contiguous loops without branches, which vectorise. The least over the tolerated rows is exact in
+            # any order, so this equals the reference's np.minimum over rows.
+            l0, l1 = np.float32(fl[0, yy, xx]), np.float32(fl[1, yy, xx])
+            j0 = right_rev.shape[2] - nd - 1 - xx
+            for d in range(nd):
+                costs[k, d] = inf
+            for y2 in range(max(yy - row_tol, 0), min(yy + row_tol + 1, h)):
+                for d in range(nd):
+                    costs[k, d] = min(costs[k, d],
+                                      abs(l0 - right_rev[y2, 0, j0 + d]) + abs(l1 - right_rev[y2, 1, j0 + d]))
+            pr = prior[yy, xx]
+            if temporal_weight > 0.0 and not np.isnan(pr):
+                for d in range(nd):
+                    costs[k, d] = costs[k, d] + np.float32(temporal_weight * min(abs(d - pr), 2.0))
         if paths == 0:
             for d in range(nd):
-                out[d] = cost[d]
+                total[k, d] = costs[k, d]
             continue
         x_from = xx - step
         if 0 <= x_from < w and index[yy, x_from] >= 0:
-            r_min = _path_step(cost, vecs[1 - r], r_min, vecs[r], p1, p2)
+            rp, rmn = 1 - r, r_min
         else:
-            r_min = _copy(cost, vecs[r])
-        rv = vecs[r]
-        r = 1 - r
+            rp, rmn = 2, zero
+        rj = rmn + p2
         if paths == 2:
+            if nd == 1:
+                vecs[r, 0] = _step(costs[k, 0], inf, vecs[rp, 0], inf, rj, p1, rmn)
+            else:
+                vecs[r, 0] = _step(costs[k, 0], inf, vecs[rp, 0], vecs[rp, 1], rj, p1, rmn)
+                for d in range(1, nd - 1):
+                    vecs[r, d] = _step(costs[k, d], vecs[rp, d - 1], vecs[rp, d], vecs[rp, d + 1], rj, p1, rmn)
+                vecs[r, nd - 1] = _step(costs[k, nd - 1], vecs[rp, nd - 2], vecs[rp, nd - 1], inf, rj, p1, rmn)
             if step > 0:
                 for d in range(nd):
-                    out[d] = rv[d]
+                    total[k, d] = vecs[r, d]
             else:
                 for d in range(nd):
-                    out[d] = out[d] + rv[d]
-            continue
-        if 0 <= y_from < h and index[y_from, xx] >= 0:
-            cols_min[cur, xx] = _path_step(cost, cols[1 - cur, xx], cols_min[1 - cur, xx], cols[cur, xx], p1, p2)
+                    total[k, d] = total[k, d] + vecs[r, d]
         else:
-            cols_min[cur, xx] = _copy(cost, cols[cur, xx])
-        cv = cols[cur, xx]
-        if step > 0:
-            for d in range(nd):
-                out[d] = rv[d] + cv[d]
-        else:
-            for d in range(nd):
-                out[d] = (out[d] + rv[d]) + cv[d]
+            cv = cur * w + xx
+            if 0 <= y_from < h and index[y_from, xx] >= 0:
+                cp, cmn = (1 - cur) * w + xx, cols_min[1 - cur, xx]
+            else:
+                cp, cmn = 2 * w, zero
+            cj = cmn + p2
+            if nd == 1:
+                vecs[r, 0] = _step(costs[k, 0], inf, vecs[rp, 0], inf, rj, p1, rmn)
+                cols[cv, 0] = _step(costs[k, 0], inf, cols[cp, 0], inf, cj, p1, cmn)
+            else:
+                vecs[r, 0] = _step(costs[k, 0], inf, vecs[rp, 0], vecs[rp, 1], rj, p1, rmn)
+                cols[cv, 0] = _step(costs[k, 0], inf, cols[cp, 0], cols[cp, 1], cj, p1, cmn)
+                for d in range(1, nd - 1):
+                    vecs[r, d] = _step(costs[k, d], vecs[rp, d - 1], vecs[rp, d], vecs[rp, d + 1], rj, p1, rmn)
+                    cols[cv, d] = _step(costs[k, d], cols[cp, d - 1], cols[cp, d], cols[cp, d + 1], cj, p1, cmn)
+                vecs[r, nd - 1] = _step(costs[k, nd - 1], vecs[rp, nd - 2], vecs[rp, nd - 1], inf, rj, p1, rmn)
+                cols[cv, nd - 1] = _step(costs[k, nd - 1], cols[cp, nd - 2], cols[cp, nd - 1], inf, cj, p1, cmn)
+            if step > 0:
+                for d in range(nd):
+                    total[k, d] = vecs[r, d] + cols[cv, d]
+            else:
+                for d in range(nd):
+                    total[k, d] = (total[k, d] + vecs[r, d]) + cols[cv, d]
+            # The column path's minimum, with four running minima (exact in any order; one is a chain of
+            # dependent instructions).
+            m0 = m1 = m2 = m3 = cols[cv, 0]
+            d = 0
+            while d + 4 <= nd:
+                m0 = min(m0, cols[cv, d])
+                m1 = min(m1, cols[cv, d + 1])
+                m2 = min(m2, cols[cv, d + 2])
+                m3 = min(m3, cols[cv, d + 3])
+                d += 4
+            while d < nd:
+                m0 = min(m0, cols[cv, d])
+                d += 1
+            cols_min[cur, xx] = min(min(m0, m1), min(m2, m3))
+        m0 = m1 = m2 = m3 = vecs[r, 0]
+        d = 0
+        while d + 4 <= nd:
+            m0 = min(m0, vecs[r, d])
+            m1 = min(m1, vecs[r, d + 1])
+            m2 = min(m2, vecs[r, d + 2])
+            m3 = min(m3, vecs[r, d + 3])
+            d += 4
+        while d < nd:
+            m0 = min(m0, vecs[r, d])
+            d += 1
+        r_min = min(min(m0, m1), min(m2, m3))
+        r = 1 - r
 
 
 @njit(cache=True, nogil=True)
@@ -207,8 +228,9 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
         Scratch for at least the n active pixels: the sum of their paths and their cost (kept by the caller:
         fresh pages cost more than the arithmetic).
     rowbuf : tuple of ndarrays
-        Scratch ``(cols, vecs)``, (2, W, max_d + 1) and (2, max_d + 1) float32: the column path's current and
-        previous row, the row path's current and previous vector (see :func:`_row_pass`).
+        Scratch ``(cols, vecs)``, (2 W + 1, max_d + 1) and (3, max_d + 1) float32: the column path's current and
+        previous sensor row (row ``cur * W + x``), the row path's current and previous vector, each with a last row
+        of zeros that is never written (see :func:`_row_pass`).
     planes : tuple of ndarrays
         Scratch kept between windows: ``(right_rev, index, consistent)``, (H, 2, W + max_d + 1) float32 zeros,
         (H, W) int64, (H, W) float64 all NaN (left so on return).
@@ -247,7 +269,7 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
         for xx in range(w):
             if index[yy, xx] >= 0:
                 ax[index[yy, xx]] = xx
-    # The right features mirrored along the row, zero beyond the left edge (see _pixel_cost; the zeros were
+    # The right features mirrored along the row, zero beyond the left edge (see _row_pass; the zeros were
     # written when the array was made).
     for yy in range(h):
         for c in range(2):
@@ -298,18 +320,17 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
             isolated = neighbours < min_neighbours
             if isolated and isolated_below <= 0.0:
                 continue  # no isolated pixel can answer: skip the work
-            s = total[k]
             # The first least disparity (argmin's), then the least more than 1 px away from it.
-            low = _min4(s)
+            low = _min4(total, k, 0, nd)
             best = 0
-            while s[best] != low:
+            while total[k, best] != low:
                 best += 1
             second = np.inf
             if best >= 2:
-                second = _min4(s[:best - 1])
+                second = _min4(total, k, 0, best - 1)
             if best + 2 < nd:
-                second = min(second, _min4(s[best + 2:]))
-            ratio = 1.0 if second == 0.0 else np.float64(s[best]) / second
+                second = min(second, _min4(total, k, best + 2, nd))
+            ratio = 1.0 if second == 0.0 else np.float64(total[k, best]) / second
             consistent = True
             if lr_tol >= 0:
                 # The right pixel's own winner from the same sums; its row is still in the cache.
@@ -331,7 +352,7 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
                 continue
             disp = float(best)
             if subpixel and 0 < best < nd - 1:
-                a, b, c = np.float64(s[best - 1]), np.float64(s[best]), np.float64(s[best + 1])
+                a, b, c = np.float64(total[k, best - 1]), np.float64(total[k, best]), np.float64(total[k, best + 1])
                 den = (a - 2.0 * b) + c
                 if den > 0.0:
                     delta = (a - c) / (2.0 * den)
