@@ -81,7 +81,7 @@ def _row_pass(fl, right_rev, prior, index, ax, yy, k_first, k_stop, step, row_to
     arithmetic (the module docstring has the figures).
     """
     h, w = index.shape
-    nd = total.shape[1]
+    nd = total.shape[1]  # at least 2 (FusedParams: max_disparity >= 1)
     inf = np.float32(np.inf)
     zero = np.float32(0.0)
     r = 0
@@ -117,13 +117,10 @@ def _row_pass(fl, right_rev, prior, index, ax, yy, k_first, k_stop, step, row_to
             rp, rmn = 2, zero
         rj = rmn + p2
         if paths == 2:
-            if nd == 1:
-                vecs[r, 0] = _step(costs[k, 0], inf, vecs[rp, 0], inf, rj, p1, rmn)
-            else:
-                vecs[r, 0] = _step(costs[k, 0], inf, vecs[rp, 0], vecs[rp, 1], rj, p1, rmn)
-                for d in range(1, nd - 1):
-                    vecs[r, d] = _step(costs[k, d], vecs[rp, d - 1], vecs[rp, d], vecs[rp, d + 1], rj, p1, rmn)
-                vecs[r, nd - 1] = _step(costs[k, nd - 1], vecs[rp, nd - 2], vecs[rp, nd - 1], inf, rj, p1, rmn)
+            vecs[r, 0] = _step(costs[k, 0], inf, vecs[rp, 0], vecs[rp, 1], rj, p1, rmn)
+            for d in range(1, nd - 1):
+                vecs[r, d] = _step(costs[k, d], vecs[rp, d - 1], vecs[rp, d], vecs[rp, d + 1], rj, p1, rmn)
+            vecs[r, nd - 1] = _step(costs[k, nd - 1], vecs[rp, nd - 2], vecs[rp, nd - 1], inf, rj, p1, rmn)
             if step > 0:
                 for d in range(nd):
                     total[k, d] = vecs[r, d]
@@ -137,17 +134,13 @@ def _row_pass(fl, right_rev, prior, index, ax, yy, k_first, k_stop, step, row_to
             else:
                 cp, cmn = 2 * w, zero
             cj = cmn + p2
-            if nd == 1:
-                vecs[r, 0] = _step(costs[k, 0], inf, vecs[rp, 0], inf, rj, p1, rmn)
-                cols[cv, 0] = _step(costs[k, 0], inf, cols[cp, 0], inf, cj, p1, cmn)
-            else:
-                vecs[r, 0] = _step(costs[k, 0], inf, vecs[rp, 0], vecs[rp, 1], rj, p1, rmn)
-                cols[cv, 0] = _step(costs[k, 0], inf, cols[cp, 0], cols[cp, 1], cj, p1, cmn)
-                for d in range(1, nd - 1):
-                    vecs[r, d] = _step(costs[k, d], vecs[rp, d - 1], vecs[rp, d], vecs[rp, d + 1], rj, p1, rmn)
-                    cols[cv, d] = _step(costs[k, d], cols[cp, d - 1], cols[cp, d], cols[cp, d + 1], cj, p1, cmn)
-                vecs[r, nd - 1] = _step(costs[k, nd - 1], vecs[rp, nd - 2], vecs[rp, nd - 1], inf, rj, p1, rmn)
-                cols[cv, nd - 1] = _step(costs[k, nd - 1], cols[cp, nd - 2], cols[cp, nd - 1], inf, cj, p1, cmn)
+            vecs[r, 0] = _step(costs[k, 0], inf, vecs[rp, 0], vecs[rp, 1], rj, p1, rmn)
+            cols[cv, 0] = _step(costs[k, 0], inf, cols[cp, 0], cols[cp, 1], cj, p1, cmn)
+            for d in range(1, nd - 1):
+                vecs[r, d] = _step(costs[k, d], vecs[rp, d - 1], vecs[rp, d], vecs[rp, d + 1], rj, p1, rmn)
+                cols[cv, d] = _step(costs[k, d], cols[cp, d - 1], cols[cp, d], cols[cp, d + 1], cj, p1, cmn)
+            vecs[r, nd - 1] = _step(costs[k, nd - 1], vecs[rp, nd - 2], vecs[rp, nd - 1], inf, rj, p1, rmn)
+            cols[cv, nd - 1] = _step(costs[k, nd - 1], cols[cp, nd - 2], cols[cp, nd - 1], inf, cj, p1, cmn)
             if step > 0:
                 for d in range(nd):
                     total[k, d] = vecs[r, d] + cols[cv, d]
