@@ -105,8 +105,10 @@ def _row_pass(fl, right_rev, prior, index, ax, yy, k_first, k_stop, step, row_to
                 costs[k, d] = inf
             for y2 in range(max(yy - row_tol, 0), min(yy + row_tol + 1, h)):
                 for d in range(nd):
-                    costs[k, d] = min(costs[k, d],
-                                      abs(l0 - right_rev[y2, 0, j0 + d]) + abs(l1 - right_rev[y2, 1, j0 + d]))
+                    # An unsigned index: numba wraps negative indices around, and the test of a signed one kept
+                    # this loop from vectorising (the forward pass's cost took 0.69 instead of 0.38 ms a window).
+                    j = np.uint64(j0 + d)
+                    costs[k, d] = min(costs[k, d], abs(l0 - right_rev[y2, 0, j]) + abs(l1 - right_rev[y2, 1, j]))
             pr = prior[yy, xx]
             if temporal_weight > 0.0 and not np.isnan(pr):
                 for d in range(nd):
