@@ -235,8 +235,8 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
         previous sensor row (row ``cur * W + x``), the row path's current and previous vector, each with a last row
         of zeros that is never written (see :func:`_row_pass`).
     planes : tuple of ndarrays
-        Scratch kept between windows: ``(right_rev, index, consistent)``, (H, 2, W + max_d + 1) float32 zeros,
-        (H, W) int64, (H, W) float64 all NaN (left so on return).
+        Scratch kept between windows: ``(right_rev, index)``, (H, 2, W + max_d + 1) float32 zeros and (H, W)
+        int64.
 
     Returns
     -------
@@ -246,7 +246,7 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
     _, h, w = fl.shape
     nd = max_d + 1
     # Compact storage of the active pixels, raster order; each row's pixels are a contiguous range.
-    right_rev, index, consistent_d = planes
+    right_rev, index = planes
     row_start = np.empty(h + 1, np.int64)
     slot_start = np.empty(h + 1, np.int64)  # output slots: the anchors, raster order
     n = 0
@@ -378,19 +378,39 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
     m = out_x.size
     # Inconsistent winners take the median of the consistent answers around them (when there are any), or are
     # confirmed by it when they agree with it.
-    keep = np.zeros(m, np.bool_)
+    # The consistent answers, in raster order: row y's are cons_x/cons_d[cons_start[y]:cons_start[y + 1]], sorted
+    # by x. A square then reads, per row, only the answers within it (found by bisection), in the order a scan of
+    # the square's pixels would meet them: a few hundred pixel reads per filled pixel fewer.
+    cons_x = np.empty(m, np.int64)
+    cons_d = np.empty(m)
+    cons_start = np.zeros(h + 1, np.int64)
+    n_cons = 0
     for i in range(m):
         if out_ok[i]:
-            consistent_d[out_y[i], out_x[i]] = out_d[i]
+            cons_x[n_cons] = out_x[i]
+            cons_d[n_cons] = out_d[i]
+            n_cons += 1
+            cons_start[out_y[i] + 1] += 1
+    for yy in range(h):
+        cons_start[yy + 1] += cons_start[yy]
+    keep = np.zeros(m, np.bool_)
     vals = np.empty((2 * fill_radius + 1) ** 2)
     for i in range(m):
         if not out_ok[i] and fill_radius > 0:
             c = 0
+            x_lo, x_hi = out_x[i] - fill_radius, out_x[i] + fill_radius
             for y2 in range(max(out_y[i] - fill_radius, 0), min(out_y[i] + fill_radius + 1, h)):
-                for x2 in range(max(out_x[i] - fill_radius, 0), min(out_x[i] + fill_radius + 1, w)):
-                    v = consistent_d[y2, x2]
-                    vals[c] = v  # written always, kept only if a number: no branch to mispredict
-                    c += not np.isnan(v)
+                lo, hi = cons_start[y2], cons_start[y2 + 1]
+                while lo < hi:  # the row's first answer at or right of x_lo
+                    mid = (lo + hi) // 2
+                    if cons_x[mid] < x_lo:
+                        lo = mid + 1
+                    else:
+                        hi = mid
+                while lo < cons_start[y2 + 1] and cons_x[lo] <= x_hi:
+                    vals[c] = cons_d[lo]
+                    c += 1
+                    lo += 1
             if c > 0:
                 med = median_of(vals, c)
                 if confirm and abs(out_d[i] - med) <= lr_tol:
@@ -398,6 +418,4 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
                 else:
                     out_d[i] = med
         keep[i] = out_u[i] <= max_uncertainty
-    for i in range(m):
-        consistent_d[out_y[i], out_x[i]] = np.nan
     return out_x[keep], out_y[keep], out_p[keep], out_d[keep], out_u[keep]

@@ -128,8 +128,7 @@ class Scratch:
         self.active = np.empty((h, w), np.bool_)
         self.recent = np.empty((h, w), np.bool_)
         self.rowbuf = (np.zeros((2 * w + 1, n_disparities), np.float32), np.zeros((3, n_disparities), np.float32))
-        self.planes = (np.zeros((h, 2, w + n_disparities), np.float32), np.empty((h, w), np.int64),
-                       np.full((h, w), np.nan))
+        self.planes = (np.zeros((h, 2, w + n_disparities), np.float32), np.empty((h, w), np.int64))
         self.work = np.empty((2, 0, n_disparities), np.float32)
 
     def work_for(self, n_active: int) -> np.ndarray:
