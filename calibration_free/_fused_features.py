@@ -132,9 +132,9 @@ def nonzero_values(features, buf):
     flat = features.ravel()
     n = 0
     for i in range(flat.size):
-        if flat[i] > 0.0:
-            buf[n] = flat[i]
-            n += 1
+        v = flat[i]
+        buf[n] = v  # written always (n <= i), kept only if positive: no branch to mispredict
+        n += v > 0.0
     return n
 
 
