@@ -186,23 +186,61 @@ def _row_pass(fl, right_rev, prior, index, ax, yy, k_first, k_stop, step, row_to
         r = 1 - r
 
 
-@njit(cache=True, nogil=True)
-def median_of(vals, c):
-    """The median of ``vals[:c]`` (``c > 0``; the mean of the two middle values when ``c`` is even), as the
-    reference's sort gives it; ``vals[:c]`` is reordered.
+#: Bins per pixel of disparity in which :func:`median_of` counts the values before it selects.
+MEDIAN_BINS_PER_PX = 8
 
-    By :func:`~calibration_free._fused_features.select` (O(c), no allocation) for the several hundred values of
-    each filled pixel's square; after it nothing before ``k`` is larger, so the lower middle of an even count
-    is the largest value before ``k``.
+
+@njit(cache=True, nogil=True)
+def median_of(vals, c, hist, picked):
+    """The median of ``vals[:c]`` (``c > 0``, values ``>= 0``; the mean of the two middle values when ``c`` is even),
+    as the reference's sort gives it.
+
+    The several hundred values of a filled pixel's square are first counted in bins of 1/:data:`MEDIAN_BINS_PER_PX`
+    px (``hist``: zeros, left so; values beyond its last bin share that bin), which names the bin holding the
+    middle value; only that bin's values (copied to ``picked``, as long as ``vals``) are selected among
+    (:func:`~calibration_free._fused_features.select`, O(m)). A selection among all of them cost half the fill.
+    The bins are monotone in the value and order statistics are the same values however they are found, so this
+    equals the sort. With an even count the lower middle is the largest value before the selected one in its
+    bin, or else the largest of the nearest non-empty bin below.
     """
+    nb = hist.size
+    lo_b, hi_b = nb, -1
+    for i in range(c):
+        b = min(int(vals[i] * MEDIAN_BINS_PER_PX), nb - 1)
+        hist[b] += 1
+        lo_b = min(lo_b, b)
+        hi_b = max(hi_b, b)
     k = c // 2
-    mid = select(vals, c, k)
-    if c % 2:
-        return mid
-    lower = vals[0]
-    for q in range(1, k):
-        lower = max(lower, vals[q])
-    return (lower + mid) / 2.0
+    below = 0  # values in the bins before bin b
+    b = lo_b
+    while below + hist[b] <= k:
+        below += hist[b]
+        b += 1
+    m = 0
+    for i in range(c):
+        if min(int(vals[i] * MEDIAN_BINS_PER_PX), nb - 1) == b:
+            picked[m] = vals[i]
+            m += 1
+    j = k - below
+    mid = select(picked, m, j)
+    result = mid
+    if c % 2 == 0:
+        if j > 0:
+            lower = picked[0]  # after the selection nothing before j is larger
+            for q in range(1, j):
+                lower = max(lower, picked[q])
+        else:
+            b2 = b - 1
+            while hist[b2] == 0:
+                b2 -= 1
+            lower = -np.inf
+            for i in range(c):
+                if min(int(vals[i] * MEDIAN_BINS_PER_PX), nb - 1) == b2:
+                    lower = max(lower, vals[i])
+        result = (lower + mid) / 2.0
+    for q in range(lo_b, hi_b + 1):
+        hist[q] = 0
+    return result
 
 
 @njit(cache=True, nogil=True)
@@ -395,6 +433,8 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
         cons_start[yy + 1] += cons_start[yy]
     keep = np.zeros(m, np.bool_)
     vals = np.empty((2 * fill_radius + 1) ** 2)
+    picked = np.empty_like(vals)
+    hist = np.zeros(MEDIAN_BINS_PER_PX * nd, np.int64)
     for i in range(m):
         if not out_ok[i] and fill_radius > 0:
             c = 0
@@ -412,7 +452,7 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
                     c += 1
                     lo += 1
             if c > 0:
-                med = median_of(vals, c)
+                med = median_of(vals, c, hist, picked)
                 if confirm and abs(out_d[i] - med) <= lr_tol:
                     out_u[i] = out_u[i] - 0.5  # confirmed by the consistent answers around it
                 else:
