@@ -33,7 +33,9 @@ Where the time goes, and why the kernels are shaped as they are (2arms-50cm, 128
 * The cost reads the right camera's row backwards (disparity 0, 1, ... is column x, x - 1, ...): a mirrored
   copy of the right features makes those loops contiguous and branch-free, so they vectorise.
 * The fill's median and the level's percentile select in place (:func:`~calibration_free._fused_features.select`)
-  rather than sort.
+  rather than sort; the median first counts its values in bins and selects within one (:func:`median_of`), and the
+  fill reads the consistent answers from per-row runs rather than scanning its square (2arms-50cm: about 200
+  filled pixels a window, 25x25 squares).
 """
 
 from __future__ import annotations
