@@ -48,7 +48,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from calibration_free._fused_features import select
+from calibration_free._fused_features import order_stats
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -199,55 +199,18 @@ MEDIAN_BINS_PER_PX = 8
 
 @njit(cache=True, nogil=True)
 def median_of(vals, c, hist, picked):
-    """The median of ``vals[:c]`` (``c > 0``, values ``>= 0``; the mean of the two middle values when ``c`` is even),
-    as the reference's sort gives it.
+    """The median of ``vals[:c]`` (``c > 0``; the mean of the two middle values when ``c`` is even), as the
+    reference's sort gives it.
 
-    The several hundred values of a filled pixel's square are first counted in bins of 1/:data:`MEDIAN_BINS_PER_PX`
-    px (``hist``: zeros, left so; values beyond its last bin share that bin), which names the bin holding the
-    middle value; only that bin's values (copied to ``picked``, as long as ``vals``) are selected among
-    (:func:`~calibration_free._fused_features.select`, O(m)). A selection among all of them cost half the fill.
-    The bins are monotone in the value and order statistics are the same values however they are found, so this
-    equals the sort. With an even count the lower middle is the largest value before the selected one in its
-    bin, or else the largest of the nearest non-empty bin below.
+    By :func:`~calibration_free._fused_features.order_stats` in bins of 1/:data:`MEDIAN_BINS_PER_PX` px (``hist``:
+    zeros, left so; ``picked`` as long as ``vals``): a selection among all the several hundred values of a filled
+    pixel's square cost half the fill.
     """
-    nb = hist.size
-    lo_b, hi_b = nb, -1
-    for i in range(c):
-        b = min(int(vals[i] * MEDIAN_BINS_PER_PX), nb - 1)
-        hist[b] += 1
-        lo_b = min(lo_b, b)
-        hi_b = max(hi_b, b)
     k = c // 2
-    below = 0  # values in the bins before bin b
-    b = lo_b
-    while below + hist[b] <= k:
-        below += hist[b]
-        b += 1
-    m = 0
-    for i in range(c):
-        if min(int(vals[i] * MEDIAN_BINS_PER_PX), nb - 1) == b:
-            picked[m] = vals[i]
-            m += 1
-    j = k - below
-    mid = select(picked, m, j)
-    result = mid
-    if c % 2 == 0:
-        if j > 0:
-            lower = picked[0]  # after the selection nothing before j is larger
-            for q in range(1, j):
-                lower = max(lower, picked[q])
-        else:
-            b2 = b - 1
-            while hist[b2] == 0:
-                b2 -= 1
-            lower = -np.inf
-            for i in range(c):
-                if min(int(vals[i] * MEDIAN_BINS_PER_PX), nb - 1) == b2:
-                    lower = max(lower, vals[i])
-        result = (lower + mid) / 2.0
-    for q in range(lo_b, hi_b + 1):
-        hist[q] = 0
-    return result
+    if c % 2:
+        return order_stats(vals, c, k, False, MEDIAN_BINS_PER_PX, hist, picked)[0]
+    lower, mid = order_stats(vals, c, k - 1, True, MEDIAN_BINS_PER_PX, hist, picked)
+    return (lower + mid) / 2.0
 
 
 @njit(cache=True, nogil=True)
