@@ -7,8 +7,9 @@ matches (tests/test_fused.py).
 
 Where the time goes, and why the kernels are shaped as they are (2arms-50cm, 128x128, 64 disparities: about
 6000 active pixels a window; a 346x260 recording at 1 M ev/s: 26000 and 171 disparities). On 2arms-50cm a window
-took about 1.55 ms of kernel (one CPU, load 0.7, by stopping it early): setup 0.02, cost 0.33, forward paths 0.36,
-backward pass 0.45, winners 0.19, left-right check 0.05, fill 0.2; features, level and masks about 0.3 more.
+took about 1.53 ms of kernel (one CPU, load 0.7, by stopping it early): setup 0.02, cost 0.33, forward paths 0.36,
+backward pass 0.45, winners 0.19, left-right check 0.05, fill 0.17 (about 200 filled pixels, a few hundred values
+each); outside it surfaces 0.135, level 0.065, division 0.036, masks 0.06 (1.83 ms a window in all).
 
 * Memory traffic, not arithmetic, set the pace when the cost and the four paths were stored as (active
   pixels x disparities) arrays of several MB. Now a window keeps two such arrays, in float32 (half the
