@@ -132,9 +132,9 @@ def nonzero_values(features, buf):
     flat = features.ravel()
     n = 0
     for i in range(flat.size):
-        if flat[i] > 0.0:
-            buf[n] = flat[i]
-            n += 1
+        v = flat[i]
+        buf[n] = v  # written always (n <= i), kept only if positive: no branch to mispredict
+        n += v > 0.0
     return n
 
 
@@ -168,13 +168,73 @@ def select(vals, c, k):
     return vals[k]
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _bin(v, per_unit, nb):
+    """The bin of value ``v`` among ``nb`` bins of width ``1 / per_unit`` from 0, the first and last taking whatever
+    lies beyond them: monotone in ``v``."""
+    return max(0, min(int(v * per_unit), nb - 1))
+
+
+@njit(cache=True, nogil=True)
+def order_stats(vals, c, k, pair, per_unit, hist, picked):
+    """The k-th least of ``vals[:c]`` (0-based) and, with ``pair``, the (k+1)-th (``k + 1 < c``; else the k-th
+    twice); ``vals`` is left as it is.
+
+    The values are counted first in bins of ``1 / per_unit`` (``hist``: zeros, left so), which names the bin that
+    holds the k-th; only that bin's values (copied to ``picked``, at least ``c`` long) are selected among
+    (:func:`select`): two simple passes over the values instead of a selection among all of them, whose
+    comparisons the processor mispredicts. The bins are monotone in the value, and order statistics are the same
+    values however they are found, so this equals a sort. The (k+1)-th is the least after the k-th in its bin, or
+    else the least of the next non-empty bin.
+    """
+    nb = hist.size
+    lo_b, hi_b = nb, -1
+    for i in range(c):
+        b = _bin(vals[i], per_unit, nb)
+        hist[b] += 1
+        lo_b = min(lo_b, b)
+        hi_b = max(hi_b, b)
+    below = 0  # values in the bins before bin b
+    b = lo_b
+    while below + hist[b] <= k:
+        below += hist[b]
+        b += 1
+    m = 0
+    for i in range(c):
+        if _bin(vals[i], per_unit, nb) == b:
+            picked[m] = vals[i]
+            m += 1
+    j = k - below
+    first = select(picked, m, j)
+    second = first
+    if pair:
+        if j + 1 < m:
+            second = picked[j + 1]  # after the selection nothing after j is smaller
+            for q in range(j + 2, m):
+                second = min(second, picked[q])
+        else:
+            b += 1
+            while hist[b] == 0:
+                b += 1
+            second = np.inf
+            for i in range(c):
+                if _bin(vals[i], per_unit, nb) == b:
+                    second = min(second, vals[i])
+    for q in range(lo_b, hi_b + 1):
+        hist[q] = 0
+    return first, second
+
+
+#: Bins per unit of feature value in which :func:`percentile` counts (1024 of them: 0..16, beyond shares the last).
+PERCENTILE_BINS_PER_UNIT = 64
+
+
 @njit(cache=True, nogil=True)
 def percentile(values, q):
-    """``np.percentile(values, q)`` (method "linear") of a non-empty float64 vector, bit for bit; ``values`` is
-    reordered.
+    """``np.percentile(values, q)`` (method "linear") of a non-empty float64 vector, bit for bit.
 
     NumPy's steps, in its floating-point order: virtual index ``(n - 1) * (q / 100)``, the two order
-    statistics around it (found by :func:`select`, O(n) instead of a full sort), and its interpolation
+    statistics around it (found by :func:`order_stats`, O(n) instead of a full sort), and its interpolation
     between them from the nearer end (``b - (b - a) * (1 - g)`` when ``g >= 0.5``). Called per camera and
     window, where NumPy's own call costs more than the kernels around it.
     """
@@ -183,8 +243,8 @@ def percentile(values, q):
     if virtual >= n - 1:
         return values.max()
     below = int(np.floor(virtual))
-    a = select(values, n, below)
-    b = values[below + 1:].min()
+    a, b = order_stats(values, n, below, True, PERCENTILE_BINS_PER_UNIT, np.zeros(1024, np.int64),
+                       np.empty(n))
     g = virtual - float(below)
     diff = b - a
     if g >= 0.5:

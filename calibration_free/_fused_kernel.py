@@ -6,24 +6,42 @@ is evaluated in the same order as in :mod:`calibration_free.reference.fused`, so
 matches (tests/test_fused.py).
 
 Where the time goes, and why the kernels are shaped as they are (2arms-50cm, 128x128, 64 disparities: about
-6000 active pixels a window; a 346x260 recording at 1 M ev/s: 26000 and 171 disparities):
+6000 active pixels a window; a 346x260 recording at 1 M ev/s: 26000 and 171 disparities). On 2arms-50cm a window
+took about 1.53 ms of kernel (one CPU, load 0.7, by stopping it early): setup 0.02, cost 0.33, forward paths 0.36,
+backward pass 0.45, winners 0.19, left-right check 0.05, fill 0.17 (about 200 filled pixels, a few hundred values
+each); outside it surfaces 0.135, level 0.065, division 0.036, masks 0.06 (1.83 ms a window in all).
 
 * Memory traffic, not arithmetic, set the pace when the cost and the four paths were stored as (active
-  pixels x disparities) arrays of several MB. Now a window keeps a single such array, in float32 (half the
-  bytes, twice the vector lanes): the sum of its paths. Each of the two passes (:func:`_row_pass`) computes a
-  pixel's cost afresh (cheaper than storing and reading it back), keeps its row path in a vector and its column
-  path in two sensor rows; the forward pass writes left + above, the backward pass adds right and below.
-  Cost, paths and sums are float32 in the reference too, in the same order. It pays where the arrays outgrow
-  the caches: the 346x260 recording's windows 62-71 -> 36-38 ms of CPU (load 1.8-2.8); on 2arms-50cm (64
-  disparities, compute-bound) about 1.1x (features + kernel, interleaved in one process: median 5.5 -> 5.0 ms).
-* Each semi-global step is one plain loop over the disparities, which the compiler vectorises; the vector's
-  minimum is a second pass over it while it is in the L1 cache (:func:`_path_step`).
-* The left-right check reads, for each anchor, one disparity of many different pixels of its row: it runs as
-  soon as the backward pass has finished the row, while the row's sums are in the cache.
+  pixels x disparities) arrays of several MB. Now a window keeps two such arrays, in float32 (half the
+  bytes, twice the vector lanes): the cost and the sum of its paths. Each pass (:func:`_row_pass`) keeps its
+  row path in a vector and its column path in two sensor rows; the forward pass computes the cost, stores it
+  and writes left + above, the backward pass reads the cost back and adds right and below.
+  Cost, paths and sums are float32 in the reference too, in the same order. Keeping the paths out of memory
+  paid where the arrays outgrow the caches: the 346x260 recording's windows 62-71 -> 36-38 ms of CPU (load
+  1.8-2.8); on 2arms-50cm (64 disparities, compute-bound) about 1.1x. Storing the cost (rather than computing
+  it again in the backward pass, half a millisecond of the ~3 ms a 2arms-50cm window took) is about 1.1x there
+  (kernel alone, same inputs, one CPU, load 4: 3.00 -> 2.68 ms a window) and 1.03x on the 346x260 windows.
+* Each semi-global step is one plain loop over the disparities (the row and the column path's in the same loop),
+  which the compiler vectorises; each vector's minimum is a second pass over it while it is in the L1 cache.
+* No array is sliced or passed to an inlined helper inside the per-pixel loops: each such view or binding is a
+  new array whose reference count numba updates with two atomic instructions, and with a dozen a pixel those
+  took about 45 % of the kernel's time (perf: NRT_incref/NRT_decref). The loops are written out in
+  :func:`_row_pass` and index rows of 2-D arrays in place; :func:`_step` takes scalars only. 2arms-50cm, kernel
+  alone on the same 50 windows, one CPU, load 2.3: 2.76-2.79 ms a window before this and the stored cost, 2.16-2.19
+  after.
+* The left-right check needs the right pixels' winners of a row, each one disparity of many different left
+  pixels: they are found in one sweep over the row's sums (contiguous, branch-free, mirrored like the cost)
+  as soon as the backward pass has finished the row, while its sums are in the cache, instead of a scattered
+  walk per anchor (kernel alone, same 50 captured 2arms-50cm windows, one CPU, load 1.1: 1.73-1.76 -> 1.64-1.73
+  ms a window).
 * The cost reads the right camera's row backwards (disparity 0, 1, ... is column x, x - 1, ...): a mirrored
-  copy of the right features makes those loops contiguous and branch-free, so they vectorise.
+  copy of the right features makes those loops contiguous and branch-free, so they vectorise. Its index is
+  unsigned: numba wraps negative indices around, and testing a signed one kept the loop scalar (the cost took
+  0.69 instead of 0.38 ms a window).
 * The fill's median and the level's percentile select in place (:func:`~calibration_free._fused_features.select`)
-  rather than sort.
+  rather than sort; the median first counts its values in bins and selects within one (:func:`median_of`), and the
+  fill reads the consistent answers from per-row runs rather than scanning its square (2arms-50cm: about 200
+  filled pixels a window, 25x25 squares).
 """
 
 from __future__ import annotations
@@ -31,151 +49,168 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from calibration_free._fused_features import select
+from calibration_free._fused_features import order_stats
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _min4(v):
-    """``min(v)`` of a non-empty vector, with four running minima: a single one is a chain of dependent
+def _min4(v, i, lo, hi):
+    """``min(v[i, lo:hi])`` (``lo < hi``), with four running minima: a single one is a chain of dependent
     instructions that takes several cycles per element, four overlap (the minimum is exact in any order)."""
-    nd = v.size
-    m0 = m1 = m2 = m3 = v[0]
-    d = 0
-    while d + 4 <= nd:
-        m0 = min(m0, v[d])
-        m1 = min(m1, v[d + 1])
-        m2 = min(m2, v[d + 2])
-        m3 = min(m3, v[d + 3])
+    m0 = m1 = m2 = m3 = v[i, lo]
+    d = lo
+    while d + 4 <= hi:
+        m0 = min(m0, v[i, d])
+        m1 = min(m1, v[i, d + 1])
+        m2 = min(m2, v[i, d + 2])
+        m3 = min(m3, v[i, d + 3])
         d += 4
-    while d < nd:
-        m0 = min(m0, v[d])
+    while d < hi:
+        m0 = min(m0, v[i, d])
         d += 1
     return min(min(m0, m1), min(m2, m3))
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _path_step(cost, prev, mn, out, p1, p2):
-    """One semi-global step along a path into vector ``out``; returns ``min(out)``.
-
-    ``out[d] = cost[d] + min(prev[d], prev[d+-1] + p1, mn + p2) - mn`` with ``mn = min(prev)`` (Hirschmüller
-    2008, eq. 13). The minima are exact in any order, so this equals the reference. The step is one plain
-    element-wise loop, which the compiler vectorises, and its minimum a second pass over the vector while it is
-    in the L1 cache (running minima inside the step keep the compiler from vectorising it)."""
-    nd = cost.size
-    jump = mn + p2
-    if nd == 1:
-        out[0] = cost[0] + (min(prev[0], jump) - mn)
-        return out[0]
-    out[0] = cost[0] + (min(min(prev[0], prev[1] + p1), jump) - mn)
-    for d in range(1, nd - 1):
-        out[d] = cost[d] + (min(min(prev[d], jump), min(prev[d - 1], prev[d + 1]) + p1) - mn)
-    out[nd - 1] = cost[nd - 1] + (min(min(prev[nd - 1], prev[nd - 2] + p1), jump) - mn)
-    return _min4(out)
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _copy(src, dst):
-    """``dst[:] = src``; returns ``min(src)``."""
-    for d in range(src.size):
-        dst[d] = src[d]
-    return _min4(src)
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _pixel_cost(fl, right_rev, yy, xx, pr, row_tol, temporal_weight, out):
-    """Cost of every disparity at left pixel (xx, yy) into ``out``.
-
-    ``right_rev[y, c, j]`` is the right feature at column ``W - 1 - j`` (zero for ``j >= W``, beyond the left
-    edge), so that disparities 0, 1, ... read it forwards from ``j = W - 1 - xx``: contiguous loops without
-    branches, which the compiler turns into vector instructions. The least over the tolerated rows is exact in
-    any order, so this equals the reference's ``np.minimum`` over rows."""
-    h = fl.shape[1]
-    nd = out.size
-    l0, l1 = np.float32(fl[0, yy, xx]), np.float32(fl[1, yy, xx])
-    j0 = right_rev.shape[2] - nd - 1 - xx
-    for d in range(nd):
-        out[d] = np.inf
-    for y2 in range(max(yy - row_tol, 0), min(yy + row_tol + 1, h)):
-        r0 = right_rev[y2, 0, j0:j0 + nd]
-        r1 = right_rev[y2, 1, j0:j0 + nd]
-        for d in range(nd):
-            out[d] = min(out[d], abs(l0 - r0[d]) + abs(l1 - r1[d]))
-    if temporal_weight > 0.0 and not np.isnan(pr):
-        for d in range(nd):
-            out[d] = out[d] + np.float32(temporal_weight * min(abs(d - pr), 2.0))
+def _step(c, before, at, after, jump, p1, mn):
+    """One disparity of a semi-global step: ``c + min(prev[d], prev[d+-1] + p1, mn + p2) - mn`` (Hirschmüller 2008,
+    eq. 13), with ``before, at, after = prev[d - 1], prev[d], prev[d + 1]`` (inf beyond the range) and ``jump = mn +
+    p2``. The minima are exact in any order, so this equals the reference. Scalars only: an inlined helper that
+    takes an array binds it to a new variable, which numba counts with two atomic instructions per call."""
+    return c + (min(min(at, jump), min(before, after) + p1) - mn)
 
 
 @njit(cache=True, nogil=True, inline="always")
 def _row_pass(fl, right_rev, prior, index, ax, yy, k_first, k_stop, step, row_tol, temporal_weight, p1, p2, paths,
-              total, vecs, cols, cols_min, cur):
+              total, costs, vecs, cols, cols_min, cur):
     """One row of one semi-global pass: ``step`` 1 is the forward pass (left to right, the column path comes from
     above), -1 the backward one (right to left, from below).
 
-    Each pixel's cost is computed here, into ``vecs[0]``, in both passes rather than stored between them: the
-    arithmetic costs less than the memory traffic of a stored (pixels x disparities) array. The row path runs
-    in ``vecs[1:3]`` (current, previous), the column path in ``cols[cur]`` with the previous row's in
-    ``cols[1 - cur]``. The forward pass writes ``total[k] = left (+ above)``, the backward pass adds
-    ``(+ right) (+ below)`` in that order, as the reference sums them; with ``paths`` 0, ``total[k]`` is the
-    cost.
+    The forward pass computes each pixel's cost into ``costs[k]``, the backward pass reads it back. The row path runs
+    in ``vecs[0:2]`` (current and previous, taking turns), the column path in ``cols[cur * W + x]`` with the previous
+    row's in ``cols[(1 - cur) * W + x]``. A path without a predecessor starts at the cost: it steps from the zero row
+    (``vecs[2]``, ``cols[2 * W]``) with minimum 0, which adds exactly 0 (``p1, p2 >= 0``). The forward pass writes
+    ``total[k] = left (+ above)``, the backward pass adds ``(+ right) (+ below)`` in that order, as the reference
+    sums them; with ``paths`` 0, ``total[k]`` is the cost.
+
+    Every per-pixel loop is written out here rather than in helpers that take arrays: each such call bound its
+    arrays to new variables, and numba's two atomic reference-count updates per binding cost more than the
+    arithmetic (the module docstring has the figures).
     """
     h, w = index.shape
-    nd = total.shape[1]
-    cost = vecs[0]
-    r = 1
-    r_min = np.float32(0.0)
+    nd = total.shape[1]  # at least 2 (FusedParams: max_disparity >= 1)
+    inf = np.float32(np.inf)
+    zero = np.float32(0.0)
+    r = 0
+    r_min = zero
     y_from = yy - step  # the row the column path comes from
     for k in range(k_first, k_stop, step):
         xx = ax[k]
-        out = total[k]
-        _pixel_cost(fl, right_rev, yy, xx, prior[yy, xx], row_tol, temporal_weight, cost)
+        if step > 0:
+            # The cost of every disparity: right_rev[y, c, j] is the right feature at column W - 1 - j (zero for
+            # j >= W, beyond the left edge), so that disparities 0, 1, ... read it forwards from j = W - 1 - xx:
+            # contiguous loops without branches, which vectorise. The least over the tolerated rows is exact in
+            # any order, so this equals the reference's np.minimum over rows.
+            l0, l1 = np.float32(fl[0, yy, xx]), np.float32(fl[1, yy, xx])
+            j0 = right_rev.shape[2] - nd - 1 - xx
+            for d in range(nd):
+                costs[k, d] = inf
+            for y2 in range(max(yy - row_tol, 0), min(yy + row_tol + 1, h)):
+                for d in range(nd):
+                    # An unsigned index: numba wraps negative indices around, and the test of a signed one kept
+                    # this loop from vectorising (the forward pass's cost took 0.69 instead of 0.38 ms a window).
+                    j = np.uint64(j0 + d)
+                    costs[k, d] = min(costs[k, d], abs(l0 - right_rev[y2, 0, j]) + abs(l1 - right_rev[y2, 1, j]))
+            pr = prior[yy, xx]
+            if temporal_weight > 0.0 and not np.isnan(pr):
+                for d in range(nd):
+                    costs[k, d] = costs[k, d] + np.float32(temporal_weight * min(abs(d - pr), 2.0))
         if paths == 0:
             for d in range(nd):
-                out[d] = cost[d]
+                total[k, d] = costs[k, d]
             continue
         x_from = xx - step
         if 0 <= x_from < w and index[yy, x_from] >= 0:
-            r_min = _path_step(cost, vecs[3 - r], r_min, vecs[r], p1, p2)
+            rp, rmn = 1 - r, r_min
         else:
-            r_min = _copy(cost, vecs[r])
-        rv = vecs[r]
-        r = 3 - r
+            rp, rmn = 2, zero
+        rj = rmn + p2
         if paths == 2:
+            vecs[r, 0] = _step(costs[k, 0], inf, vecs[rp, 0], vecs[rp, 1], rj, p1, rmn)
+            for d in range(1, nd - 1):
+                vecs[r, d] = _step(costs[k, d], vecs[rp, d - 1], vecs[rp, d], vecs[rp, d + 1], rj, p1, rmn)
+            vecs[r, nd - 1] = _step(costs[k, nd - 1], vecs[rp, nd - 2], vecs[rp, nd - 1], inf, rj, p1, rmn)
             if step > 0:
                 for d in range(nd):
-                    out[d] = rv[d]
+                    total[k, d] = vecs[r, d]
             else:
                 for d in range(nd):
-                    out[d] = out[d] + rv[d]
-            continue
-        if 0 <= y_from < h and index[y_from, xx] >= 0:
-            cols_min[cur, xx] = _path_step(cost, cols[1 - cur, xx], cols_min[1 - cur, xx], cols[cur, xx], p1, p2)
+                    total[k, d] = total[k, d] + vecs[r, d]
         else:
-            cols_min[cur, xx] = _copy(cost, cols[cur, xx])
-        cv = cols[cur, xx]
-        if step > 0:
-            for d in range(nd):
-                out[d] = rv[d] + cv[d]
-        else:
-            for d in range(nd):
-                out[d] = (out[d] + rv[d]) + cv[d]
+            cv = cur * w + xx
+            if 0 <= y_from < h and index[y_from, xx] >= 0:
+                cp, cmn = (1 - cur) * w + xx, cols_min[1 - cur, xx]
+            else:
+                cp, cmn = 2 * w, zero
+            cj = cmn + p2
+            vecs[r, 0] = _step(costs[k, 0], inf, vecs[rp, 0], vecs[rp, 1], rj, p1, rmn)
+            cols[cv, 0] = _step(costs[k, 0], inf, cols[cp, 0], cols[cp, 1], cj, p1, cmn)
+            for d in range(1, nd - 1):
+                vecs[r, d] = _step(costs[k, d], vecs[rp, d - 1], vecs[rp, d], vecs[rp, d + 1], rj, p1, rmn)
+                cols[cv, d] = _step(costs[k, d], cols[cp, d - 1], cols[cp, d], cols[cp, d + 1], cj, p1, cmn)
+            vecs[r, nd - 1] = _step(costs[k, nd - 1], vecs[rp, nd - 2], vecs[rp, nd - 1], inf, rj, p1, rmn)
+            cols[cv, nd - 1] = _step(costs[k, nd - 1], cols[cp, nd - 2], cols[cp, nd - 1], inf, cj, p1, cmn)
+            if step > 0:
+                for d in range(nd):
+                    total[k, d] = vecs[r, d] + cols[cv, d]
+            else:
+                for d in range(nd):
+                    total[k, d] = (total[k, d] + vecs[r, d]) + cols[cv, d]
+            # The column path's minimum, with four running minima (exact in any order; one is a chain of
+            # dependent instructions).
+            m0 = m1 = m2 = m3 = cols[cv, 0]
+            d = 0
+            while d + 4 <= nd:
+                m0 = min(m0, cols[cv, d])
+                m1 = min(m1, cols[cv, d + 1])
+                m2 = min(m2, cols[cv, d + 2])
+                m3 = min(m3, cols[cv, d + 3])
+                d += 4
+            while d < nd:
+                m0 = min(m0, cols[cv, d])
+                d += 1
+            cols_min[cur, xx] = min(min(m0, m1), min(m2, m3))
+        m0 = m1 = m2 = m3 = vecs[r, 0]
+        d = 0
+        while d + 4 <= nd:
+            m0 = min(m0, vecs[r, d])
+            m1 = min(m1, vecs[r, d + 1])
+            m2 = min(m2, vecs[r, d + 2])
+            m3 = min(m3, vecs[r, d + 3])
+            d += 4
+        while d < nd:
+            m0 = min(m0, vecs[r, d])
+            d += 1
+        r_min = min(min(m0, m1), min(m2, m3))
+        r = 1 - r
+
+
+#: Bins per pixel of disparity in which :func:`median_of` counts the values before it selects.
+MEDIAN_BINS_PER_PX = 8
 
 
 @njit(cache=True, nogil=True)
-def median_of(vals, c):
+def median_of(vals, c, hist, picked):
     """The median of ``vals[:c]`` (``c > 0``; the mean of the two middle values when ``c`` is even), as the
-    reference's sort gives it; ``vals[:c]`` is reordered.
+    reference's sort gives it.
 
-    By :func:`~calibration_free._fused_features.select` (O(c), no allocation) for the several hundred values of
-    each filled pixel's square; after it nothing before ``k`` is larger, so the lower middle of an even count
-    is the largest value before ``k``.
+    By :func:`~calibration_free._fused_features.order_stats` in bins of 1/:data:`MEDIAN_BINS_PER_PX` px (``hist``:
+    zeros, left so; ``picked`` as long as ``vals``): a selection among all the several hundred values of a filled
+    pixel's square cost half the fill.
     """
     k = c // 2
-    mid = select(vals, c, k)
     if c % 2:
-        return mid
-    lower = vals[0]
-    for q in range(1, k):
-        lower = max(lower, vals[q])
+        return order_stats(vals, c, k, False, MEDIAN_BINS_PER_PX, hist, picked)[0]
+    lower, mid = order_stats(vals, c, k - 1, True, MEDIAN_BINS_PER_PX, hist, picked)
     return (lower + mid) / 2.0
 
 
@@ -201,15 +236,16 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
     max_uncertainty, fill_radius, confirm
         :class:`~calibration_free.fused_params.FusedParams` fields (``isolated_below``: its
         ``isolated_max_uncertainty``; ``confirm``: its ``fill_confirms``).
-    work : (n, max_d + 1) float32 ndarray
-        Scratch for at least the n active pixels: the sum of their paths (kept by the caller: fresh pages cost
-        more than the arithmetic).
+    work : (2, n, max_d + 1) float32 ndarray
+        Scratch for at least the n active pixels: the sum of their paths and their cost (kept by the caller:
+        fresh pages cost more than the arithmetic).
     rowbuf : tuple of ndarrays
-        Scratch ``(cols, vecs)``, (2, W, max_d + 1) and (3, max_d + 1) float32: the column path's current and
-        previous row, the cost and the row path's current and previous vector (see :func:`_row_pass`).
+        Scratch ``(cols, vecs)``, (2 W + 1, max_d + 1) and (3, max_d + 1) float32: the column path's current and
+        previous sensor row (row ``cur * W + x``), the row path's current and previous vector, each with a last row
+        of zeros that is never written (see :func:`_row_pass`).
     planes : tuple of ndarrays
-        Scratch kept between windows: ``(right_rev, index, consistent)``, (H, 2, W + max_d + 1) float32 zeros,
-        (H, W) int64, (H, W) float64 all NaN (left so on return).
+        Scratch kept between windows: ``(right_rev, index)``, (H, 2, W + max_d + 1) float32 zeros and (H, W)
+        int64.
 
     Returns
     -------
@@ -219,7 +255,7 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
     _, h, w = fl.shape
     nd = max_d + 1
     # Compact storage of the active pixels, raster order; each row's pixels are a contiguous range.
-    right_rev, index, consistent_d = planes
+    right_rev, index = planes
     row_start = np.empty(h + 1, np.int64)
     slot_start = np.empty(h + 1, np.int64)  # output slots: the anchors, raster order
     n = 0
@@ -245,14 +281,14 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
         for xx in range(w):
             if index[yy, xx] >= 0:
                 ax[index[yy, xx]] = xx
-    # The right features mirrored along the row, zero beyond the left edge (see _pixel_cost; the zeros were
+    # The right features mirrored along the row, zero beyond the left edge (see _row_pass; the zeros were
     # written when the array was made).
     for yy in range(h):
         for c in range(2):
             for xx in range(w):
                 right_rev[yy, c, w - 1 - xx] = fr[c, yy, xx]
     p1, p2 = np.float32(p1), np.float32(p2)  # float32 steps throughout (see the module docstring)
-    total = work[:n]
+    total, costs = work[0, :n], work[1, :n]
     cols, vecs = rowbuf
     cols_min = np.empty((2, w), np.float32)
     # Forward pass (top to bottom, left to right): total = row path from the left (+ column path from above).
@@ -260,10 +296,12 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
     for yy in range(h):
         if row_start[yy] < row_start[yy + 1]:
             _row_pass(fl, right_rev, prior, index, ax, yy, row_start[yy], row_start[yy + 1], 1, row_tol,
-                      temporal_weight, p1, p2, paths, total, vecs, cols, cols_min, cur)
+                      temporal_weight, p1, p2, paths, total, costs, vecs, cols, cols_min, cur)
             cur = 1 - cur
     # Backward pass (bottom to top, right to left): the row path from the right and the column path from below
     # are added; then the row's answers, while its sums are in the cache.
+    right_v = np.empty(w, np.float32)  # the right pixels' least total and its disparity (-1: none), mirrored
+    right_d = np.empty(w, np.int32)
     out_x = np.empty(n_anchor, np.int64)
     out_y = np.empty(n_anchor, np.int64)
     out_p = np.empty(n_anchor, np.int64)
@@ -277,10 +315,25 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
             continue
         if paths > 0:
             _row_pass(fl, right_rev, prior, index, ax, yy, k1 - 1, k0 - 1, -1, row_tol, temporal_weight, p1, p2,
-                      paths, total, vecs, cols, cols_min, cur)
+                      paths, total, costs, vecs, cols, cols_min, cur)
             cur = 1 - cur
         if slot_start[yy] == slot_start[yy + 1]:
             continue
+        if lr_tol >= 0:
+            # The right pixels' own winners from the same sums, for the whole row in one sweep: right pixel xr
+            # (at j = W - 1 - xr) takes the least total[k, d] over the active xl = xr + d. Pixels in ascending
+            # x meet each xr in ascending d, so a strict < keeps the first least d, as the reference's argmin.
+            for j in range(w):
+                right_v[j] = np.float32(np.inf)
+                right_d[j] = -1
+            for k in range(k0, k1):
+                j0 = w - 1 - ax[k]
+                for d in range(min(nd, ax[k] + 1)):
+                    j = np.uint64(j0 + d)  # unsigned: no wrap-around test (see the cost loop)
+                    v = total[k, d]
+                    better = v < right_v[j]
+                    right_v[j] = v if better else right_v[j]
+                    right_d[j] = np.int32(d) if better else right_d[j]
         slot = slot_start[yy]
         for k in range(k0, k1):
             xx = ax[k]
@@ -296,40 +349,28 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
             isolated = neighbours < min_neighbours
             if isolated and isolated_below <= 0.0:
                 continue  # no isolated pixel can answer: skip the work
-            s = total[k]
             # The first least disparity (argmin's), then the least more than 1 px away from it.
-            low = _min4(s)
+            low = _min4(total, k, 0, nd)
             best = 0
-            while s[best] != low:
+            while total[k, best] != low:
                 best += 1
             second = np.inf
             if best >= 2:
-                second = _min4(s[:best - 1])
+                second = _min4(total, k, 0, best - 1)
             if best + 2 < nd:
-                second = min(second, _min4(s[best + 2:]))
-            ratio = 1.0 if second == 0.0 else np.float64(s[best]) / second
+                second = min(second, _min4(total, k, best + 2, nd))
+            ratio = 1.0 if second == 0.0 else np.float64(total[k, best]) / second
             consistent = True
             if lr_tol >= 0:
-                # The right pixel's own winner from the same sums; its row is still in the cache.
                 xr = xx - best
-                best_r = -1
-                if xr >= 0:
-                    best_rv = np.inf
-                    for d in range(nd):
-                        xl = xr + d
-                        if xl >= w:
-                            break
-                        q = index[yy, xl]
-                        if q >= 0 and total[q, d] < best_rv:
-                            best_rv = total[q, d]
-                            best_r = d
+                best_r = right_d[w - 1 - xr] if xr >= 0 else -1
                 consistent = best_r >= 0 and abs(best_r - best) <= lr_tol
             u = 0.5 * ratio if consistent else 0.5 * ratio + 0.5
             if isolated and not u < isolated_below:
                 continue
             disp = float(best)
             if subpixel and 0 < best < nd - 1:
-                a, b, c = np.float64(s[best - 1]), np.float64(s[best]), np.float64(s[best + 1])
+                a, b, c = np.float64(total[k, best - 1]), np.float64(total[k, best]), np.float64(total[k, best + 1])
                 den = (a - 2.0 * b) + c
                 if den > 0.0:
                     delta = (a - c) / (2.0 * den)
@@ -346,26 +387,46 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
     m = out_x.size
     # Inconsistent winners take the median of the consistent answers around them (when there are any), or are
     # confirmed by it when they agree with it.
-    keep = np.zeros(m, np.bool_)
+    # The consistent answers, in raster order: row y's are cons_x/cons_d[cons_start[y]:cons_start[y + 1]], sorted
+    # by x. A square then reads, per row, only the answers within it (found by bisection), in the order a scan of
+    # the square's pixels would meet them: a few hundred pixel reads per filled pixel fewer.
+    cons_x = np.empty(m, np.int64)
+    cons_d = np.empty(m)
+    cons_start = np.zeros(h + 1, np.int64)
+    n_cons = 0
     for i in range(m):
         if out_ok[i]:
-            consistent_d[out_y[i], out_x[i]] = out_d[i]
+            cons_x[n_cons] = out_x[i]
+            cons_d[n_cons] = out_d[i]
+            n_cons += 1
+            cons_start[out_y[i] + 1] += 1
+    for yy in range(h):
+        cons_start[yy + 1] += cons_start[yy]
+    keep = np.zeros(m, np.bool_)
     vals = np.empty((2 * fill_radius + 1) ** 2)
+    picked = np.empty_like(vals)
+    hist = np.zeros(MEDIAN_BINS_PER_PX * nd, np.int64)
     for i in range(m):
         if not out_ok[i] and fill_radius > 0:
             c = 0
+            x_lo, x_hi = out_x[i] - fill_radius, out_x[i] + fill_radius
             for y2 in range(max(out_y[i] - fill_radius, 0), min(out_y[i] + fill_radius + 1, h)):
-                for x2 in range(max(out_x[i] - fill_radius, 0), min(out_x[i] + fill_radius + 1, w)):
-                    v = consistent_d[y2, x2]
-                    vals[c] = v  # written always, kept only if a number: no branch to mispredict
-                    c += not np.isnan(v)
+                lo, hi = cons_start[y2], cons_start[y2 + 1]
+                while lo < hi:  # the row's first answer at or right of x_lo
+                    mid = (lo + hi) // 2
+                    if cons_x[mid] < x_lo:
+                        lo = mid + 1
+                    else:
+                        hi = mid
+                while lo < cons_start[y2 + 1] and cons_x[lo] <= x_hi:
+                    vals[c] = cons_d[lo]
+                    c += 1
+                    lo += 1
             if c > 0:
-                med = median_of(vals, c)
+                med = median_of(vals, c, hist, picked)
                 if confirm and abs(out_d[i] - med) <= lr_tol:
                     out_u[i] = out_u[i] - 0.5  # confirmed by the consistent answers around it
                 else:
                     out_d[i] = med
         keep[i] = out_u[i] <= max_uncertainty
-    for i in range(m):
-        consistent_d[out_y[i], out_x[i]] = np.nan
     return out_x[keep], out_y[keep], out_p[keep], out_d[keep], out_u[keep]

@@ -186,15 +186,14 @@ class Scratch:
         self.counts = np.empty((2, h, w), np.int64)
         self.active = np.empty((h, w), np.bool_)
         self.recent = np.empty((h, w), np.bool_)
-        self.rowbuf = (np.empty((2, w, n_disparities), np.float32), np.empty((3, n_disparities), np.float32))
-        self.planes = (np.zeros((h, 2, w + n_disparities), np.float32), np.empty((h, w), np.int64),
-                       np.full((h, w), np.nan))
-        self.work = np.empty((0, n_disparities), np.float32)
+        self.rowbuf = (np.zeros((2 * w + 1, n_disparities), np.float32), np.zeros((3, n_disparities), np.float32))
+        self.planes = (np.zeros((h, 2, w + n_disparities), np.float32), np.empty((h, w), np.int64))
+        self.work = np.empty((2, 0, n_disparities), np.float32)
 
     def work_for(self, n_active: int) -> np.ndarray:
-        """Path-sum storage for ``n_active`` pixels (grown by doubling, never shrunk)."""
-        if n_active > self.work.shape[0]:
-            self.work = np.empty((max(n_active, 2 * self.work.shape[0]), self.nd), np.float32)
+        """Path-sum and cost storage for ``n_active`` pixels (grown by doubling, never shrunk)."""
+        if n_active > self.work.shape[1]:
+            self.work = np.empty((2, max(n_active, 2 * self.work.shape[1]), self.nd), np.float32)
         return self.work
 
 

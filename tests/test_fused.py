@@ -297,11 +297,14 @@ def test_bad_parameters_say_which(field, value, words):
 
 @settings(max_examples=200, deadline=None)
 @given(values=st.lists(st.floats(1e-6, 1e6), min_size=1, max_size=300), q=st.sampled_from([0.0, 50.0, 90.0, 100.0]),
-       rounded=st.booleans())
-def test_kernel_percentile_is_numpys(values, q, rounded):
+       rounded=st.booleans(), small=st.booleans())
+def test_kernel_percentile_is_numpys(values, q, rounded, small):
+    """Bit for bit; ``small``: values up to 10, spread over the counting bins (else most share the last one)."""
     from calibration_free._fused_features import percentile
 
     v = np.round(np.array(values), 0 if rounded else 12)  # rounding makes ties, the partial sort's hard case
+    if small:
+        v = v / 1e5
     assert percentile(v.copy(), q) == np.percentile(v, q)
 
 
@@ -334,12 +337,16 @@ def test_match_applies_the_rig_correction(rows, time_us):
 
 
 @settings(max_examples=60, deadline=None)
-@given(values=st.lists(st.integers(0, 12).map(lambda v: v / 4.0), min_size=1, max_size=80))
-def test_kernel_median_is_the_sorted_middle(values):
-    """The fill's in-place selection gives the reference's median (sorted middle, mean of two when even), with
-    many ties."""
+@given(values=st.lists(st.integers(0, 96).map(lambda v: v / 16.0), min_size=1, max_size=80),
+       n_bins=st.sampled_from([1, 8, 40, 100]))
+def test_kernel_median_is_the_sorted_middle(values, n_bins):
+    """The fill's median (counted in bins, then a selection in one) gives the reference's (sorted middle, mean of
+    two when even), with many ties, the middles in one bin or two, and values beyond the last bin (which share it).
+    """
     vals = np.array(values + [np.nan] * 3)  # room beyond c, as in the kernel's buffer
     srt = np.sort(np.array(values))
     c = len(values)
     expected = srt[c // 2] if c % 2 else (srt[c // 2 - 1] + srt[c // 2]) / 2.0
-    assert median_of(vals, c) == expected
+    hist = np.zeros(n_bins, np.int64)
+    assert median_of(vals, c, hist, np.empty_like(vals)) == expected
+    assert not hist.any()  # left zero for the next pixel
