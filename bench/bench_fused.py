@@ -67,6 +67,7 @@ ABLATION = {
     "no temporal coherence": {"temporal_weight": 0.0},
     "no left-right check": {"lr_tolerance": -1},
     "no filling of left-right failures": {"fill_radius": 0},
+    "no occlusion test": {"occlusion_margin": -1},
     "no row tolerance": {"row_tolerance": 0},
     "no sub-pixel": {"subpixel": False},
     "no noise filter": {"min_neighbours": 1},
@@ -98,12 +99,12 @@ def dense_rig(rig, k: float):
 def recordings(quick: bool) -> dict:
     """Name -> Recording of every simulated clip (cached)."""
     from cvstereo.io.npz import read_recording_npz
-    from cvstereo.simulate import ArmsScene, MotorcycleScene, simulate
+    from cvstereo.simulate import ArmsScene, simulate
     from cvstereo.simulate.presets import cached_preset
     from cvstereo.simulate.rig import Rig
 
     recs = {n: read_recording_npz(cached_preset(n, seconds=SECONDS)) for n in (PRESETS[:2] if quick else PRESETS)}
-    recs["motorcycle"] = _sim(f"motorcycle-{SECONDS}s", lambda: simulate(MotorcycleScene(), seconds=SECONDS, seed=0))
+    recs["motorcycle"] = _motorcycle()
     for k in (DENSITY_K[::3] if quick else DENSITY_K):
         if k == 1.0:
             continue
@@ -113,17 +114,22 @@ def recordings(quick: bool) -> dict:
     return recs
 
 
+def _motorcycle():
+    """The motorcycle clip of both comparisons (cached)."""
+    from cvstereo.simulate import MotorcycleScene, simulate
+
+    return _sim(f"motorcycle-{SECONDS}s", lambda: simulate(MotorcycleScene(), seconds=SECONDS, seed=0))
+
+
 def suite_recordings(only: list[str] | None = None) -> dict:
     """Name -> Recording of the robustness suite v1 (its own 2.5 s; cached) and the motorcycle clip."""
     from cvstereo.io.npz import read_recording_npz
-    from cvstereo.simulate import MotorcycleScene, simulate
     from cvstereo.simulate import suite_recordings as suite
 
     names = None if only is None else [n for n in only if n != "motorcycle"]
     recs = {n: read_recording_npz(p) for n, p in suite("robustness", only=names)} if names != [] else {}
     if only is None or "motorcycle" in only:
-        recs["motorcycle"] = _sim(f"motorcycle-{SECONDS}s", lambda: simulate(MotorcycleScene(), seconds=SECONDS,
-                                                                             seed=0))
+        recs["motorcycle"] = _motorcycle()
     return recs
 
 
