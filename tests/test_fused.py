@@ -17,6 +17,13 @@ from cvstereo.matches import validate_matches
 from cvstereo.registry import create_matcher
 
 
+def _events_of(parts) -> np.ndarray:
+    """One camera's events from its (t, x, y, p) parts, in time order."""
+    t, x, y, p = (np.concatenate(c) for c in zip(*parts, strict=True))
+    order = np.argsort(t, kind="stable")
+    return make_events(t[order], x[order], y[order], p[order])
+
+
 def textured_pair(seed: int, *, windows: int = 4, shift: int = 5, size: tuple[int, int] = (40, 16), noise: int = 40,
                   jagged: bool = False):
     """Random vertical-ish texture sliding right, seen by the right camera ``shift`` px further left, with noise.
@@ -44,12 +51,7 @@ def textured_pair(seed: int, *, windows: int = 4, shift: int = 5, size: tuple[in
     for cam in cams:
         cam.append((rng.integers(0, windows * 40_000, noise), rng.integers(0, w, noise), rng.integers(0, h, noise),
                     rng.integers(0, 2, noise)))
-    out = []
-    for cam in cams:
-        t, x, y, p = (np.concatenate(c) for c in zip(*cam, strict=True))
-        order = np.argsort(t, kind="stable")
-        out.append(make_events(t[order], x[order], y[order], p[order]))
-    return out[0], out[1], size
+    return (*(_events_of(parts) for parts in cams), size)
 
 
 PARAM_AXES = {
@@ -176,12 +178,7 @@ def half_occlusion(seed: int, *, windows: int = 4, size: tuple[int, int] = (64, 
             for cam, xc in ((0, x), (1, x - d)):
                 if seen[cam] and 0 <= xc < w:
                     cams[cam].append((t, np.full(n, xc), np.full(n, y), p))
-    out = []
-    for cam in cams:
-        t, x, y, p = (np.concatenate(c) for c in zip(*cam, strict=True))
-        order = np.argsort(t, kind="stable")
-        out.append(make_events(t[order], x[order], y[order], p[order]))
-    return out[0], out[1], size
+    return (*(_events_of(parts) for parts in cams), size)
 
 
 def test_occlusion_test_ranks_the_hidden_background_behind():
