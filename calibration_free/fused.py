@@ -254,6 +254,7 @@ class Scratch:
         self.rows = np.empty((2, h, w))
         self.features = np.empty((2, 2, h, w))  # camera, polarity, row, column
         self.values = np.empty(2 * h * w)
+        self.value_at = np.empty(2 * h * w, np.int32)
         self.counts = np.empty((2, h, w), np.int64)
         self.active = np.empty((h, w), np.bool_)
         self.recent = np.empty((h, w), np.bool_)
@@ -316,9 +317,9 @@ class FusedMatcher(FrameMatcher):
             f = buf.features[cam]
             surface_features(ev["t"], ev["x"], ev["y"], ev["p"], state.last[cam], window.t_end, prm.tau_us,
                              prm.support_radius, buf.ts, buf.rows, f)
-            n = nonzero_values(f, buf.values)
+            n = nonzero_values(f, buf.values, buf.value_at)
             if n:
-                divide(f, level_of(buf.values[:n]))
+                divide(f, buf.values, buf.value_at, n, level_of(buf.values[:n]))
         left = window.left
         window_masks(left["x"], left["y"], left["p"], state.last[0], window.t_end - 2 * prm.window_us,
                      prm.path_radius, buf.counts, buf.active, buf.recent)
