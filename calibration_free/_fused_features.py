@@ -35,6 +35,11 @@ def window_masks(x, y, p, last_left, t_recent, path_radius, counts, active, rece
         Out: event counts per polarity.
     active, recent : (H, W) bool ndarrays
         Out.
+
+    Returns
+    -------
+    int
+        The number of active pixels.
     """
     _, h, w = last_left.shape
     counts[:] = 0
@@ -47,22 +52,31 @@ def window_masks(x, y, p, last_left, t_recent, path_radius, counts, active, rece
         for xx in range(min(path_radius, w)):
             if counts[0, yy, xx] + counts[1, yy, xx] > 0:
                 reach = xx + path_radius
-        for xx in range(w):
+        # Selects, not branches (whether a pixel saw an event is hard to predict).
+        for xx in range(max(w - path_radius, 0)):
             ahead = xx + path_radius
-            if ahead < w and counts[0, yy, ahead] + counts[1, yy, ahead] > 0:
-                reach = ahead + path_radius
+            reach = ahead + path_radius if counts[0, yy, ahead] + counts[1, yy, ahead] > 0 else reach
             rows[yy, xx] = reach >= xx
-            recent[yy, xx] = last_left[0, yy, xx] >= t_recent or last_left[1, yy, xx] >= t_recent
-    for xx in range(w):
-        reach = -1
-        for yy in range(min(path_radius, h)):
-            if rows[yy, xx]:
-                reach = yy + path_radius
-        for yy in range(h):
-            ahead = yy + path_radius
-            if ahead < h and rows[ahead, xx]:
-                reach = ahead + path_radius
-            active[yy, xx] = reach >= yy
+        for xx in range(max(w - path_radius, 0), w):
+            rows[yy, xx] = reach >= xx
+        for xx in range(w):
+            recent[yy, xx] = (last_left[0, yy, xx] >= t_recent) | (last_left[1, yy, xx] >= t_recent)
+    # The column pass row by row, every column's reach at once (contiguous selects that vectorise; a walk down
+    # each column in turn was a strided, branchy loop).
+    n_active = 0
+    reach_col = np.full(w, -1, np.int64)  # per column: the last row its latest row-pass pixel so far reaches
+    for yy in range(min(path_radius, h)):
+        for xx in range(w):
+            reach_col[xx] = yy + path_radius if rows[yy, xx] else reach_col[xx]
+    for yy in range(h):
+        ahead = yy + path_radius
+        if ahead < h:
+            for xx in range(w):
+                reach_col[xx] = ahead + path_radius if rows[ahead, xx] else reach_col[xx]
+        for xx in range(w):
+            active[yy, xx] = reach_col[xx] >= yy
+            n_active += reach_col[xx] >= yy
+    return n_active
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -321,9 +321,9 @@ class FusedMatcher(FrameMatcher):
             if n:
                 divide(f, buf.values, buf.value_at, n, level_of(buf.values[:n]))
         left = window.left
-        window_masks(left["x"], left["y"], left["p"], state.last[0], window.t_end - 2 * prm.window_us,
-                     prm.path_radius, buf.counts, buf.active, buf.recent)
-        work = buf.work_for(int(np.count_nonzero(buf.active)))
+        n_active = window_masks(left["x"], left["y"], left["p"], state.last[0], window.t_end - 2 * prm.window_us,
+                                prm.path_radius, buf.counts, buf.active, buf.recent)
+        work = buf.work_for(n_active)
         answers = match_features(
             buf.features[0], buf.features[1], buf.counts, buf.active, buf.recent,
             state.prior_for(window.t_end, prm.window_us), prm.max_disparity, prm.row_tolerance, prm.p1, prm.p2,
