@@ -87,11 +87,22 @@ def _add_to(acc, v):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _copy_to(acc, v):
+    """``acc[:] = v`` (1-D, contiguous)."""
+    for i in range(acc.size):
+        acc[i] = v[i]
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _gather_add(src, dst, radius):
-    """``dst[x] = sum of src[x - radius .. x + radius]`` within the row, terms added in ascending order from 0."""
+    """``dst[x] = sum of src[x - radius .. x + radius]`` within the row, terms added in ascending order (from 0 in
+    the reference: the same sums, as the values are at least +0 and ``0 + v == v``, so the first term is copied
+    rather than added to zeros: one pass over the row fewer)."""
     n = src.size
-    dst[:] = 0.0
-    for dx in range(-radius, radius + 1):
+    lo = min(radius, n)
+    dst[:lo] = 0.0  # no term at x - radius
+    _copy_to(dst[lo:], src[:n - lo])
+    for dx in range(-radius + 1, radius + 1):
         lo, hi = max(-dx, 0), min(n - dx, n)
         _add_to(dst[lo:hi], src[lo + dx:hi + dx])
 
@@ -135,8 +146,9 @@ def surface_features(t, x, y, p, last, t_end, tau, radius, ts, rows, out):
     for c in range(2):
         for yy in range(h):
             acc = out[c, yy]
-            acc[:] = 0.0
-            for y2 in range(max(yy - radius, 0), min(yy + radius + 1, h)):
+            y_lo = max(yy - radius, 0)
+            _copy_to(acc, rows[c, y_lo])  # the first term (see _gather_add)
+            for y2 in range(y_lo + 1, min(yy + radius + 1, h)):
                 _add_to(acc, rows[c, y2])
 
 
