@@ -22,7 +22,10 @@ each); outside it surfaces 0.135, level 0.065, division 0.036, masks 0.06 (1.83 
   it again in the backward pass, half a millisecond of the ~3 ms a 2arms-50cm window took) is about 1.1x there
   (kernel alone, same inputs, one CPU, load 4: 3.00 -> 2.68 ms a window) and 1.03x on the 346x260 windows.
 * Each semi-global step is one plain loop over the disparities (the row and the column path's in the same loop),
-  which the compiler vectorises; each vector's minimum is a second pass over it while it is in the L1 cache.
+  which the compiler vectorises; each vector's minimum is taken in the loop that adds it to the sums, as a
+  reduction the compiler vectorises too (:func:`_least`: numba's ``min`` kept it scalar, one instruction per
+  value, in a pass of its own). Kernel alone, same 50 2arms-50cm windows, one CPU, load 0.5: 1.83-1.85 ->
+  1.78-1.79 ms a window.
 * No array is sliced or passed to an inlined helper inside the per-pixel loops: each such view or binding is a
   new array whose reference count numba updates with two atomic instructions, and with a dozen a pixel those
   took about 45 % of the kernel's time (perf: NRT_incref/NRT_decref). The loops are written out in
@@ -47,27 +50,43 @@ each); outside it surfaces 0.135, level 0.065, division 0.036, masks 0.06 (1.83 
 from __future__ import annotations
 
 import numpy as np
+from llvmlite import ir
 from numba import njit
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 from calibration_free._fused_features import order_stats
 
 
+@intrinsic
+def _least(typingctx, a, b):
+    """``min(a, b)`` of two floats of one type, as LLVM's ``minnum`` with the no-NaN and no-signed-zero flags.
+
+    A loop of these that keeps a running minimum is a reduction LLVM vectorises (packed minima, several lanes at
+    once); of numba's ``min`` (a compare and a select without those flags) it cannot, since it may not reorder
+    them, and the running minima were scalar instructions, one per value. The flags hold here: the costs and
+    paths are never NaN (features are finite, the prior's NaN is tested before use) and never -0 (sums of
+    values >= +0, and ``x - x`` is +0), so the result is exactly ``min(a, b)``, and a minimum is the same in any
+    order.
+    """
+    sig = a(a, b)
+
+    def codegen(context, builder, signature, args):
+        fnty = ir.FunctionType(args[0].type, [args[0].type, args[1].type])
+        name = f"llvm.minnum.f{signature.return_type.bitwidth}"
+        return builder.call(cgutils.get_or_insert_function(builder.module, fnty, name), args,
+                            fastmath=("nnan", "nsz"))
+
+    return sig, codegen
+
+
 @njit(cache=True, nogil=True, inline="always")
-def _min4(v, i, lo, hi):
-    """``min(v[i, lo:hi])`` (``lo < hi``), with four running minima: a single one is a chain of dependent
-    instructions that takes several cycles per element, four overlap (the minimum is exact in any order)."""
-    m0 = m1 = m2 = m3 = v[i, lo]
-    d = lo
-    while d + 4 <= hi:
-        m0 = min(m0, v[i, d])
-        m1 = min(m1, v[i, d + 1])
-        m2 = min(m2, v[i, d + 2])
-        m3 = min(m3, v[i, d + 3])
-        d += 4
-    while d < hi:
-        m0 = min(m0, v[i, d])
-        d += 1
-    return min(min(m0, m1), min(m2, m3))
+def _min_of(v, i, lo, hi):
+    """``min(v[i, lo:hi])`` (``lo < hi``), vectorised (:func:`_least`)."""
+    m = v[i, lo]
+    for d in range(lo + 1, hi):
+        m = _least(m, v[i, d])
+    return m
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -139,12 +158,15 @@ def _row_pass(fl, right_rev, prior, index, ax, yy, k_first, k_stop, step, row_to
             for d in range(1, nd - 1):
                 vecs[r, d] = _step(costs[k, d], vecs[rp, d - 1], vecs[rp, d], vecs[rp, d + 1], rj, p1, rmn)
             vecs[r, nd - 1] = _step(costs[k, nd - 1], vecs[rp, nd - 2], vecs[rp, nd - 1], inf, rj, p1, rmn)
+            r_min = inf  # the row path's minimum, while its vector is summed (the module docstring)
             if step > 0:
                 for d in range(nd):
                     total[k, d] = vecs[r, d]
+                    r_min = _least(r_min, vecs[r, d])
             else:
                 for d in range(nd):
                     total[k, d] = total[k, d] + vecs[r, d]
+                    r_min = _least(r_min, vecs[r, d])
         else:
             cv = cur * w + xx
             if 0 <= y_from < h and index[y_from, xx] >= 0:
@@ -159,38 +181,19 @@ def _row_pass(fl, right_rev, prior, index, ax, yy, k_first, k_stop, step, row_to
                 cols[cv, d] = _step(costs[k, d], cols[cp, d - 1], cols[cp, d], cols[cp, d + 1], cj, p1, cmn)
             vecs[r, nd - 1] = _step(costs[k, nd - 1], vecs[rp, nd - 2], vecs[rp, nd - 1], inf, rj, p1, rmn)
             cols[cv, nd - 1] = _step(costs[k, nd - 1], cols[cp, nd - 2], cols[cp, nd - 1], inf, cj, p1, cmn)
+            # The paths' minima while their vectors are summed (vectorised reductions, no pass of their own).
+            r_min = c_min = inf
             if step > 0:
                 for d in range(nd):
                     total[k, d] = vecs[r, d] + cols[cv, d]
+                    r_min = _least(r_min, vecs[r, d])
+                    c_min = _least(c_min, cols[cv, d])
             else:
                 for d in range(nd):
                     total[k, d] = (total[k, d] + vecs[r, d]) + cols[cv, d]
-            # The column path's minimum, with four running minima (exact in any order; one is a chain of
-            # dependent instructions).
-            m0 = m1 = m2 = m3 = cols[cv, 0]
-            d = 0
-            while d + 4 <= nd:
-                m0 = min(m0, cols[cv, d])
-                m1 = min(m1, cols[cv, d + 1])
-                m2 = min(m2, cols[cv, d + 2])
-                m3 = min(m3, cols[cv, d + 3])
-                d += 4
-            while d < nd:
-                m0 = min(m0, cols[cv, d])
-                d += 1
-            cols_min[cur, xx] = min(min(m0, m1), min(m2, m3))
-        m0 = m1 = m2 = m3 = vecs[r, 0]
-        d = 0
-        while d + 4 <= nd:
-            m0 = min(m0, vecs[r, d])
-            m1 = min(m1, vecs[r, d + 1])
-            m2 = min(m2, vecs[r, d + 2])
-            m3 = min(m3, vecs[r, d + 3])
-            d += 4
-        while d < nd:
-            m0 = min(m0, vecs[r, d])
-            d += 1
-        r_min = min(min(m0, m1), min(m2, m3))
+                    r_min = _least(r_min, vecs[r, d])
+                    c_min = _least(c_min, cols[cv, d])
+            cols_min[cur, xx] = c_min
         r = 1 - r
 
 
@@ -350,15 +353,15 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
             if isolated and isolated_below <= 0.0:
                 continue  # no isolated pixel can answer: skip the work
             # The first least disparity (argmin's), then the least more than 1 px away from it.
-            low = _min4(total, k, 0, nd)
+            low = _min_of(total, k, 0, nd)
             best = 0
             while total[k, best] != low:
                 best += 1
             second = np.inf
             if best >= 2:
-                second = _min4(total, k, 0, best - 1)
+                second = _min_of(total, k, 0, best - 1)
             if best + 2 < nd:
-                second = min(second, _min4(total, k, best + 2, nd))
+                second = min(second, _min_of(total, k, best + 2, nd))
             ratio = 1.0 if second == 0.0 else np.float64(total[k, best]) / second
             consistent = True
             if lr_tol >= 0:
