@@ -258,7 +258,10 @@ class Scratch:
         self.counts = np.empty((2, h, w), np.int64)
         self.active = np.empty((h, w), np.bool_)
         self.recent = np.empty((h, w), np.bool_)
-        self.rowbuf = (np.zeros((2 * w + 1, n_disparities), np.float32), np.zeros((3, n_disparities), np.float32))
+        # Path vectors: disparity d at column d + 1, between columns of inf (_fused_kernel._row_pass).
+        self.rowbuf = tuple(np.zeros((rows, n_disparities + 2), np.float32) for rows in (2 * w + 1, 3))
+        for path in self.rowbuf:
+            path[:, 0] = path[:, -1] = np.inf
         self.planes = (np.zeros((h, 2, w + n_disparities), np.float32), np.empty((h, w), np.int64))
         self.work = np.empty((2, 0, n_disparities), np.float32)
 
