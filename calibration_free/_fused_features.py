@@ -35,6 +35,11 @@ def window_masks(x, y, p, last_left, t_recent, path_radius, counts, active, rece
         Out: event counts per polarity.
     active, recent : (H, W) bool ndarrays
         Out.
+
+    Returns
+    -------
+    int
+        The number of active pixels.
     """
     _, h, w = last_left.shape
     counts[:] = 0
@@ -47,22 +52,31 @@ def window_masks(x, y, p, last_left, t_recent, path_radius, counts, active, rece
         for xx in range(min(path_radius, w)):
             if counts[0, yy, xx] + counts[1, yy, xx] > 0:
                 reach = xx + path_radius
-        for xx in range(w):
+        # Selects, not branches (whether a pixel saw an event is hard to predict).
+        for xx in range(max(w - path_radius, 0)):
             ahead = xx + path_radius
-            if ahead < w and counts[0, yy, ahead] + counts[1, yy, ahead] > 0:
-                reach = ahead + path_radius
+            reach = ahead + path_radius if counts[0, yy, ahead] + counts[1, yy, ahead] > 0 else reach
             rows[yy, xx] = reach >= xx
-            recent[yy, xx] = last_left[0, yy, xx] >= t_recent or last_left[1, yy, xx] >= t_recent
-    for xx in range(w):
-        reach = -1
-        for yy in range(min(path_radius, h)):
-            if rows[yy, xx]:
-                reach = yy + path_radius
-        for yy in range(h):
-            ahead = yy + path_radius
-            if ahead < h and rows[ahead, xx]:
-                reach = ahead + path_radius
-            active[yy, xx] = reach >= yy
+        for xx in range(max(w - path_radius, 0), w):
+            rows[yy, xx] = reach >= xx
+        for xx in range(w):
+            recent[yy, xx] = (last_left[0, yy, xx] >= t_recent) | (last_left[1, yy, xx] >= t_recent)
+    # The column pass row by row, every column's reach at once (contiguous selects that vectorise; a walk down
+    # each column in turn was a strided, branchy loop).
+    n_active = 0
+    reach_col = np.full(w, -1, np.int64)  # per column: the last row its latest row-pass pixel so far reaches
+    for yy in range(min(path_radius, h)):
+        for xx in range(w):
+            reach_col[xx] = yy + path_radius if rows[yy, xx] else reach_col[xx]
+    for yy in range(h):
+        ahead = yy + path_radius
+        if ahead < h:
+            for xx in range(w):
+                reach_col[xx] = ahead + path_radius if rows[ahead, xx] else reach_col[xx]
+        for xx in range(w):
+            active[yy, xx] = reach_col[xx] >= yy
+            n_active += reach_col[xx] >= yy
+    return n_active
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -73,11 +87,22 @@ def _add_to(acc, v):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _copy_to(acc, v):
+    """``acc[:] = v`` (1-D, contiguous)."""
+    for i in range(acc.size):
+        acc[i] = v[i]
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _gather_add(src, dst, radius):
-    """``dst[x] = sum of src[x - radius .. x + radius]`` within the row, terms added in ascending order from 0."""
+    """``dst[x] = sum of src[x - radius .. x + radius]`` within the row, terms added in ascending order (from 0 in
+    the reference: the same sums, as the values are at least +0 and ``0 + v == v``, so the first term is copied
+    rather than added to zeros: one pass over the row fewer)."""
     n = src.size
-    dst[:] = 0.0
-    for dx in range(-radius, radius + 1):
+    lo = min(radius, n)
+    dst[:lo] = 0.0  # no term at x - radius
+    _copy_to(dst[lo:], src[:n - lo])
+    for dx in range(-radius + 1, radius + 1):
         lo, hi = max(-dx, 0), min(n - dx, n)
         _add_to(dst[lo:hi], src[lo + dx:hi + dx])
 
@@ -121,19 +146,22 @@ def surface_features(t, x, y, p, last, t_end, tau, radius, ts, rows, out):
     for c in range(2):
         for yy in range(h):
             acc = out[c, yy]
-            acc[:] = 0.0
-            for y2 in range(max(yy - radius, 0), min(yy + radius + 1, h)):
+            y_lo = max(yy - radius, 0)
+            _copy_to(acc, rows[c, y_lo])  # the first term (see _gather_add)
+            for y2 in range(y_lo + 1, min(yy + radius + 1, h)):
                 _add_to(acc, rows[c, y2])
 
 
 @njit(cache=True, nogil=True)
-def nonzero_values(features, buf):
-    """Copy the positive values of ``features`` into ``buf`` (raster order); return how many there are."""
+def nonzero_values(features, buf, at):
+    """Copy the positive values of ``features`` into ``buf`` and their flat indices into ``at`` (raster order);
+    return how many there are."""
     flat = features.ravel()
     n = 0
     for i in range(flat.size):
         v = flat[i]
         buf[n] = v  # written always (n <= i), kept only if positive: no branch to mispredict
+        at[n] = np.int32(i)
         n += v > 0.0
     return n
 
@@ -253,9 +281,11 @@ def percentile(values, q):
 
 
 @njit(cache=True, nogil=True)
-def divide(features, level):
-    """``features /= level`` in place (zeros stay zero)."""
+def divide(features, values, at, n, level):
+    """``features /= level`` in place, given its ``n`` non-zero ``values`` and their flat indices ``at`` (from
+    :func:`nonzero_values`): zeros stay zero, so only those are divided. About 80 % of the values are zero; a pass
+    over all of them that skipped the zeros took 0.036 ms a window for both cameras, this 0.017, and recording
+    the indices adds about 0.01 to :func:`nonzero_values` (2arms-50cm, one CPU, load 0.5)."""
     flat = features.ravel()
-    for i in range(flat.size):
-        if flat[i] != 0.0:
-            flat[i] = flat[i] / level
+    for j in range(n):
+        flat[at[j]] = values[j] / level

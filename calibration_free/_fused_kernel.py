@@ -7,9 +7,11 @@ matches (tests/test_fused.py).
 
 Where the time goes, and why the kernels are shaped as they are (2arms-50cm, 128x128, 64 disparities: about
 6000 active pixels a window; a 346x260 recording at 1 M ev/s: 26000 and 171 disparities). On 2arms-50cm a window
-took about 1.53 ms of kernel (one CPU, load 0.7, by stopping it early): setup 0.02, cost 0.33, forward paths 0.36,
-backward pass 0.45, winners 0.19, left-right check 0.05, fill 0.17 (about 200 filled pixels, a few hundred values
-each); outside it surfaces 0.135, level 0.065, division 0.036, masks 0.06 (1.83 ms a window in all).
+took about 1.53 ms of kernel (one CPU, load 0.7, by stopping it early) before the paths' steps, sums and minima
+became one vectorised loop (below; the kernel alone then took 0.83 of its time): setup 0.02, cost 0.33, forward
+paths 0.36, backward pass 0.45, winners 0.19, left-right check 0.05, fill 0.17 (about 200 filled pixels, a few
+hundred values each); outside it surfaces 0.135, level 0.065, division 0.036, masks 0.06 (1.83 ms a window in
+all; :mod:`calibration_free.fused` and :mod:`calibration_free._fused_features` have cut the outside since).
 
 * Memory traffic, not arithmetic, set the pace when the cost and the four paths were stored as (active
   pixels x disparities) arrays of several MB. Now a window keeps two such arrays, in float32 (half the
@@ -21,8 +23,13 @@ each); outside it surfaces 0.135, level 0.065, division 0.036, masks 0.06 (1.83 
   1.8-2.8); on 2arms-50cm (64 disparities, compute-bound) about 1.1x. Storing the cost (rather than computing
   it again in the backward pass, half a millisecond of the ~3 ms a 2arms-50cm window took) is about 1.1x there
   (kernel alone, same inputs, one CPU, load 4: 3.00 -> 2.68 ms a window) and 1.03x on the 346x260 windows.
-* Each semi-global step is one plain loop over the disparities (the row and the column path's in the same loop),
-  which the compiler vectorises; each vector's minimum is a second pass over it while it is in the L1 cache.
+* Each pixel's semi-global step is one plain loop over the disparities, which the compiler vectorises: it steps
+  the row and the column path, adds them to the sums and takes their minima (a reduction the compiler vectorises
+  too, :func:`_least`: numba's ``min`` kept it scalar, one instruction per value, in a pass of its own). The
+  path vectors carry a column of inf at either end, so that the first and last disparity need no case of their
+  own outside the loop. Kernel alone, same 50 2arms-50cm windows, one CPU, load 0.5-0.7: 1.83-1.85 ms a window
+  with the minima in passes of their own, 1.78-1.79 with vectorised minima in the loop that summed, 1.52-1.53
+  with everything in one loop.
 * No array is sliced or passed to an inlined helper inside the per-pixel loops: each such view or binding is a
   new array whose reference count numba updates with two atomic instructions, and with a dozen a pixel those
   took about 45 % of the kernel's time (perf: NRT_incref/NRT_decref). The loops are written out in
@@ -47,27 +54,43 @@ each); outside it surfaces 0.135, level 0.065, division 0.036, masks 0.06 (1.83 
 from __future__ import annotations
 
 import numpy as np
+from llvmlite import ir
 from numba import njit
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 from calibration_free._fused_features import order_stats
 
 
+@intrinsic
+def _least(typingctx, a, b):
+    """``min(a, b)`` of two floats of one type, as LLVM's ``minnum`` with the no-NaN and no-signed-zero flags.
+
+    A loop of these that keeps a running minimum is a reduction LLVM vectorises (packed minima, several lanes at
+    once); of numba's ``min`` (a compare and a select without those flags) it cannot, since it may not reorder
+    them, and the running minima were scalar instructions, one per value. The flags hold here: the costs and
+    paths are never NaN (features are finite, the prior's NaN is tested before use) and never -0 (sums of
+    values >= +0, and ``x - x`` is +0), so the result is exactly ``min(a, b)``, and a minimum is the same in any
+    order.
+    """
+    sig = a(a, b)
+
+    def codegen(context, builder, signature, args):
+        fnty = ir.FunctionType(args[0].type, [args[0].type, args[1].type])
+        name = f"llvm.minnum.f{signature.return_type.bitwidth}"
+        return builder.call(cgutils.get_or_insert_function(builder.module, fnty, name), args,
+                            fastmath=("nnan", "nsz"))
+
+    return sig, codegen
+
+
 @njit(cache=True, nogil=True, inline="always")
-def _min4(v, i, lo, hi):
-    """``min(v[i, lo:hi])`` (``lo < hi``), with four running minima: a single one is a chain of dependent
-    instructions that takes several cycles per element, four overlap (the minimum is exact in any order)."""
-    m0 = m1 = m2 = m3 = v[i, lo]
-    d = lo
-    while d + 4 <= hi:
-        m0 = min(m0, v[i, d])
-        m1 = min(m1, v[i, d + 1])
-        m2 = min(m2, v[i, d + 2])
-        m3 = min(m3, v[i, d + 3])
-        d += 4
-    while d < hi:
-        m0 = min(m0, v[i, d])
-        d += 1
-    return min(min(m0, m1), min(m2, m3))
+def _min_of(v, i, lo, hi):
+    """``min(v[i, lo:hi])`` (``lo < hi``), vectorised (:func:`_least`)."""
+    m = v[i, lo]
+    for d in range(lo + 1, hi):
+        m = _least(m, v[i, d])
+    return m
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -87,8 +110,9 @@ def _row_pass(fl, right_rev, prior, index, ax, yy, k_first, k_stop, step, row_to
 
     The forward pass computes each pixel's cost into ``costs[k]``, the backward pass reads it back. The row path runs
     in ``vecs[0:2]`` (current and previous, taking turns), the column path in ``cols[cur * W + x]`` with the previous
-    row's in ``cols[(1 - cur) * W + x]``. A path without a predecessor starts at the cost: it steps from the zero row
-    (``vecs[2]``, ``cols[2 * W]``) with minimum 0, which adds exactly 0 (``p1, p2 >= 0``). The forward pass writes
+    row's in ``cols[(1 - cur) * W + x]``; disparity d is at column d + 1 of them, between columns of inf. A path
+    without a predecessor starts at the cost: it steps from the zero row (``vecs[2]``, ``cols[2 * W]``) with
+    minimum 0, which adds exactly 0 (``p1, p2 >= 0``). The forward pass writes
     ``total[k] = left (+ above)``, the backward pass adds ``(+ right) (+ below)`` in that order, as the reference
     sums them; with ``paths`` 0, ``total[k]`` is the cost.
 
@@ -134,17 +158,17 @@ def _row_pass(fl, right_rev, prior, index, ax, yy, k_first, k_stop, step, row_to
         else:
             rp, rmn = 2, zero
         rj = rmn + p2
+        # The path vectors hold disparity d at column d + 1, between two columns of inf that are never written:
+        # the step reads prev[d - 1] and prev[d + 1] at both ends without a case of its own, so that one loop per
+        # pixel steps the paths, adds them to the sums and takes their minima (vectorised reductions, _least).
+        # The forward pass starts the sums from zero rather than the (unwritten) total: 0 + v == v, as v >= +0.
+        r_min = inf
         if paths == 2:
-            vecs[r, 0] = _step(costs[k, 0], inf, vecs[rp, 0], vecs[rp, 1], rj, p1, rmn)
-            for d in range(1, nd - 1):
-                vecs[r, d] = _step(costs[k, d], vecs[rp, d - 1], vecs[rp, d], vecs[rp, d + 1], rj, p1, rmn)
-            vecs[r, nd - 1] = _step(costs[k, nd - 1], vecs[rp, nd - 2], vecs[rp, nd - 1], inf, rj, p1, rmn)
-            if step > 0:
-                for d in range(nd):
-                    total[k, d] = vecs[r, d]
-            else:
-                for d in range(nd):
-                    total[k, d] = total[k, d] + vecs[r, d]
+            for d in range(nd):
+                v = _step(costs[k, d], vecs[rp, d], vecs[rp, d + 1], vecs[rp, d + 2], rj, p1, rmn)
+                vecs[r, d + 1] = v
+                total[k, d] = (zero if step > 0 else total[k, d]) + v
+                r_min = _least(r_min, v)
         else:
             cv = cur * w + xx
             if 0 <= y_from < h and index[y_from, xx] >= 0:
@@ -152,45 +176,16 @@ def _row_pass(fl, right_rev, prior, index, ax, yy, k_first, k_stop, step, row_to
             else:
                 cp, cmn = 2 * w, zero
             cj = cmn + p2
-            vecs[r, 0] = _step(costs[k, 0], inf, vecs[rp, 0], vecs[rp, 1], rj, p1, rmn)
-            cols[cv, 0] = _step(costs[k, 0], inf, cols[cp, 0], cols[cp, 1], cj, p1, cmn)
-            for d in range(1, nd - 1):
-                vecs[r, d] = _step(costs[k, d], vecs[rp, d - 1], vecs[rp, d], vecs[rp, d + 1], rj, p1, rmn)
-                cols[cv, d] = _step(costs[k, d], cols[cp, d - 1], cols[cp, d], cols[cp, d + 1], cj, p1, cmn)
-            vecs[r, nd - 1] = _step(costs[k, nd - 1], vecs[rp, nd - 2], vecs[rp, nd - 1], inf, rj, p1, rmn)
-            cols[cv, nd - 1] = _step(costs[k, nd - 1], cols[cp, nd - 2], cols[cp, nd - 1], inf, cj, p1, cmn)
-            if step > 0:
-                for d in range(nd):
-                    total[k, d] = vecs[r, d] + cols[cv, d]
-            else:
-                for d in range(nd):
-                    total[k, d] = (total[k, d] + vecs[r, d]) + cols[cv, d]
-            # The column path's minimum, with four running minima (exact in any order; one is a chain of
-            # dependent instructions).
-            m0 = m1 = m2 = m3 = cols[cv, 0]
-            d = 0
-            while d + 4 <= nd:
-                m0 = min(m0, cols[cv, d])
-                m1 = min(m1, cols[cv, d + 1])
-                m2 = min(m2, cols[cv, d + 2])
-                m3 = min(m3, cols[cv, d + 3])
-                d += 4
-            while d < nd:
-                m0 = min(m0, cols[cv, d])
-                d += 1
-            cols_min[cur, xx] = min(min(m0, m1), min(m2, m3))
-        m0 = m1 = m2 = m3 = vecs[r, 0]
-        d = 0
-        while d + 4 <= nd:
-            m0 = min(m0, vecs[r, d])
-            m1 = min(m1, vecs[r, d + 1])
-            m2 = min(m2, vecs[r, d + 2])
-            m3 = min(m3, vecs[r, d + 3])
-            d += 4
-        while d < nd:
-            m0 = min(m0, vecs[r, d])
-            d += 1
-        r_min = min(min(m0, m1), min(m2, m3))
+            c_min = inf
+            for d in range(nd):
+                v = _step(costs[k, d], vecs[rp, d], vecs[rp, d + 1], vecs[rp, d + 2], rj, p1, rmn)
+                c = _step(costs[k, d], cols[cp, d], cols[cp, d + 1], cols[cp, d + 2], cj, p1, cmn)
+                vecs[r, d + 1] = v
+                cols[cv, d + 1] = c
+                total[k, d] = ((zero if step > 0 else total[k, d]) + v) + c
+                r_min = _least(r_min, v)
+                c_min = _least(c_min, c)
+            cols_min[cur, xx] = c_min
         r = 1 - r
 
 
@@ -240,9 +235,9 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
         Scratch for at least the n active pixels: the sum of their paths and their cost (kept by the caller:
         fresh pages cost more than the arithmetic).
     rowbuf : tuple of ndarrays
-        Scratch ``(cols, vecs)``, (2 W + 1, max_d + 1) and (3, max_d + 1) float32: the column path's current and
+        Scratch ``(cols, vecs)``, (2 W + 1, max_d + 3) and (3, max_d + 3) float32: the column path's current and
         previous sensor row (row ``cur * W + x``), the row path's current and previous vector, each with a last row
-        of zeros that is never written (see :func:`_row_pass`).
+        of zeros, and a first and last column of inf, that are never written (see :func:`_row_pass`).
     planes : tuple of ndarrays
         Scratch kept between windows: ``(right_rev, index)``, (H, 2, W + max_d + 1) float32 zeros and (H, W)
         int64.
@@ -350,15 +345,15 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
             if isolated and isolated_below <= 0.0:
                 continue  # no isolated pixel can answer: skip the work
             # The first least disparity (argmin's), then the least more than 1 px away from it.
-            low = _min4(total, k, 0, nd)
+            low = _min_of(total, k, 0, nd)
             best = 0
             while total[k, best] != low:
                 best += 1
             second = np.inf
             if best >= 2:
-                second = _min4(total, k, 0, best - 1)
+                second = _min_of(total, k, 0, best - 1)
             if best + 2 < nd:
-                second = min(second, _min4(total, k, best + 2, nd))
+                second = min(second, _min_of(total, k, best + 2, nd))
             ratio = 1.0 if second == 0.0 else np.float64(total[k, best]) / second
             consistent = True
             if lr_tol >= 0:
