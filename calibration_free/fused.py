@@ -20,8 +20,8 @@ Design, part by part, with the reason for each (bench/results/fused.md measures 
    matcher compares (``p1``, ``p2``, ``temporal_weight``) is thus in units of the level: it has no absolute
    threshold for :mod:`cvstereo.signal_level` to replace. That module's causal one-second level would steady the
    level of sparse windows, but its quantile over 25 windows' values cost 1.5 ms a window (2arms-50cm, the
-   anchors' values only, load 10), as much as a third of the whole window's matching; it is worth adopting
-   once that estimate is incremental.
+   anchors' values only, load 10), about as much as a whole window's matching takes now (~1.5 ms); it is worth
+   adopting once that estimate is incremental.
 4. **Cost**: the L1 distance of the two cameras' feature vectors at ``(x, y)`` and ``(x - d, y + dy)``, the
    least over ``|dy| <= row_tolerance``: the thesis' event-time matcher's row tolerance, because real rigs
    are off by about a row (thesis 3.2; the simulator's rig by one); :mod:`cvstereo.rigcorrect` corrects
