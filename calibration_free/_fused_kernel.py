@@ -211,8 +211,7 @@ def median_of(vals, c, hist, picked):
 
 @njit(cache=True, nogil=True)
 def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2, paths, temporal_weight, lr_tol,
-                   subpixel, min_neighbours, isolated_below, max_uncertainty, fill_radius, confirm, work, rowbuf,
-                   planes):
+                   subpixel, min_neighbours, isolated_below, fill_radius, confirm, work, rowbuf, planes):
     """Match one window's normalised features; return the answers at the left camera's event pixels.
 
     Parameters
@@ -227,8 +226,8 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
         Left pixels with an event in the last two windows (the noise filter's neighbours).
     prior : (H, W) float64 ndarray
         Disparity of the previous window per pixel, NaN where none (temporal coherence).
-    max_d, row_tol, p1, p2, paths, temporal_weight, lr_tol, subpixel, min_neighbours, isolated_below,
-    max_uncertainty, fill_radius, confirm
+    max_d, row_tol, p1, p2, paths, temporal_weight, lr_tol, subpixel, min_neighbours, isolated_below, fill_radius,
+    confirm
         :class:`~calibration_free.fused_params.FusedParams` fields (``isolated_below``: its
         ``isolated_max_uncertainty``; ``confirm``: its ``fill_confirms``).
     work : (2, n, max_d + 1) float32 ndarray
@@ -245,7 +244,8 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
     Returns
     -------
     x, y, pol : (M,) int ndarrays; disparity, uncertainty : (M,) float64 ndarrays
-        In raster order (row, then column).
+        Every answer, in raster order (row, then column): uncertainty is at most 1, and the caller keeps those
+        within ``max_uncertainty`` after the occlusion test (:func:`calibration_free.fused.finish_window`).
     """
     _, h, w = fl.shape
     nd = max_d + 1
@@ -397,7 +397,6 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
             cons_start[out_y[i] + 1] += 1
     for yy in range(h):
         cons_start[yy + 1] += cons_start[yy]
-    keep = np.zeros(m, np.bool_)
     vals = np.empty((2 * fill_radius + 1) ** 2)
     picked = np.empty_like(vals)
     hist = np.zeros(MEDIAN_BINS_PER_PX * nd, np.int64)
@@ -423,5 +422,4 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
                     out_u[i] = out_u[i] - 0.5  # confirmed by the consistent answers around it
                 else:
                     out_d[i] = med
-        keep[i] = out_u[i] <= max_uncertainty
-    return out_x[keep], out_y[keep], out_p[keep], out_d[keep], out_u[keep]
+    return out_x, out_y, out_p, out_d, out_u

@@ -331,7 +331,7 @@ class FusedMatcher(FrameMatcher):
             buf.features[0], buf.features[1], buf.counts, buf.active, buf.recent,
             state.prior_for(window.t_end, prm.window_us), prm.max_disparity, prm.row_tolerance, prm.p1, prm.p2,
             prm.sgm_paths, prm.temporal_weight, prm.lr_tolerance, prm.subpixel, prm.min_neighbours,
-            prm.isolated_max_uncertainty, 1.0, prm.fill_radius, prm.fill_confirms, work, buf.rowbuf, buf.planes)
+            prm.isolated_max_uncertainty, prm.fill_radius, prm.fill_confirms, work, buf.rowbuf, buf.planes)
         matches, uncertainty = state.settle(window.t_end, answers, prm)
         self._uncertainty.append(uncertainty)
         return matches
