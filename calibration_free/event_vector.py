@@ -263,9 +263,8 @@ def _least_on_run(u, v, a1, b1, l1, r1, run_ends, prev, s_prev, nxt, s_nxt, widt
 
     Each term of the cost is linear in x2 inside an absolute value (``a1 - a2 = (a1 + s_prev prev) - s_prev x2``
     and so on), so the loop over x2 is a few integer operations with no branch to mispredict."""
-    ca, cb = (s_prev, s_nxt) if prev >= 0 else (0, s_nxt)
-    if nxt >= width:
-        cb = 0
+    ca = s_prev if prev >= 0 else 0
+    cb = s_nxt if nxt < width else 0
     ka = a1 + ca * prev
     kb = b1 - cb * nxt
     re = 1 if run_ends else 0
