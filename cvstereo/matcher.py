@@ -190,8 +190,12 @@ class StreamMatcher(abc.ABC):
         Defaults that are sizes in pixels follow the sensor (:meth:`sensor_defaults`): on a 346x260 sensor the
         disparity range is ``round(64 * 346 / 128) = 173`` px unless ``max_disparity`` is given.
         """
-        params = cls.sensor_defaults(resolution, variant, params)
-        return cls(cls.make_params(variant, **params), resolution=resolution)
+        return cls(cls.params_for(variant, resolution=resolution, **params), resolution=resolution)
+
+    @classmethod
+    def params_for(cls, variant: str | None = None, *, resolution=DEFAULT_RESOLUTION, **params):
+        """The parameters :meth:`from_variant` builds the matcher with (every check of the values run)."""
+        return cls.make_params(variant, **cls.sensor_defaults(resolution, variant, params))
 
     @classmethod
     def sensor_defaults(cls, resolution, variant: str | None, given: dict) -> dict:
