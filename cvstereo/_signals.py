@@ -1,4 +1,5 @@
-"""Stop signals around sections that a stop must not cut in two (a Dask cluster starting or closing)."""
+"""Stop signals: SIGTERM and SIGHUP as a stop like Ctrl-C, and sections a stop must not cut in two (a Dask
+cluster starting or closing)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,27 @@ from collections.abc import Iterator
 
 #: Signals that stop a program and that :func:`held_stop_signals` holds.
 STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+#: Of those, the ones Python leaves at their default action (end the process at once, no cleanup).
+TERMINATING_SIGNALS = tuple(s for s in STOP_SIGNALS if s != signal.SIGINT)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP arrived: raised in the main thread so that cleanup (``finally``, ``except
+    BaseException``) runs as for Ctrl-C; code that stops gracefully on KeyboardInterrupt stops so here too."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def stop_exception(signum: int) -> KeyboardInterrupt:
+    """The exception a stop by ``signum`` raises: KeyboardInterrupt for SIGINT, :class:`Terminated` otherwise."""
+    return KeyboardInterrupt() if signum == signal.SIGINT else Terminated(signum)
+
+
+def signal_of(stop: KeyboardInterrupt) -> int:
+    """The signal a stop exception stands for (SIGINT for a plain KeyboardInterrupt)."""
+    return stop.signum if isinstance(stop, Terminated) else signal.SIGINT
 
 
 @contextlib.contextmanager

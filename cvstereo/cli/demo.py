@@ -67,7 +67,6 @@ def run(args: argparse.Namespace) -> int:
     if out.exists() and not out.is_dir():
         raise NotADirectoryError(f"-o {out}: exists and is not a folder; the demo writes its tables and figures "
                                  "into a folder.")
-    out.mkdir(parents=True, exist_ok=True)
     _real_recordings(shared_folder(args.shared))
     print()
     if importlib.util.find_spec("cvstereo.simulate") is None:
@@ -93,6 +92,7 @@ def run(args: argparse.Namespace) -> int:
     result = run_experiment(recordings, all_combos(methods, param_sets=("thesis", "adaptive")), progress=progress)
     text = experiment_markdown(result)
     print(text)
+    out.mkdir(parents=True, exist_ok=True)  # only now: a stopped or failed demo leaves no empty folder
     write_text_atomic(out / "results.md", text + "\n")
     write_text_atomic(out / "results.json", to_json({c.label: rows for c, rows in result.figures.items()}, indent=2))
     print(f"\nTables written to {out / 'results.md'} and {out / 'results.json'}")
