@@ -34,6 +34,8 @@ pytestmark = pytest.mark.timeout(240)  # a fresh interpreter on a busy machine t
 REPO = Path(__file__).resolve().parent.parent
 #: Seconds a stopped command may take to end.
 PROMPT_S = 10
+#: Seconds the processes a command started may take to end after it (they notice its pipes closed).
+REAPED_S = 5
 #: Seconds the harness holds a moment: long enough for the signal to land there, short enough that a command
 #: that does not stop at once (a board being opened) goes on.
 HOLD_S = 3
@@ -162,15 +164,15 @@ MOMENTS = {
     "demo-simulating": moment("demo --seconds 0.3 --methods frame -o d", "call:cvstereo.simulate.presets:simulate", INT,
                               absent=("d",)),
     # --- sweep: the Dask cluster starting, cells running -------------------------------------------------
-    "sweep-checking-grid": moment(SWEEP, "call:cvstereo.sweep.grid:Grid.configs", TERM, absent=("sw",)),
+    "sweep-checking-grid": moment(SWEEP, "call:cvstereo.registry:matcher_class", TERM, absent=("sw",)),
     "sweep-cluster-starting-sigterm": moment(SWEEP, "enter:distributed:LocalCluster.__init__", TERM, absent=("sw",),
                                              prompt_s=CLUSTER_PROMPT_S),
     "sweep-cluster-starting-ctrl-c": moment(SWEEP, "enter:distributed:LocalCluster.__init__", INT, absent=("sw",),
                                             prompt_s=CLUSTER_PROMPT_S),
 }
 #: Stops while cells run (:func:`test_stopped_sweep_keeps_its_finished_cells_and_resumes`).
-CELLS_RUNNING = {"sigterm": moment(SWEEP, "enter:cvstereo.sweep.engine:write_cell", TERM),
-                 "ctrl-c": moment(SWEEP, "enter:cvstereo.sweep.engine:write_cell", INT)}
+CELLS_RUNNING = {"sigterm": moment(SWEEP, "enter:cvstereo.io._atomic:write_text_atomic", TERM),
+                 "ctrl-c": moment(SWEEP, "enter:cvstereo.io._atomic:write_text_atomic", INT)}
 
 
 @pytest.fixture(scope="module")
@@ -233,9 +235,10 @@ def signal_at(m: Moment, work: Path) -> tuple[int, str, str]:
         took = time.monotonic() - sent
         assert "Traceback" not in err, f"TRACEBACK: {err[-3000:]}"
         assert took < m.prompt_s, f"HANG: took {took:.0f} s to stop"
-        time.sleep(0.5)  # processes the command closed are reaped by now
-        left = _session_processes(proc.pid)
-        assert not left, f"LEFTOVER: processes {left} still running after the command ended"
+        gone = time.monotonic() + REAPED_S  # helpers that end when the command's pipes close (resource tracker)
+        while (left := _session_processes(proc.pid)) and time.monotonic() < gone:
+            time.sleep(0.1)
+        assert not left, f"LEFTOVER: processes {left} still running {REAPED_S} s after the command ended"
         return proc.returncode, out, err
     finally:
         if proc.poll() is None:
@@ -300,8 +303,9 @@ def test_record_stopped_while_writing_keeps_every_event_in_its_journal(work, cap
 
 @pytest.mark.parametrize("which", list(CELLS_RUNNING))
 def test_stopped_sweep_keeps_its_finished_cells_and_resumes(work, capsys, monkeypatch, which):
-    """A sweep stopped once a cell has finished (its workers busy with others) ends as every stop does and keeps
-    the cells that finished: the same sweep run again (here, without Dask) reuses each and runs only the others."""
+    """A sweep stopped while its first finished cell is written (its workers busy with others) ends as every stop
+    does and keeps the cells that finished, that one included: the same sweep run again (here, without Dask)
+    reuses each and runs only the others."""
     from cvstereo.cli import main
 
     m = CELLS_RUNNING[which]

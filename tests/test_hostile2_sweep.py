@@ -182,8 +182,9 @@ CASES = {
 def test_hostile_sweep(hostile, work, capsys):
     start = time.monotonic()
     _, err = check_case(hostile, work, capsys)
-    assert time.monotonic() - start < PROMPT_S, f"HANG: took {time.monotonic() - start:.0f} s"
-    if hostile.code == 0:
+    if hostile.code != 0:  # a refusal does no work
+        assert time.monotonic() - start < PROMPT_S, f"HANG: took {time.monotonic() - start:.0f} s"
+    else:
         # Each shown reason is one line; they are few however many cells failed.
         shown = [line for line in err.splitlines() if "failed" in line]
         assert 1 <= len(shown) <= 4, f"MESSAGE: {len(shown)} lines for failing cells: {err!r}"
@@ -197,7 +198,7 @@ def _free_port() -> int:
 
 @pytest.mark.parametrize("address", ["nonsense", "tcp://127.0.0.1:{port}"], ids=["malformed", "nobody-listens"])
 def test_scheduler_that_does_not_answer_is_refused_promptly(work, capsys, address):
-    pytest.importorskip("dask.distributed")
+    pytest.importorskip("dask.distributed")  # imported before the clock starts: the wait is what is timed
     address = address.format(port=_free_port())
     start = time.monotonic()
     check_case(case(["sweep", "rec.npz", "-m", "frame", "--scheduler", address, "-o", "out"], 1,

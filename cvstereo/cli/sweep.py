@@ -149,6 +149,7 @@ def run(args: argparse.Namespace) -> int:
         summary_markdown,
         write_table,
     )
+    from cvstereo.sweep.cells import CELLS
 
     if args.workers is not None and args.workers < 0:
         raise ValueError(f"--workers {args.workers}: give 0 (no Dask) or a positive number of workers.")
@@ -182,7 +183,7 @@ def run(args: argparse.Namespace) -> int:
           f"failed; table {table}")
     if result.recomputed:
         print(f"cvstereo sweep: warning: {result.recomputed} cell file{'s' if result.recomputed > 1 else ''} in "
-              f"{out / 'cells'} held no whole row of its cell (cut short or edited) and "
+              f"{out / CELLS} held no whole row of its cell (cut short or edited) and "
               f"{'were' if result.recomputed > 1 else 'was'} recomputed", file=sys.stderr)
     _report_failures(result.rows, table)
     return 0

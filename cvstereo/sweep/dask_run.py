@@ -63,12 +63,15 @@ def run_on_dask(todo, finished: Callable, *, run: Callable, workers: int | None,
                 stack.push(_closing(client))
         futures = {client.submit(run, cell, score, key=f"cell-{key}", pure=False): (key, cell)
                    for key, cell in todo}
-        for future in as_completed(futures):
+        for future in as_completed(futures):  # a stop lands here, waiting, or is held until the result is in
             key, cell = futures[future]
-            try:
-                row = future.result()
-            except Exception as exc:  # the worker died under the cell (out of memory, a crash): the cell failed
-                row = failed_row(exc)
+            # Fetching a finished cell's small row is quick, and Dask's sync() must not be cut: cut before its
+            # coroutine starts, its cancel callback fails on the loop thread and logs a traceback.
+            with held_stop_signals():
+                try:
+                    row = future.result()
+                except Exception as exc:  # the worker died under the cell (out of memory, a crash): it failed
+                    row = failed_row(exc)
             finished(key, cell, row)
 
 
