@@ -25,13 +25,17 @@ CELLS = "cells"
 MAX_CELL_BYTES = 1 << 20
 
 
-def failed_row(exc: BaseException | None = None, *, worker: str = "", elapsed_s: float = 0.0) -> dict:
-    """A row with every column and no figures: ``error`` says why (``TYPE: message``, on one line), None while
-    the cell has not failed (:func:`cvstereo.sweep.engine.run_cell` fills the figures in)."""
+def empty_row(*, worker: str = "", error: str | None = None) -> dict:
+    """A row with every column and no figures yet: :func:`cvstereo.sweep.engine.run_cell` fills them in, or
+    ``error`` says why there are none (:func:`error_text`)."""
     row: dict = dict.fromkeys(FIGURE_COLUMNS)
-    row.update(dict.fromkeys(TIMING_COLUMNS), worker=worker, elapsed_s=elapsed_s)
-    row["error"] = None if exc is None else f"{type(exc).__name__}: {' '.join(str(exc).split())}"
+    row.update(dict.fromkeys(TIMING_COLUMNS), worker=worker, elapsed_s=0.0, error=error)
     return row
+
+
+def error_text(exc: BaseException) -> str:
+    """A failed cell's ``error``: ``TYPE: message`` on one line."""
+    return f"{type(exc).__name__}: {' '.join(str(exc).split())}"
 
 
 def cell_path(out: Path, key: str) -> Path:

@@ -14,7 +14,7 @@ import os
 from collections.abc import Callable
 
 from cvstereo._signals import held_stop_signals, sigint_blocked_for_children
-from cvstereo.sweep.cells import failed_row
+from cvstereo.sweep.cells import empty_row, error_text
 
 #: Seconds to wait for an existing scheduler to answer (Dask's own default, 30 s, looks like a hang).
 SCHEDULER_TIMEOUT_S = 5
@@ -71,7 +71,7 @@ def run_on_dask(todo, finished: Callable, *, run: Callable, workers: int | None,
                 try:
                     row = future.result()
                 except Exception as exc:  # the worker died under the cell (out of memory, a crash): it failed
-                    row = failed_row(exc)
+                    row = empty_row(error=error_text(exc))
             finished(key, cell, row)
 
 

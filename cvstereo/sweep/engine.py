@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 from cvstereo._signals import held_stop_signals
 from cvstereo.registry import ENTRY_POINT_GROUP
-from cvstereo.sweep.cells import CELLS, FIGURE_COLUMNS, TIMING_COLUMNS, failed_row, read_cell, write_cell
+from cvstereo.sweep.cells import CELLS, FIGURE_COLUMNS, TIMING_COLUMNS, empty_row, error_text, read_cell, write_cell
 from cvstereo.sweep.grid import Cell
 
 if TYPE_CHECKING:
@@ -119,7 +119,7 @@ def run_cell(cell: Cell, score: Score | None = None, recording: Recording | None
     recording : Recording, optional
         The recording in memory (in-process runs); None: read from ``cell.recording``, a path.
     """
-    row = failed_row(worker=f"{os.uname().nodename}:{os.getpid()}")
+    row = empty_row(worker=f"{os.uname().nodename}:{os.getpid()}")
     start = time.perf_counter()
     try:
         from cvstereo.evaluate import evaluate
@@ -137,7 +137,7 @@ def run_cell(cell: Cell, score: Score | None = None, recording: Recording | None
         if score is not None:
             row.update((name, _plain(value)) for name, value in score(cell, recording, result).items())
     except Exception as exc:  # a failing cell is recorded, never fatal to the sweep
-        row["error"] = failed_row(exc)["error"]
+        row["error"] = error_text(exc)
     row["elapsed_s"] = time.perf_counter() - start
     return row
 
