@@ -3,7 +3,9 @@
 A stop (Ctrl-C, SIGTERM) may come at any moment, also while the cluster starts: the start is held whole
 (:func:`cvstereo._signals.held_stop_signals`), so that the cluster exists and can be closed, and the close is
 quiet, since the workers' cancelled cells and the nanny killing a busy worker are the stop itself, not news.
-Cells that finished before the stop are written already (by ``finished``).
+The worker processes start with SIGINT blocked (:func:`cvstereo._signals.sigint_blocked_for_children`): a
+terminal's Ctrl-C reaches the whole process group, and the sweep, not each worker, answers it. Cells that
+finished before the stop are written already (by ``finished``, which keeps a row being written).
 """
 
 from __future__ import annotations
