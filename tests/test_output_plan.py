@@ -10,15 +10,15 @@ import pytest
 
 from cvstereo.io._atomic import atomic_path, write_text_atomic
 from cvstereo.io._paths import OutputIsInputError
-from cvstereo.io.output_plan import FIGURE, MATCHES_FILE, TEXT, OutputPlan
+from cvstereo.io.output_plan import ANY_FILE, FIGURE, MATCHES_FILE, OutputPlan
 from tests._hostile import leftovers, null_device
 
 
 def test_outputs_appear_only_when_the_block_ends(tmp_path):
     a, b = tmp_path / "a.txt", tmp_path / "b.txt"
     plan = OutputPlan()
-    plan.write(a, TEXT)
-    plan.write(b, TEXT)
+    plan.write(a, ANY_FILE)
+    plan.write(b, ANY_FILE)
     with plan:
         write_text_atomic(a, "one")
         assert not a.exists() and len(leftovers(tmp_path)) == 2  # both reserved, neither published
@@ -49,7 +49,7 @@ def test_a_declared_output_never_written_is_not_published(tmp_path):
 def test_files_the_plan_does_not_hold_are_written_at_once(tmp_path):
     """Caches written during a planned command's work (the demo's simulated recordings) are not its outputs."""
     plan = OutputPlan()
-    plan.write(tmp_path / "out.txt", TEXT)
+    plan.write(tmp_path / "out.txt", ANY_FILE)
     with plan:
         write_text_atomic(tmp_path / "cache.txt", "cached")
         assert (tmp_path / "cache.txt").read_text() == "cached"
@@ -71,14 +71,14 @@ def test_an_output_name_says_its_kind_or_nothing(tmp_path, name, ok):
 def test_one_character_device_takes_two_outputs_a_file_does_not(tmp_path):
     null_device(tmp_path / "null")
     plan = OutputPlan()
-    plan.write(tmp_path / "null", TEXT)
-    plan.write(tmp_path / "null", TEXT, option="--other")
+    plan.write(tmp_path / "null", ANY_FILE)
+    plan.write(tmp_path / "null", ANY_FILE, option="--other")
     with plan:
         write_text_atomic(tmp_path / "null", "a")
         write_text_atomic(tmp_path / "null", "b")
     twice = OutputPlan()
-    twice.write(tmp_path / "f.txt", TEXT)
-    twice.write(tmp_path / "sub" / ".." / "f.txt", TEXT, option="--other")
+    twice.write(tmp_path / "f.txt", ANY_FILE)
+    twice.write(tmp_path / "sub" / ".." / "f.txt", ANY_FILE, option="--other")
     with pytest.raises(OutputIsInputError, match="the same file"):
         twice.check()
 

@@ -18,8 +18,8 @@ plan created, so that a failed run leaves no output, half or whole. Every error 
 >>> from cvstereo.io._atomic import write_text_atomic
 >>> a, b = (os.path.join(tempfile.mkdtemp(), name) for name in ("a.txt", "b.txt"))
 >>> plan = OutputPlan()
->>> plan.write(a, TEXT)
->>> plan.write(b, TEXT)
+>>> plan.write(a, ANY_FILE)
+>>> plan.write(b, ANY_FILE)
 >>> with plan:
 ...     write_text_atomic(a, "one")
 ...     print(os.path.exists(a))  # written, not yet published: b is still to come
@@ -68,7 +68,7 @@ FIGURE = OutputKind("a picture", (".png", ".pdf", ".svg", ".svgz", ".eps", ".ps"
                                   ".tiff", ".webp"))
 VIDEO = OutputKind("an MP4 video", (".mp4",))
 #: Files whose format another check settles (``convert``: the format table), or whose names the command makes.
-TEXT = OutputKind("a file")
+ANY_FILE = OutputKind("a file")
 
 
 @dataclass
@@ -260,4 +260,4 @@ def _collide(a: str, b: str) -> bool:
     return True
 
 
-__all__ = ["DEPTH_MODEL_FILE", "FIGURE", "MATCHES_FILE", "POINT_CLOUD", "TEXT", "VIDEO", "OutputKind", "OutputPlan"]
+__all__ = ["ANY_FILE", "DEPTH_MODEL_FILE", "FIGURE", "MATCHES_FILE", "POINT_CLOUD", "VIDEO", "OutputKind", "OutputPlan"]
