@@ -10,6 +10,7 @@ import numpy as np
 
 import cvstereo
 from cvstereo.events import StereoPacket, distinct_sorted, is_time_ordered
+from cvstereo.fingerprint import EventFingerprint
 from cvstereo.matches import MatchResult, concat_matches
 from cvstereo.recording import Recording
 from cvstereo.registry import METHODS, create_matcher
@@ -24,7 +25,9 @@ DEFAULT_PACKET_US = 40_000
 
 
 class _Counted(Iterator[StereoPacket]):
-    """Packets passed through, counting events and the first and last timestamp (for the meta)."""
+    """Packets passed through, counting events and the first and last timestamp (for the meta), and taking the
+    fingerprint of the events as read (:mod:`cvstereo.fingerprint`; the seconds it takes are kept apart, as
+    they are not the matcher's)."""
 
     def __init__(self, packets: Iterator[StereoPacket]):
         self._packets = iter(packets)
@@ -32,9 +35,14 @@ class _Counted(Iterator[StereoPacket]):
         self.t_first: int | None = None
         self.t_last: int | None = None
         self.windows: set[int] = set()  # absolute 40 ms windows that hold events (for the diagnostics)
+        self.fingerprint = EventFingerprint()
+        self.fingerprint_s = 0.0
 
     def __next__(self) -> StereoPacket:
         packet = next(self._packets)
+        start = time.perf_counter()
+        self.fingerprint.update(packet.left, packet.right)
+        self.fingerprint_s += time.perf_counter() - start
         for ev in (packet.left, packet.right):
             if ev.size:
                 first, last = int(ev["t"][0]), int(ev["t"][-1])
@@ -104,10 +112,13 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
     Returns
     -------
     MatchResult
-        Time-ordered matches and the meta of formats.md. ``meta["diagnostics"]`` says how much of the
-        recording answered (:func:`cvstereo.signal_level.silence_warning` turns it into one line): windows with
-        events and with matches (40 ms, absolute clock), and for the thesis matchers windows seen, windows with
-        candidates, the highest value against its threshold and the threshold in force over time.
+        Time-ordered matches and the meta of formats.md. ``meta["fingerprint"]`` identifies the events as read
+        (before rig correction or rectification: :mod:`cvstereo.fingerprint`), so that the matches can be told
+        from those of another recording; ``elapsed_s`` leaves out the time it took. ``meta["diagnostics"]`` says
+        how much of the recording answered (:func:`cvstereo.signal_level.silence_warning` turns it into one
+        line): windows with events and with matches (40 ms, absolute clock), and for the thesis matchers windows
+        seen, windows with candidates, the highest value against its threshold and the threshold in force over
+        time.
 
     Examples
     --------
@@ -154,7 +165,7 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         if bar is not None:
             bar.update(packet.left.size + packet.right.size)
     parts.append(restored(matcher.flush()))
-    elapsed = time.perf_counter() - start
+    elapsed = time.perf_counter() - start - counted.fingerprint_s
     if bar is not None:
         bar.close()
     meta = matcher.describe()
@@ -165,6 +176,7 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         resolution=list(stream.resolution),
         version=cvstereo.__version__,
         input=source,
+        fingerprint=counted.fingerprint.result(),
     )
     meta["param_set"] = param_set
     matches = concat_matches(parts)
