@@ -8,6 +8,9 @@ A value that must be right fails with ``SILENT`` when it is not.
 
 from __future__ import annotations
 
+import shutil
+from pathlib import Path
+
 import numpy as np
 
 #: What the library raises for bad input (design: subclasses of these built-ins), and TypeError for argument misuse.
@@ -53,6 +56,14 @@ def same_events(got: np.ndarray, want: dict[str, np.ndarray], what: str) -> None
         diff = np.flatnonzero(got[field].astype(np.int64) != np.asarray(want[field]).astype(np.int64))
         assert diff.size == 0, (f"SILENT: {what}: field {field} at index {diff[0]} is {got[field][diff[0]]}, "
                                 f"expected {want[field][diff[0]]}")
+
+
+def working_copy(base: Path, folder: Path, monkeypatch) -> Path:
+    """Copy every file and folder of ``base`` (a module's files, made once) into ``folder`` and work there."""
+    for p in base.iterdir():
+        (shutil.copytree if p.is_dir() else shutil.copy2)(p, folder / p.name)
+    monkeypatch.chdir(folder)
+    return folder
 
 
 def _brief(value) -> str:

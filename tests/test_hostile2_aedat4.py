@@ -14,7 +14,6 @@ Failures say their kind (``tests/_hostile.py``), so that ``bench/hostile_tally.p
 from __future__ import annotations
 
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -25,7 +24,7 @@ import numpy as np
 import pytest
 
 from tests._hostile import case, check_case
-from tests._hostile_calls import FILE_ERRORS, accepted, refused, same_events
+from tests._hostile_calls import FILE_ERRORS, accepted, refused, same_events, working_copy
 
 dv = pytest.importorskip("dv_processing")
 
@@ -121,10 +120,7 @@ def base(tmp_path_factory) -> Path:
 
 @pytest.fixture
 def work(base, tmp_path, monkeypatch) -> Path:
-    for p in base.iterdir():
-        (shutil.copytree if p.is_dir() else shutil.copy2)(p, tmp_path / p.name)
-    monkeypatch.chdir(tmp_path)
-    return tmp_path
+    return working_copy(base, tmp_path, monkeypatch)
 
 
 # ----------------------------------------------------------------------------- damaged files, in a subprocess

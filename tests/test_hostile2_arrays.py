@@ -12,7 +12,6 @@ Failures say their kind (``tests/_hostile.py``), so that ``bench/hostile_tally.p
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +23,7 @@ from cvstereo.io import write_recording
 from cvstereo.pipeline import match
 from cvstereo.recording import Recording
 from tests._hostile import case, check_case
-from tests._hostile_calls import accepted, refused, same_events
+from tests._hostile_calls import accepted, refused, same_events, working_copy
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -263,10 +262,7 @@ def base(tmp_path_factory) -> Path:
 
 @pytest.fixture
 def work(base, tmp_path, monkeypatch) -> Path:
-    for p in base.iterdir():
-        shutil.copy2(p, tmp_path / p.name)
-    monkeypatch.chdir(tmp_path)
-    return tmp_path
+    return working_copy(base, tmp_path, monkeypatch)
 
 
 CASES = {

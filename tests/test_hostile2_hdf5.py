@@ -12,14 +12,13 @@ Failures say their kind (``tests/_hostile.py``), so that ``bench/hostile_tally.p
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from tests._hostile import case, check_case
-from tests._hostile_calls import FILE_ERRORS, accepted, refused, same_events
+from tests._hostile_calls import FILE_ERRORS, accepted, refused, same_events, working_copy
 
 h5py = pytest.importorskip("h5py")
 pytest.importorskip("hdf5plugin")
@@ -173,10 +172,7 @@ def base(tmp_path_factory) -> Path:
 
 @pytest.fixture
 def work(base, tmp_path, monkeypatch) -> Path:
-    for p in base.iterdir():
-        shutil.copy2(p, tmp_path / p.name)
-    monkeypatch.chdir(tmp_path)
-    return tmp_path
+    return working_copy(base, tmp_path, monkeypatch)
 
 
 def _at(dataset: str, index: int, value) -> tuple[str, ...]:
