@@ -128,9 +128,11 @@ class _Frames:
         if self.progressed or self.cpu is None:
             self.cpu, self.progressed = cpu, False
         elif cpu is not None and cpu - self.cpu >= self.limit:
-            return f"burnt {cpu - self.cpu:.1f} s of CPU time without an answer"
+            return (f"burnt {cpu - self.cpu:.1f} s of CPU time without an answer and was stopped; the file is "
+                    "damaged (a packet cannot be decoded).")
         if time.monotonic() - self.wall >= STALL_WALL_S:
-            return f"gave no answer for {STALL_WALL_S:g} s"
+            return (f"gave no answer for {STALL_WALL_S:g} s and was stopped; the file is damaged, or cannot be "
+                    "read from where it is.")
         return None
 
     def read_exact(self, size: int) -> bytearray | None:
@@ -141,8 +143,7 @@ class _Frames:
             if not self.poller.poll(POLL_S * 1000):
                 why = self._stalled()
                 if why:
-                    raise CorruptFileError(f"{self.source}: {self.decoder} {why} and was stopped; the file is damaged "
-                                           "(a packet cannot be decoded).")
+                    raise CorruptFileError(f"{self.source}: {self.decoder} {why}")
                 continue
             n = os.readv(self.fd, [view[got:]])
             if n == 0:
