@@ -154,19 +154,21 @@ def _env() -> dict:
     return {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
 
 
-def _start(work: Path, *argv: str, stall: str = "-") -> subprocess.Popen:
+def _start(work: Path, *argv: str, stall: str = "-") -> tuple[subprocess.Popen, tuple | None]:
+    """The command running; and (exit code, stdout, stderr) when it ended before reading (a refused header)."""
     proc = subprocess.Popen([sys.executable, "-c", _CLI, stall, *argv], cwd=work, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=_env())
     line = proc.stdout.readline()  # the interpreter's start is not timed: a busy machine may take long
-    if "READING" not in line:
-        out, err = proc.communicate(timeout=60)
-        proc.read_without_reading = (line + out, err)  # ended before reading: the header was refused
-    return proc
+    if "READING" in line:
+        return proc, None
+    out, err = proc.communicate(timeout=60)
+    return proc, (proc.returncode, line + out, err)
 
 
-def _finish(proc: subprocess.Popen, limit: float = LIMIT_S) -> tuple[int, str, str]:
-    if hasattr(proc, "read_without_reading"):
-        return proc.returncode, *proc.read_without_reading
+def _finish(started: tuple[subprocess.Popen, tuple | None], limit: float = LIMIT_S) -> tuple[int, str, str]:
+    proc, ended = started
+    if ended is not None:
+        return ended
     try:
         out, err = proc.communicate(timeout=limit)
     except subprocess.TimeoutExpired:
@@ -222,11 +224,11 @@ def test_damaged_stereo_file_is_refused_within_the_limit(work):
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_signal_during_a_stuck_read_ends_the_command(work, sig):
-    proc = _start(work, "match", "mid_random.aedat4", "right.aedat4", "-m", "frame", "-o", "m.npz", stall="3600")
+    started = _start(work, "match", "mid_random.aedat4", "right.aedat4", "-m", "frame", "-o", "m.npz", stall="3600")
     time.sleep(1.0)  # the reader is at the damaged packet by now, spinning on it
-    children = _children(proc.pid)
-    proc.send_signal(sig)
-    code, _, err = _finish(proc, limit=5)
+    children = _children(started[0].pid)
+    started[0].send_signal(sig)
+    code, _, err = _finish(started, limit=5)
     assert "Traceback" not in err, f"TRACEBACK: {err[-400:]}"
     expected = {signal.SIGINT: (130, "interrupted"), signal.SIGTERM: (128 + signal.SIGTERM, "stopped by SIGTERM")}[sig]
     assert (code, expected[1] in err) == (expected[0], True), f"MESSAGE: exit {code}: {err!r}"
