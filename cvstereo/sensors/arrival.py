@@ -1,0 +1,212 @@
+"""When the decoder's bytes arrived, and how many timestamp wraps that shows a pause hid.
+
+A 16-bit timestamp (E2) wraps every 65.536 ms, so a pause of about a wrap or more hides whole wraps: only the
+host's arrival time of the bytes tells how many passed (formats.md). This module keeps the pieces of bytes the
+decoder holds with what the reader knew of their arrival (:class:`Pieces`), and decides each event's wraps
+from them (:class:`WrapClock`).
+
+The model. The *reading* of an event is the host time at which a reader waiting at the port had its first
+byte. ``d = reading - device time`` is the clock offset plus the link's latency and the host's jitter, so the
+readings of a stream lie within ``2 * jitter_us`` of each other in ``d``. The readings seen (the last event of
+each piece that came to a waiting reader) form a band ``[lo, hi]`` of ``d``; a new event's ``d`` may lie
+anywhere within ``2 * jitter_us`` of both edges. Of the wrap counts (each moves ``d`` by a wrap) those whose
+``d`` can lie there are *possible*; the one nearest the band is taken (the fewest of equals). Where exactly one
+is possible the count is decided: with the host's arrival times within ``jitter_us`` of the truth and the
+band's edges seen (or the epoch of the board's clock known), a reading lies inside ``2 * jitter_us`` of the
+band while the next count lies a wrap away, so the count is always decided and right.
+
+Two more facts narrow it. A reading is exact only for a piece that came to a waiting reader (*fresh*); a
+reader that ran late only knows that the bytes came after its last look at an empty buffer (``after_t``) and
+before its read. And an event cannot be read before it happened: an event's count is at most that of any
+later event, whose upper bound therefore binds the earlier ones too (a sender that stalled sends late events
+in a burst, and the burst's last events are timely again). An event whose count is left open, or whose own
+reading contradicts the counts around it, is *undecided*: the decoder lists it (``StreamDecoder.ambiguous``)
+instead of guessing silently, and does not learn the clock offset from it.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Largest error of the host's arrival times, us: a waiting reader's time of an event's bytes is within this
+#: of the event's device time plus a constant offset (thread scheduling, the USB adapter's latency timer: 16 ms
+#: by default on FTDI chips).
+ARRIVAL_JITTER_US = 20_000
+
+#: Slack on the spread of readings before a wrap count is impossible, us (the link time of a piece, rounding).
+ARRIVAL_SLACK_US = 2_000
+
+#: How fast the band of clock offsets narrows without new readings, per us: clocks drift (crystals, about
+#: 1e-4 apart at most), so a reading seen long ago says less about today's offset.
+OFFSET_LEAK = 1e-4
+
+
+@dataclass
+class Arrivals:
+    """What the host knew of each event's arrival (host us).
+
+    ``hi``: latest time at which its first byte can have been read; ``lo``: earliest (``hi`` when the reading is
+    exact, ``-inf`` when unknown); ``seen``: the reading is exact and ends its piece, so it measures the clock
+    offset.
+    """
+
+    hi: np.ndarray
+    lo: np.ndarray
+    seen: np.ndarray
+
+    def head(self, n: int) -> Arrivals:
+        return Arrivals(self.hi[:n], self.lo[:n], self.seen[:n])
+
+
+class Pieces:
+    """The pieces of bytes a decoder holds, each with its reader's host time, freshness and last empty look."""
+
+    def __init__(self):
+        # [end offset in the decoder's buffer, host us of the read, fresh, host us of the last empty look]
+        self._segs: list[list] = []
+
+    def add(self, end: int, host_t: int | None, fresh: bool, after_t: int | None) -> None:
+        """A piece read at ``host_t`` now ends the buffer at ``end``."""
+        self._segs.append([end, host_t, bool(fresh), after_t])
+
+    def drop(self, pos: int) -> None:
+        """The first ``pos`` bytes of the buffer are gone."""
+        self._segs = [[e - pos, h, f, lo] for e, h, f, lo in self._segs if e > pos]
+
+    def arrivals(self, starts: np.ndarray, ends: np.ndarray, byte_rate: float) -> Arrivals | None:
+        """The arrival of the events at byte offsets ``starts``..``ends`` (sorted), or None when a piece holding
+        them came without a host time."""
+        segs = self._segs
+        if not segs or any(h is None for _, h, _, _ in segs):
+            return None
+        seg_end = np.array([e for e, _, _, _ in segs], np.int64)
+        seg_t = np.array([h for _, h, _, _ in segs], np.float64)
+        seg_fresh = np.array([f for _, _, f, _ in segs], bool)
+        seg_after = np.array([-np.inf if a is None else a for _, _, _, a in segs], np.float64)
+        idx = np.minimum(np.searchsorted(seg_end, starts, side="right"), seg_end.size - 1)
+        # The bytes read after an event's first byte took at least this long to come over the link.
+        hi = seg_t[idx] - (seg_end[idx] - starts) / byte_rate * 1e6
+        fresh, after = seg_fresh[idx], seg_after[idx]
+        # Bytes read by a waiting reader came after its last look at an empty buffer (if known, else at the read);
+        # a late reader knows only that look. The last event of a piece read promptly measures the offset.
+        lo = np.where(fresh & np.isneginf(after), hi, np.minimum(after, hi))
+        seen = fresh & (ends >= seg_end[idx]) & (hi - lo <= ARRIVAL_JITTER_US)
+        return Arrivals(hi, lo, seen)
+
+
+@dataclass
+class Wraps:
+    """The wraps :meth:`WrapClock.decide` found for a run of events (counts relative to the times given).
+
+    ``added``: wraps added up to each event; ``decided``: exactly one count was possible for it; ``fits``: its
+    own reading allows the count taken; ``fewest``/``most``: the counts that were possible (for the listing).
+    """
+
+    added: np.ndarray
+    decided: np.ndarray
+    fits: np.ndarray
+    fewest: np.ndarray
+    most: np.ndarray
+
+    def head(self, n: int) -> Wraps:
+        return Wraps(self.added[:n], self.decided[:n], self.fits[:n], self.fewest[:n], self.most[:n])
+
+
+class WrapClock:
+    """The band of clock offsets seen, and the wraps of new events it decides (see the module docstring).
+
+    Parameters
+    ----------
+    wrap : int
+        Period of the timestamp, us (0: the format has none, nothing to decide).
+    jitter_us : float, keyword-only
+        Largest error of a waiting reader's arrival time (:data:`ARRIVAL_JITTER_US`).
+    """
+
+    def __init__(self, wrap: int, *, jitter_us: float = ARRIVAL_JITTER_US):
+        self.wrap = int(wrap)
+        self.spread = 2.0 * float(jitter_us)
+        self.reset()
+
+    def reset(self, epoch_us: float | None = None) -> None:
+        """Forget the offsets seen; ``epoch_us``: host time at which the board's clock read 0, if known."""
+        self.lo = self.hi = self.at = None if epoch_us is None else float(epoch_us)
+        self.undecided = False  # the last event taken was undecided
+
+    def copy(self) -> WrapClock:
+        """An independent copy (to try a reading of the bytes without committing to it)."""
+        return copy.copy(self)
+
+    def _band(self, now: float) -> tuple[float, float]:
+        lo, hi = self.lo, self.hi
+        shrink = min(OFFSET_LEAK * max(0.0, now - self.at), (hi - lo) / 2)
+        return lo + shrink, hi - shrink
+
+    def decide(self, t: np.ndarray, arr: Arrivals) -> Wraps | None:
+        """The wraps of events at device times ``t`` (already unwrapped by their steps) that arrived as ``arr``;
+        None while no offset is known (the first events of a stream whose epoch is unknown)."""
+        if self.lo is None or not self.wrap or not t.size:
+            return None
+        w = float(self.wrap)
+        lo_d, hi_d = self._band(float(arr.hi[0]))
+        reach_lo = hi_d - self.spread - ARRIVAL_SLACK_US  # the smallest d a reading can have
+        reach_hi = lo_d + self.spread + ARRIVAL_SLACK_US  # the largest
+        x_hi = arr.hi - t  # d + count * wrap, for the latest and the earliest reading
+        known = np.isfinite(arr.lo)
+        x_lo = np.where(known, arr.lo - t, 0.0)
+        most = np.floor((x_hi - reach_lo) / w)
+        least = np.where(known, np.ceil((x_lo - reach_hi) / w), -np.inf)
+        # Nearest the band, the fewest of equals: the fewest count whose d reaches down to the band's top, or one
+        # fewer if that lies nearer above the band than this one lies below it.
+        first = np.where(known, np.ceil((x_lo - hi_d) / w), -np.inf)
+        below = np.maximum(0.0, lo_d - (x_hi - np.where(known, first, 0.0) * w))
+        above = np.where(known, x_lo - (first - 1) * w - hi_d, np.inf)
+        near = np.where(above <= below, first - 1, first)
+        # No event has more wraps than a later one can have; none has fewer than the one before.
+        most_after = np.minimum.accumulate(most[::-1])[::-1]
+        added = np.maximum.accumulate(np.maximum(np.minimum(near, most_after), 0.0))
+        before = np.concatenate([[0.0], added[:-1]])
+        fewest = np.where(least > most_after, before, np.maximum(before, least))
+        decided = (fewest == most_after) & (added == most_after)
+        fits = (added >= least) & (added <= most)
+        return Wraps(added.astype(np.int64), decided, fits, fewest.astype(np.int64),
+                     np.maximum(most_after, before).astype(np.int64))
+
+    def allows(self, t: np.ndarray, arr: Arrivals) -> np.ndarray:
+        """Whether some number of wraps (fewer than none included: the times before may be late) puts each
+        event at a time its own arrival allows; all True while no offset is known."""
+        if self.lo is None or not self.wrap:
+            return np.ones(t.size, bool)
+        w = float(self.wrap)
+        lo_d, hi_d = self._band(float(arr.hi[0]))
+        most = np.floor((arr.hi - t - (hi_d - self.spread - ARRIVAL_SLACK_US)) / w)
+        known = np.isfinite(arr.lo)
+        least = np.ceil((np.where(known, arr.lo, 0.0) - t - (lo_d + self.spread + ARRIVAL_SLACK_US)) / w)
+        return ~known | (least <= most)
+
+    def observe(self, t: np.ndarray, arr: Arrivals, wraps: Wraps | None) -> None:
+        """Take the events at final device times ``t`` (as decided by ``wraps``): learn the clock offset from
+        the exact readings among them whose count was decided and fits."""
+        now = float(arr.hi[-1]) if arr.hi.size else None
+        ok = arr.seen if wraps is None else arr.seen & wraps.decided & wraps.fits
+        if wraps is not None and wraps.decided.size:
+            self.undecided = not bool(wraps.decided[-1])
+        if now is None:
+            return
+        if self.lo is not None:
+            self.lo, self.hi = self._band(now)
+            self.at = now
+        if not ok.any():
+            return
+        d = arr.hi[ok] - t[ok]
+        latest = float(d[-1])
+        lo = float(d.min()) if self.lo is None else min(self.lo, float(d.min()))
+        hi = float(d.max()) if self.hi is None else max(self.hi, float(d.max()))
+        # Readings further apart than the spread: the offset moved (drift, a host clock step); the latest wins.
+        lo, hi = max(lo, latest - self.spread), min(hi, latest + self.spread)
+        if hi - lo > self.spread:
+            lo, hi = (hi - self.spread, hi) if latest - lo > hi - latest else (lo, lo + self.spread)
+        self.lo, self.hi, self.at = lo, hi, now
