@@ -18,8 +18,11 @@ arrival times within ``ARRIVAL_JITTER_US`` (20 ms) of the truth the count is dec
 A reader that ran late by more than that cannot know how many wraps passed; such events are counted in
 :attr:`StreamDecoder.ambiguous_wraps` and listed in :attr:`StreamDecoder.ambiguous` (the count nearest the
 offsets seen is taken, the fewest of equally near ones: as if the stream had run on without a pause).
-Recovery: times before a listed event are exact; from it on they may be off by whole wraps until an event
-whose wraps the arrival times decide again (so cut the recording there, or realign it on a known event).
+Recovery: times before a listed event are exact; from it on, through the run of events whose wraps were left
+open (a late read may hide further pauses inside it), they may be off by whole wraps, until an event whose
+wraps the arrival times decide again: that one is exact (relative to the events before the first listed one;
+on the board's clock when its epoch is known), and so are those after it up to the next listed event. So cut
+the recording at a listed event, or realign it on a known event.
 Streams that must stay exact under load should use a 24- or 32-bit format (``E3``/``E4``: a wrap every
 16.8 s / 71.6 min), which no scheduling delay hides.
 
@@ -111,9 +114,9 @@ class StreamDecoder(Resync):
         recovery).
     ambiguous : list of tuple
         ``(event index, wraps taken, fewest, most)`` per such run (and per wrap taken within one): from that
-        event on, times may be off by whole wraps (the true count lies between the two bounds when the OS
-        delivered the bytes in time). The index counts the events returned since the decoder was made (the
-        first ``MAX_AMBIGUOUS_LISTED``).
+        event on, times may be off by whole wraps until the arrival times decide an event's wraps again (the
+        true count at the listed event lies between the two bounds when the OS delivered the bytes in time).
+        The index counts the events returned since the decoder was made (the first ``MAX_AMBIGUOUS_LISTED``).
     """
 
     def __init__(self, settings: ProtocolSettings | None = None, *, confirm: int = DEFAULT_CONFIRM,
