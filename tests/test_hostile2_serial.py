@@ -12,8 +12,6 @@ wrong or counted corrupt), HANG (over 10 s).
 
 from __future__ import annotations
 
-import contextlib
-import queue
 import time
 
 import numpy as np
@@ -288,8 +286,7 @@ def test_hypothesis_every_byte_position_as_a_cut(seed, n, lo):
 def test_virtual_board_paced_in_real_time(pause):
     # What was seen: a virtual board pacing an E2 stream in real time, pauses of 65.0-65.535 ms, dropped 1-16
     # events after every pause. On a loaded machine a late read may still leave a gap listed as ambiguous.
-    from cvstereo.sensors import EDVS, VirtualEDVS
-    from cvstereo.sensors.edvs import host_us
+    from cvstereo.sensors.virtual import read_back
 
     rng = np.random.default_rng(15)
     n_b = 12
@@ -302,20 +299,6 @@ def test_virtual_board_paced_in_real_time(pause):
     t = np.array(t, np.int64)
     x, y = unique_addresses(t.size, rng)
     ev = make_events(t, x, y, rng.integers(0, 2, t.size))
-    dev = VirtualEDVS(ev, time_origin_us=0)
-    got = []
-    with dev as port, EDVS(port) as cam:
-        cam.configure()
-        epoch = host_us()
-        cam.command(cam.settings.commands.timestamp_reset)
-        cam.clock_reset(epoch)
-        cam.start()
-        deadline = time.monotonic() + 10
-        while not (dev.done and cam.silent) and time.monotonic() < deadline:
-            with contextlib.suppress(queue.Empty):
-                got.append(cam.queue.get(timeout=0.05).events)
-        cam.stop()
-        while not cam.queue.empty():
-            got.append(cam.queue.get().events)
-    assert dev.done, "HANG: the virtual board did not finish within 10 s"
-    check_exact(np.concatenate(got) if got else ev[:0], ev, cam.decoder, absolute=False)
+    out, reader, board = read_back(ev, timeout_s=10)
+    assert board.done, "HANG: the virtual board did not finish within 10 s"
+    check_exact(out, ev, reader.decoder, absolute=False)

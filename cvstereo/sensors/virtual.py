@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import queue
 import select
 import threading
 import time
@@ -314,3 +315,34 @@ class VirtualEDVS:
                 credit_t = max(credit_t + n / rate, now - 0.01)
         except OSError:
             return
+
+
+def read_back(events: np.ndarray, *, settings: ProtocolSettings | None = None, timeout_s: float | None = None):
+    """Play ``events`` on a virtual board in real time and read them back as ``record`` does (one board, its
+    clock reset before streaming), until the board is done and has gone silent, or ``timeout_s`` (default:
+    twice the stream's length plus 10 s) has passed.
+
+    Returns
+    -------
+    (N,) ndarray of EVENT_DTYPE, EDVS, VirtualEDVS
+        The events decoded (times on the board's clock: the events' own, from ``t = 0``, plus the board's lead),
+        the reader (its ``decoder`` and ``status()``) and the board (``done``: it sent every event).
+    """
+    from cvstereo.sensors.edvs import EDVS  # loads the decoder (numba) only when a stream is read
+
+    if timeout_s is None:
+        timeout_s = 2 * (int(events["t"][-1]) / 1e6 if events.size else 0) + 10
+    board = VirtualEDVS(events, settings=settings, time_origin_us=0)
+    got = []
+    with board as port, EDVS(port, settings=settings) as reader:
+        reader.configure()
+        reader.reset_clock()
+        reader.start()
+        deadline = time.monotonic() + timeout_s
+        while not (board.done and reader.silent) and time.monotonic() < deadline:
+            with contextlib.suppress(queue.Empty):
+                got.append(reader.queue.get(timeout=0.05).events)
+        reader.stop()
+        while not reader.queue.empty():
+            got.append(reader.queue.get().events)
+    return (np.concatenate(got) if got else events[:0]), reader, board
