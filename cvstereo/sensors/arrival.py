@@ -11,9 +11,10 @@ readings of a stream lie within ``2 * jitter_us`` of each other in ``d``. The re
 each piece that came to a waiting reader) form a band ``[lo, hi]`` of ``d``; a new event's ``d`` may lie
 anywhere within ``2 * jitter_us`` of both edges. Of the wrap counts (each moves ``d`` by a wrap) those whose
 ``d`` can lie there are *possible*; the one nearest the band is taken (the fewest of equals). Where exactly one
-is possible the count is decided: with the host's arrival times within ``jitter_us`` of the truth and the
-band's edges seen (or the epoch of the board's clock known), a reading lies inside ``2 * jitter_us`` of the
-band while the next count lies a wrap away, so the count is always decided and right.
+is possible the count is decided. With the host's arrival times within ``jitter_us`` of the truth, a reading
+lies within ``2 * jitter_us`` of the band's far edge while the next count's lies a wrap (65.5 ms for E2) away,
+so once the band holds the truth (the epoch of the board's clock is known, or readings from both sides of it
+were seen) the count is decided and right.
 
 Two more facts narrow it. A reading is exact only for a piece that came to a waiting reader (*fresh*); a
 reader that ran late only knows that the bytes came after its last look at an empty buffer (``after_t``) and
