@@ -103,6 +103,7 @@ def decoder_of(rev: str) -> type:
     src = subprocess.run(["git", "show", f"{rev}:cvstereo/sensors/decoder.py"], cwd=REPO, check=True,
                          capture_output=True, text=True).stdout
     mod = types.ModuleType(f"decoder_{rev}")
+    sys.modules[mod.__name__] = mod  # dataclasses look their module up there
     exec(compile(src, f"{rev}:cvstereo/sensors/decoder.py", "exec"), mod.__dict__)
     return mod.StreamDecoder
 

@@ -28,6 +28,7 @@ instead of guessing silently, and does not learn the clock offset from it.
 from __future__ import annotations
 
 import copy
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -66,35 +67,33 @@ class Pieces:
     """The pieces of bytes a decoder holds, each with its reader's host time, freshness and last empty look."""
 
     def __init__(self):
-        # [end offset in the decoder's buffer, host us of the read, fresh, host us of the last empty look]
-        self._segs: list[list] = []
+        # (end offset in the decoder's buffer, host us of the read or NaN, fresh, host us of the last empty look
+        # or -inf) per piece, as floats: one array per call
+        self._segs: list[tuple[float, float, float, float]] = []
 
     def add(self, end: int, host_t: int | None, fresh: bool, after_t: int | None) -> None:
         """A piece read at ``host_t`` now ends the buffer at ``end``."""
-        self._segs.append([end, host_t, bool(fresh), after_t])
+        self._segs.append((end, np.nan if host_t is None else host_t, float(fresh),
+                           -np.inf if after_t is None else after_t))
 
     def drop(self, pos: int) -> None:
         """The first ``pos`` bytes of the buffer are gone."""
-        self._segs = [[e - pos, h, f, lo] for e, h, f, lo in self._segs if e > pos]
+        self._segs = [(e - pos, h, f, a) for e, h, f, a in self._segs if e > pos]
 
     def arrivals(self, starts: np.ndarray, ends: np.ndarray, byte_rate: float) -> Arrivals | None:
         """The arrival of the events at byte offsets ``starts``..``ends`` (sorted), or None when a piece holding
         them came without a host time."""
-        segs = self._segs
-        if not segs or any(h is None for _, h, _, _ in segs):
+        if not self._segs or any(math.isnan(h) for _, h, _, _ in self._segs):
             return None
-        seg_end = np.array([e for e, _, _, _ in segs], np.int64)
-        seg_t = np.array([h for _, h, _, _ in segs], np.float64)
-        seg_fresh = np.array([f for _, _, f, _ in segs], bool)
-        seg_after = np.array([-np.inf if a is None else a for _, _, _, a in segs], np.float64)
+        seg_end, seg_t, seg_fresh, seg_after = np.array(self._segs).T
         idx = np.minimum(np.searchsorted(seg_end, starts, side="right"), seg_end.size - 1)
+        end, fresh, after = seg_end[idx], seg_fresh[idx] > 0, seg_after[idx]
         # The bytes read after an event's first byte took at least this long to come over the link.
-        hi = seg_t[idx] - (seg_end[idx] - starts) / byte_rate * 1e6
-        fresh, after = seg_fresh[idx], seg_after[idx]
+        hi = seg_t[idx] - (end - starts) * (1e6 / byte_rate)
         # Bytes read by a waiting reader came after its last look at an empty buffer (if known, else at the read);
         # a late reader knows only that look. The last event of a piece read promptly measures the offset.
-        lo = np.where(fresh & np.isneginf(after), hi, np.minimum(after, hi))
-        seen = fresh & (ends >= seg_end[idx]) & (hi - lo <= ARRIVAL_JITTER_US)
+        lo = np.minimum(np.where(fresh & (after == -np.inf), hi, after), hi)
+        seen = fresh & (ends >= end) & (hi - lo <= ARRIVAL_JITTER_US)
         return Arrivals(hi, lo, seen)
 
 
@@ -156,8 +155,13 @@ class WrapClock:
         reach_lo = hi_d - self.spread - ARRIVAL_SLACK_US  # the smallest d a reading can have
         reach_hi = lo_d + self.spread + ARRIVAL_SLACK_US  # the largest
         x_hi = arr.hi - t  # d + count * wrap, for the latest and the earliest reading
+        x_lo = arr.lo - t
+        if x_hi.min() >= reach_lo and x_hi.max() < reach_lo + w and not x_lo.max() > reach_hi:
+            # Every reading allows no wrap and none more (a stream read as it comes): nothing to add.
+            none = np.zeros(t.size, np.int64)
+            return Wraps(none, np.ones(t.size, bool), np.ones(t.size, bool), none, none)
         known = np.isfinite(arr.lo)
-        x_lo = np.where(known, arr.lo - t, 0.0)
+        x_lo = np.where(known, x_lo, 0.0)
         most = np.floor((x_hi - reach_lo) / w)
         least = np.where(known, np.ceil((x_lo - reach_hi) / w), -np.inf)
         # Nearest the band, the fewest of equals: the fewest count whose d reaches down to the band's top, or one

@@ -197,6 +197,8 @@ class StreamDecoder(Resync):
     def _record(self, wraps: Wraps) -> None:
         """Count the wraps added and list the runs of events whose wraps were left undecided."""
         self.hidden_wraps += int(wraps.added[-1])
+        if wraps.decided.all():
+            return
         undecided = ~wraps.decided
         before = np.concatenate([[0], wraps.added[:-1]])
         after_decided = np.concatenate([[not self.clock.undecided], wraps.decided[:-1]])
