@@ -182,6 +182,8 @@ def check_exact(got: np.ndarray, want: np.ndarray, dec: StreamDecoder, *, absolu
     assert (found == np.arange(want.size)).all(), "SILENT: events out of order"
     assert (got["p"] == want["p"]).all(), f"SILENT: {int((got['p'] != want['p']).sum())} polarities wrong"
     assert dec.corrupt_bytes == 0, f"SILENT: {dec.corrupt_bytes} bytes of a clean stream counted corrupt"
+    back = np.flatnonzero(np.diff(got["t"]) < 0)
+    assert not back.size, f"SILENT: time runs back after event {int(back[0])}"
     err = got["t"].astype(np.int64) - want["t"]
     if not absolute:
         err = err - err[0]

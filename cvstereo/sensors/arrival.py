@@ -10,8 +10,9 @@ byte. ``d = reading - device time`` is the clock offset plus the link's latency 
 readings of a stream lie within ``2 * jitter_us`` of each other in ``d``. The readings seen (the last event of
 each piece that came to a waiting reader) form a band ``[lo, hi]`` of ``d``; a new event's ``d`` may lie
 anywhere within ``2 * jitter_us`` of both edges. Of the wrap counts (each moves ``d`` by a wrap) those whose
-``d`` can lie there are *possible*; the one nearest the band is taken (the fewest of equals). Where exactly one
-is possible the count is decided. With the host's arrival times within ``jitter_us`` of the truth, a reading
+``d`` can lie there are *possible*; the fewest possible is taken (too few wraps are made up at the next event
+whose count is decided; too many never are, as time does not run back). Where exactly one is possible the
+count is decided. With the host's arrival times within ``jitter_us`` of the truth, a reading
 lies within ``2 * jitter_us`` of the band's far edge while the next count's lies a wrap (65.5 ms for E2) away,
 so once the band holds the truth (the epoch of the board's clock is known, or readings from both sides of it
 were seen) the count is decided and right.
@@ -161,18 +162,13 @@ class WrapClock:
             none = np.zeros(t.size, np.int64)
             return Wraps(none, np.ones(t.size, bool), np.ones(t.size, bool), none, none)
         known = np.isfinite(arr.lo)
-        x_lo = np.where(known, x_lo, 0.0)
-        most = np.floor((x_hi - reach_lo) / w)
-        least = np.where(known, np.ceil((x_lo - reach_hi) / w), -np.inf)
-        # Nearest the band, the fewest of equals: the fewest count whose d reaches down to the band's top, or one
-        # fewer if that lies nearer above the band than this one lies below it.
-        first = np.where(known, np.ceil((x_lo - hi_d) / w), -np.inf)
-        below = np.maximum(0.0, lo_d - (x_hi - np.where(known, first, 0.0) * w))
-        above = np.where(known, x_lo - (first - 1) * w - hi_d, np.inf)
-        near = np.where(above <= below, first - 1, first)
-        # No event has more wraps than a later one can have; none has fewer than the one before.
+        most = np.floor((x_hi - reach_lo) / w)  # hard: no reading comes before its event happened
+        least = np.where(known, np.ceil((np.where(known, x_lo, 0.0) - reach_hi) / w), -np.inf)  # soft: late deliveries
+        # No event has more wraps than a later one can have; none has fewer than the one before. The fewest
+        # possible is taken: too few wraps are made up at the next event whose count is decided, too many never
+        # are (time does not run back).
         most_after = np.minimum.accumulate(most[::-1])[::-1]
-        added = np.maximum.accumulate(np.maximum(np.minimum(near, most_after), 0.0))
+        added = np.maximum.accumulate(np.maximum(np.minimum(least, most_after), 0.0))
         before = np.concatenate([[0.0], added[:-1]])
         fewest = np.where(least > most_after, before, np.maximum(before, least))
         decided = (fewest == most_after) & (added == most_after)

@@ -16,8 +16,8 @@ look at an empty buffer), :class:`~cvstereo.sensors.arrival.WrapClock` counts th
 offset between arrival and device time seen so far, each event's count is the one its arrival allows. With
 arrival times within ``ARRIVAL_JITTER_US`` (20 ms) of the truth the count is decided and exact for any pause.
 A reader that ran late by more than that cannot know how many wraps passed; such events are counted in
-:attr:`StreamDecoder.ambiguous_wraps` and listed in :attr:`StreamDecoder.ambiguous` (the count nearest the
-offsets seen is taken, the fewest of equally near ones: as if the stream had run on without a pause).
+:attr:`StreamDecoder.ambiguous_wraps` and listed in :attr:`StreamDecoder.ambiguous` (the fewest possible
+wraps are taken, as if the stream had run on without a pause).
 Recovery: times before a listed event are exact; from it on, through the run of events whose wraps were left
 open (a late read may hide further pauses inside it), they may be off by whole wraps, until an event whose
 wraps the arrival times decide again: that one is exact (relative to the events before the first listed one;
