@@ -53,15 +53,17 @@ class Arrivals:
 
     ``hi``: latest time at which its first byte can have been read; ``lo``: earliest (``hi`` when the reading is
     exact, ``-inf`` when unknown); ``seen``: the reading is exact and ends its piece, so it measures the clock
-    offset.
+    offset; ``waited``: the event begins a piece that came to a waiting reader (the bytes before it were all
+    read).
     """
 
     hi: np.ndarray
     lo: np.ndarray
     seen: np.ndarray
+    waited: np.ndarray
 
     def head(self, n: int) -> Arrivals:
-        return Arrivals(self.hi[:n], self.lo[:n], self.seen[:n])
+        return Arrivals(self.hi[:n], self.lo[:n], self.seen[:n], self.waited[:n])
 
 
 class Pieces:
@@ -95,7 +97,8 @@ class Pieces:
         # a late reader knows only that look. The last event of a piece read promptly measures the offset.
         lo = np.minimum(np.where(fresh & (after == -np.inf), hi, after), hi)
         seen = fresh & (ends >= end) & (hi - lo <= ARRIVAL_JITTER_US)
-        return Arrivals(hi, lo, seen)
+        waited = fresh & (np.diff(idx, prepend=-1) != 0)
+        return Arrivals(hi, lo, seen, waited)
 
 
 @dataclass
@@ -161,7 +164,7 @@ class WrapClock:
             # Every reading allows no wrap and none more (a stream read as it comes): nothing to add.
             none = np.zeros(t.size, np.int64)
             return Wraps(none, np.ones(t.size, bool), np.ones(t.size, bool), none, none)
-        known = np.isfinite(arr.lo)
+        known = np.isfinite(arr.lo) & ~_caught_up(t, arr, self.spread + ARRIVAL_SLACK_US)
         most = np.floor((x_hi - reach_lo) / w)  # hard: no reading comes before its event happened
         least = np.where(known, np.ceil((np.where(known, x_lo, 0.0) - reach_hi) / w), -np.inf)  # soft: late deliveries
         # No event has more wraps than a later one can have; none has fewer than the one before. The fewest
@@ -211,3 +214,17 @@ class WrapClock:
         if hi - lo > self.spread:
             lo, hi = (hi - self.spread, hi) if latest - lo > hi - latest else (lo, lo + self.spread)
         self.lo, self.hi, self.at = lo, hi, now
+
+
+def _caught_up(t: np.ndarray, arr: Arrivals, spread: float) -> np.ndarray:
+    """Events that came late, in a burst behind a stalled sender: a later event was read as early, relative to
+    its device time, by more than the readings' spread (events between them only make that gap larger), and
+    the bytes queued behind a late event were late too until the reader waits again. Their readings bound
+    their wraps from above only."""
+    u = t - arr.hi  # device time minus reading: the larger, the more timely
+    late = np.maximum.accumulate(u[::-1])[::-1] - u > spread
+    if late.any():
+        last_late = np.maximum.accumulate(np.where(late, np.arange(t.size), -1))
+        burst = np.cumsum(arr.waited)
+        late = (last_late >= 0) & (burst[np.maximum(last_late, 0)] == burst)
+    return late

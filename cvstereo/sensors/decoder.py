@@ -152,9 +152,11 @@ class StreamDecoder(Resync):
         ``epoch_us`` is the host time (as ``host_t``) at which the device clock read zero, if known: the
         first event's wraps are then counted from its arrival too.
         """
-        self._last_raw: int | None = None
+        self._last_raw: int | None = None  # the last event emitted: where times go on from
         self._last_t = 0
-        self._trust = True
+        self._prev_raw: int | None = None  # the last event cut: where the next cut's first step is checked from
+        self._trust = True  # the next cut's first step is not checked (a new alignment, confirmed)
+        self._pending: list[tuple[Scan, bool]] = []  # events cut in this call, not emitted yet (and their trust)
         self.clock.reset(epoch_us)
 
     @property
@@ -173,7 +175,7 @@ class StreamDecoder(Resync):
         if limit is None:
             limit = (buf.size - pos) // self.fmt.size + 1
         if trust is None:
-            prev_raw, trust = self._last_raw, self._trust
+            prev_raw, trust = self._prev_raw, self._trust
         starts, ends, ts, stop, failed = _scan.cut(buf, pos, limit, *self._kernel_args(), prev_raw or 0,
                                                    prev_raw is not None, trust)
         return Scan(starts, ends, ts, int(stop), bool(failed))
@@ -208,12 +210,29 @@ class StreamDecoder(Resync):
                 lo, hi = sorted((max(0, int(wraps.fewest[i] - before[i])), max(0, int(wraps.most[i] - before[i]))))
                 self.ambiguous.append((self.events_decoded + i, int(wraps.added[i] - before[i]), lo, hi))
 
-    def _emit(self, sc: Scan, host_t: int | None, *, defer: bool = False) -> tuple[np.ndarray, int]:
-        """The events of ``sc`` and the byte position after them; with ``defer``, not the run at its end whose
-        wraps the arrival times leave undecided while a later event may still decide them."""
+    def _take(self, sc: Scan) -> None:
+        """Cut events to emit at the end of the call (with the others, so that their wraps are decided together:
+        a burst behind a stalled sender shows only in its later events)."""
+        if len(sc):
+            self._pending.append((sc, self._trust))
+            self._prev_raw, self._trust = int(sc.ts[-1]), False
+
+    def _joined(self, sc: Scan | None = None) -> Scan:
+        """The events taken in this call (and ``sc``'s) as one scan."""
+        parts = [p for p, _ in self._pending] + ([sc] if sc is not None and len(sc) else [])
+        if len(parts) == 1:
+            return parts[0]
+        cat = [np.concatenate([getattr(p, f) for p in parts] or [np.empty(0, np.int64)])
+               for f in ("starts", "ends", "ts")]
+        return Scan(*cat, parts[-1].stop if parts else 0, False)
+
+    def _emit(self, host_t: int | None, *, defer: bool) -> np.ndarray:
+        """The events taken in this call; with ``defer``, not the run at the end of the last piece cut whose wraps
+        the arrival times leave undecided while a later event may still decide them (cut again next call)."""
+        sc = self._joined()
         m = len(sc)
         if m == 0:
-            return np.empty(0, EVENT_DTYPE), sc.stop
+            return empty_events()
         fmt = self.fmt
         if fmt.delta:
             t = self._last_t + np.cumsum(sc.ts)
@@ -222,19 +241,23 @@ class StreamDecoder(Resync):
             t = np.full(m, max(self._last_t, 0 if host_t is None else int(host_t)), np.int64)
         else:
             t, arr, wraps = self._times(sc, self.clock)
+            last, trusted = self._pending[-1]
             if wraps is not None and defer and not wraps.decided[-1]:
-                n = int(np.flatnonzero(np.concatenate([[True], wraps.decided]))[-1])
+                n = max(int(np.flatnonzero(np.concatenate([[True], wraps.decided]))[-1]), m - len(last))
                 if m - n < MAX_GAP_WITNESSES:
-                    if n == 0:
-                        return np.empty(0, EVENT_DTYPE), int(sc.starts[0])
+                    # Cut again from there next call, from the last event emitted.
+                    self._prev_raw = int(sc.ts[n - 1]) if n else self._last_raw
+                    self._trust = trusted and n == m - len(last)
+                    self._deferred = int(sc.starts[n])
                     sc, t, arr, wraps, m = sc.head(n), t[:n], arr.head(n), wraps.head(n), n
+                    if m == 0:
+                        return empty_events()
             if wraps is not None:
                 self._record(wraps)
             if arr is not None:
                 self.clock.observe(t, arr, wraps)
             self._last_raw = int(sc.ts[-1])
         self._last_t = int(t[-1])
-        self._trust = False
         out = np.empty(m, EVENT_DTYPE)
         b0 = self._view[sc.starts]
         b1 = self._view[sc.starts + 1]
@@ -244,8 +267,8 @@ class StreamDecoder(Resync):
         pbit = b1 >> 7
         out["p"] = (pbit == 0) if self.settings.off_bit_set else (pbit != 0)
         self.events_decoded += m
-        self.bytes_decoded += int(sc.ends[-1] - sc.starts[0])
-        return out, sc.stop
+        self.bytes_decoded += int((sc.ends - sc.starts).sum())
+        return out
 
     def decode(self, data: bytes, *, host_t: int | None = None, fresh: bool = True, after_t: int | None = None,
                final: bool = False, release: bool = False) -> np.ndarray:
@@ -283,7 +306,7 @@ class StreamDecoder(Resync):
             self._pieces.add(len(self._buf), host_t, fresh, after_t)
         buf = self._view = np.frombuffer(bytes(self._buf), np.uint8)
         pos = 0
-        parts = []
+        self._pending, self._deferred = [], None
         hold = 0 if (final or release) else self.confirm - 1
         # At a pause (release) or the end (final) bad bytes are judged with the bytes there are.
         settle = 2 if final else (1 if release else 0)
@@ -304,8 +327,9 @@ class StreamDecoder(Resync):
             sc = self._cut(buf, pos)
             m = len(sc)
             if not sc.failed:
-                out, pos = self._emit(sc.head(max(0, m - hold)), host_t, defer=not settle)
-                parts.append(out)
+                head = sc.head(max(0, m - hold))
+                self._take(head)
+                pos = head.stop
                 if final and pos < buf.size:
                     self.corrupt_bytes += buf.size - pos  # an incomplete event at the very end
                     self.tail_bytes = buf.size - pos
@@ -314,24 +338,28 @@ class StreamDecoder(Resync):
             found = self._resync(buf, sc, settle)
             if found is None:
                 # Not enough bytes after the bad spot to decide: wait (a bounded number of bytes).
-                out, pos = self._emit(sc.head(max(0, m - hold)), host_t)
-                parts.append(out)
+                head = sc.head(max(0, m - hold))
+                self._take(head)
+                pos = head.stop
                 break
             q, keep = found
-            out, stop = self._emit(sc.head(keep), host_t)
-            parts.append(out)
+            head = sc.head(keep)
+            self._take(head)
             if q < 0:
-                pos = stop
+                pos = head.stop
                 self._searching = True
                 continue
-            self.corrupt_bytes += q - stop
+            self.corrupt_bytes += q - head.stop
             self._trust = True
             pos = q
+        # Events held back for the next call may only be those at the end (no bytes were counted after them).
+        defer = not settle and bool(self._pending) and pos == self._pending[-1][0].stop
+        out = self._emit(host_t, defer=defer)
+        if self._deferred is not None:
+            pos = self._deferred
+        self._pending = []
         self._drop(pos)
-        parts = [p for p in parts if p.size]
-        if not parts:
-            return empty_events()
-        return parts[0] if len(parts) == 1 else np.concatenate(parts)
+        return out
 
     def _drop(self, pos: int) -> None:
         del self._buf[:pos]

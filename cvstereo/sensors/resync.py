@@ -45,18 +45,25 @@ RESYNC_WINDOW = 512
 
 @dataclass
 class _Trial:
-    """The clock as it would be after the events before a bad step (their raw timestamps and times), and the
-    event emitted before them."""
+    """The clock as it would be after the events cut so far in this call and those before a bad step (their raw
+    timestamps and times; ``offset`` of them come before the bad step's scan), and the event emitted before."""
 
     clock: WrapClock
     raws: np.ndarray
     times: np.ndarray
+    offset: int
     raw0: int | None
     t0: int
 
     def before(self, keep: int) -> tuple[int | None, int]:
-        """(raw timestamp, time) of the event time runs on from when the first ``keep`` events are kept."""
-        return (int(self.raws[keep - 1]), int(self.times[keep - 1])) if keep else (self.raw0, self.t0)
+        """(raw timestamp, time) of the event time runs on from when the first ``keep`` events of the scan are
+        kept."""
+        i = self.offset + keep
+        return (int(self.raws[i - 1]), int(self.times[i - 1])) if i else (self.raw0, self.t0)
+
+    def last(self) -> tuple[int | None, int]:
+        """(raw timestamp, time) of the last event."""
+        return self.before(len(self.raws) - self.offset)
 
 
 class Resync:
@@ -80,8 +87,8 @@ class Resync:
         # themselves garbage (parsed by chance) is decided by trying to continue from each of them.
         lo = max(0, m - (self.confirm - 1))
         prevs = [(j + 1, int(sc.ts[j])) for j in range(m - 1, lo - 1, -1)]
-        if lo == 0 and self._last_raw is not None:
-            prevs.append((0, self._last_raw))
+        if lo == 0 and self._prev_raw is not None:
+            prevs.append((0, self._prev_raw))
         short = p + RESYNC_WINDOW > buf.size and not settle
         best = None
         for keep, prev in prevs:
@@ -120,17 +127,19 @@ class Resync:
         return found
 
     def _trial(self, sc: Scan) -> _Trial | None:
-        """The clock after ``sc``'s events, tried without committing; None without arrival times or offset."""
+        """The clock after the events cut so far and ``sc``'s, tried without committing; None without arrival
+        times or a clock offset."""
+        joined = self._joined(sc)
         clock = self.clock.copy()
         times = np.empty(0, np.int64)
-        if len(sc):
-            times, arr, wraps = self._times(sc, clock)
+        if len(joined):
+            times, arr, wraps = self._times(joined, clock)
             if arr is None:
                 return None
             clock.observe(times, arr, wraps)
-        if clock.lo is None or (not len(sc) and self._last_raw is None):
+        if clock.lo is None or (not len(joined) and self._last_raw is None):
             return None
-        return _Trial(clock, sc.ts, times, self._last_raw, self._last_t)
+        return _Trial(clock, joined.ts, times, len(joined) - len(sc), self._last_raw, self._last_t)
 
     def _next_event(self, buf: np.ndarray, pos: int, raw: int, t: int):
         """(device time before wraps, arrival) of the event at byte ``pos`` if it followed an event (``raw``,
@@ -146,9 +155,14 @@ class Resync:
         run = self._cut(buf, q, limit=self.resync_events, prev_raw=None, trust=True)
         if len(run) >= self.resync_events or not self.fmt.ts_bytes:
             return True
-        raw, t = (self._last_raw, self._last_t) if self._last_raw is not None else (int(run.ts[0]),) * 2
+        trial = self._trial(run.head(0))
+        if trial is None:
+            return True
+        raw, t = trial.last()
+        if raw is None:
+            raw = t = int(run.ts[0])
         base, arr = self._next_event(buf, q, raw, t)
-        return arr is None or bool(self.clock.allows(base, arr)[0])
+        return arr is None or bool(trial.clock.allows(base, arr)[0])
 
     def _hides_a_wrap(self, buf: np.ndarray, found: tuple[int, int], trial: _Trial) -> bool:
         """Whether the arrival times allow a wrap between the event time would run on from and the event at
@@ -165,7 +179,7 @@ class Resync:
         """Whether the stream resumes at byte ``p`` after a pause: ``resync_events`` events at its alignment,
         in runs of plausible steps, each run's first event at a time its arrival allows. None: the bytes end
         before that is decided (and the stream has not paused)."""
-        (raw, t), count = trial.before(len(trial.raws)), 0
+        (raw, t), count = trial.last(), 0
         while count < self.resync_events:
             run = self._cut(buf, p, limit=self.resync_events - count, prev_raw=raw, trust=True)
             if not len(run):

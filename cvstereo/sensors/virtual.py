@@ -84,6 +84,7 @@ class VirtualEDVS:
         self.commands: list[str] = []
         self.streaming = False
         self.sent_events = 0
+        self.late_us = 0  # longest an event waited past its time before this board sent it (its thread ran late)
         self.sent_bytes = 0
         self.garbage_bytes = 0
         self.port: str | None = None
@@ -264,6 +265,7 @@ class VirtualEDVS:
             garbage, self._garbage = b"".join(self._garbage), []
         if hi > self._next:
             chunk = self.events[self._next:hi].copy()
+            self.late_us = max(self.late_us, round(t_due - int(chunk["t"][0])))
             chunk["t"] = chunk["t"] - self._t0 + self.lead_us
             s = ProtocolSettings(event_format=self.format, sync_bit_set=self.settings.sync_bit_set,
                                  off_bit_set=self.settings.off_bit_set, numbering=self.settings.numbering)
