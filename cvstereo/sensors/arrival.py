@@ -97,7 +97,8 @@ class Pieces:
         # a late reader knows only that look. The last event of a piece read promptly measures the offset.
         lo = np.minimum(np.where(fresh & (after == -np.inf), hi, after), hi)
         seen = fresh & (ends >= end) & (hi - lo <= ARRIVAL_JITTER_US)
-        waited = fresh & (np.diff(idx, prepend=-1) != 0)
+        waited = fresh.copy()
+        waited[1:] &= idx[1:] != idx[:-1]
         return Arrivals(hi, lo, seen, waited)
 
 
@@ -162,8 +163,8 @@ class WrapClock:
         x_lo = arr.lo - t
         if x_hi.min() >= reach_lo and x_hi.max() < reach_lo + w and not x_lo.max() > reach_hi:
             # Every reading allows no wrap and none more (a stream read as it comes): nothing to add.
-            none = np.zeros(t.size, np.int64)
-            return Wraps(none, np.ones(t.size, bool), np.ones(t.size, bool), none, none)
+            none, yes = np.zeros(t.size, np.int64), np.ones(t.size, bool)
+            return Wraps(none, yes, yes, none, none)
         known = np.isfinite(arr.lo) & ~_caught_up(t, arr, self.spread + ARRIVAL_SLACK_US)
         most = np.floor((x_hi - reach_lo) / w)  # hard: no reading comes before its event happened
         least = np.where(known, np.ceil((np.where(known, x_lo, 0.0) - reach_hi) / w), -np.inf)  # soft: late deliveries

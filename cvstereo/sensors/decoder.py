@@ -135,7 +135,10 @@ class StreamDecoder(Resync):
         self._sync = 0x80 if self.settings.sync_bit_set else 0
         self._buf = bytearray()
         self._pieces = Pieces()
-        self.clock = WrapClock(self.fmt.wrap)
+        self._wrap = self.fmt.wrap
+        self._kargs = (self.fmt.size, self.fmt.ts_bytes, self.fmt.delta, MAX_DELTA_BYTES, max(self._wrap, 1),
+                       self._sync, self.max_gap_us)
+        self.clock = WrapClock(self._wrap)
         self._searching = False
         self.corrupt_bytes = 0
         self.events_decoded = 0
@@ -166,8 +169,7 @@ class StreamDecoder(Resync):
 
     # -- cutting ----------------------------------------------------------------------------------
     def _kernel_args(self):
-        f = self.fmt
-        return f.size, f.ts_bytes, f.delta, MAX_DELTA_BYTES, max(f.wrap, 1), self._sync, self.max_gap_us
+        return self._kargs
 
     def _cut(self, buf: np.ndarray, pos: int, *, limit: int | None = None, prev_raw: int | None = None,
              trust: bool | None = None) -> Scan:
@@ -189,11 +191,11 @@ class StreamDecoder(Resync):
         prev[0] = raw[0] if self._last_raw is None else self._last_raw
         prev[1:] = raw[:-1]
         base = raw[0] if self._last_raw is None else self._last_t
-        t = base + np.cumsum((raw - prev) % self.fmt.wrap)
+        t = base + np.cumsum((raw - prev) % self._wrap)
         arr = self._pieces.arrivals(sc.starts, sc.ends, self.byte_rate)
         wraps = None if arr is None else clock.decide(t, arr)
         if wraps is not None:
-            t = t + wraps.added * self.fmt.wrap
+            t = t + wraps.added * self._wrap
         return t, arr, wraps
 
     def _record(self, wraps: Wraps) -> None:

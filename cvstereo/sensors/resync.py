@@ -147,7 +147,7 @@ class Resync:
         _, _, ts = _scan.event_at(buf, pos, self.fmt.size, self.fmt.ts_bytes, self.fmt.delta, MAX_DELTA_BYTES,
                                   self._sync)
         arr = self._pieces.arrivals(np.array([pos]), np.array([pos + self.fmt.size]), self.byte_rate)
-        return np.array([t + (int(ts) - raw) % self.fmt.wrap], np.int64), arr
+        return np.array([t + (int(ts) - raw) % self._wrap], np.int64), arr
 
     def _may_start(self, buf: np.ndarray, q: int) -> bool:
         """Whether the search may resume at byte ``q``: ``resync_events`` agree there, or (fewer, at a pause or
@@ -188,8 +188,8 @@ class Resync:
             if arr is not None and not trial.clock.allows(base, arr)[0]:
                 return False
             wraps = None if arr is None else trial.clock.decide(base, arr)
-            t = int(base[0]) + (int(wraps.added[0]) * self.fmt.wrap if wraps is not None else 0)
-            t += int((np.diff(run.ts) % self.fmt.wrap).sum())
+            t = int(base[0]) + (int(wraps.added[0]) * self._wrap if wraps is not None else 0)
+            t += int((np.diff(run.ts) % self._wrap).sum())
             raw, p, count = int(run.ts[-1]), run.stop, count + len(run)
             if not run.failed and count < self.resync_events:
                 return True if settle else None
