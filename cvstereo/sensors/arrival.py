@@ -21,7 +21,10 @@ Two more facts narrow it. A reading is exact only for a piece that came to a wai
 reader that ran late only knows that the bytes came after its last look at an empty buffer (``after_t``) and
 before its read. And an event cannot be read before it happened: an event's count is at most that of any
 later event, whose upper bound therefore binds the earlier ones too (a sender that stalled sends late events
-in a burst, and the burst's last events are timely again). An event whose count is left open, or whose own
+in a burst, and the burst's last events are timely again). Such a burst also shows in the readings
+themselves where a later event was read as early, relative to its device time, as an earlier one by more than
+the readings' spread: the earlier one (and the bytes queued behind it) came late, and its reading bounds its
+count from above only. An event whose count is left open, or whose own
 reading contradicts the counts around it, is *undecided*: the decoder lists it (``StreamDecoder.ambiguous``)
 instead of guessing silently, and does not learn the clock offset from it.
 """

@@ -136,6 +136,7 @@ class StreamDecoder(Resync):
         self._buf = bytearray()
         self._pieces = Pieces()
         self._wrap = self.fmt.wrap
+        # The compiled scanners' arguments for this format.
         self._kargs = (self.fmt.size, self.fmt.ts_bytes, self.fmt.delta, MAX_DELTA_BYTES, max(self._wrap, 1),
                        self._sync, self.max_gap_us)
         self.clock = WrapClock(self._wrap)
@@ -160,6 +161,7 @@ class StreamDecoder(Resync):
         self._prev_raw: int | None = None  # the last event cut: where the next cut's first step is checked from
         self._trust = True  # the next cut's first step is not checked (a new alignment, confirmed)
         self._pending: list[tuple[Scan, bool]] = []  # events cut in this call, not emitted yet (and their trust)
+        self._deferred: int | None = None  # where this call's held-back events start (cut again next call)
         self.clock.reset(epoch_us)
 
     @property
@@ -168,17 +170,14 @@ class StreamDecoder(Resync):
         return len(self._buf)
 
     # -- cutting ----------------------------------------------------------------------------------
-    def _kernel_args(self):
-        return self._kargs
-
     def _cut(self, buf: np.ndarray, pos: int, *, limit: int | None = None, prev_raw: int | None = None,
              trust: bool | None = None) -> Scan:
-        """Events from ``pos`` at its alignment (by default: continuing the last event emitted)."""
+        """Events from ``pos`` at its alignment (by default: continuing the last event cut)."""
         if limit is None:
             limit = (buf.size - pos) // self.fmt.size + 1
         if trust is None:
             prev_raw, trust = self._prev_raw, self._trust
-        starts, ends, ts, stop, failed = _scan.cut(buf, pos, limit, *self._kernel_args(), prev_raw or 0,
+        starts, ends, ts, stop, failed = _scan.cut(buf, pos, limit, *self._kargs, prev_raw or 0,
                                                    prev_raw is not None, trust)
         return Scan(starts, ends, ts, int(stop), bool(failed))
 

@@ -74,7 +74,7 @@ class Resync:
     def _first_agreeing(self, buf: np.ndarray, lo: int, hi: int, prev_raw: int | None, settle: int):
         # A continuation of `prev_raw` needs all `resync_events`; the search after a pause or garbage may
         # settle for fewer at a pause or the end of the stream (the real alignment comes first there).
-        q, undecided = _scan.first_agreeing(buf, lo, hi, self.resync_events, *self._kernel_args(),
+        q, undecided = _scan.first_agreeing(buf, lo, hi, self.resync_events, *self._kargs,
                                             prev_raw or 0, prev_raw is not None, prev_raw is None, settle)
         return int(q), int(undecided)
 
