@@ -86,10 +86,15 @@ class Pieces:
         """The first ``pos`` bytes of the buffer are gone."""
         self._segs = [(e - pos, h, f, a) for e, h, f, a in self._segs if e > pos]
 
+    @property
+    def timed(self) -> bool:
+        """Every piece held came with a host time."""
+        return bool(self._segs) and not any(math.isnan(h) for _, h, _, _ in self._segs)
+
     def arrivals(self, starts: np.ndarray, ends: np.ndarray, byte_rate: float) -> Arrivals | None:
         """The arrival of the events at byte offsets ``starts``..``ends`` (sorted), or None when a piece holding
         them came without a host time."""
-        if not self._segs or any(math.isnan(h) for _, h, _, _ in self._segs):
+        if not self.timed:
             return None
         seg_end, seg_t, seg_fresh, seg_after = np.array(self._segs).T
         idx = np.minimum(np.searchsorted(seg_end, starts, side="right"), seg_end.size - 1)

@@ -129,6 +129,8 @@ class Resync:
     def _trial(self, sc: Scan) -> _Trial | None:
         """The clock after the events cut so far and ``sc``'s, tried without committing; None without arrival
         times or a clock offset."""
+        if not self._pieces.timed:
+            return None
         joined = self._joined(sc)
         clock = self.clock.copy()
         times = np.empty(0, np.int64)
