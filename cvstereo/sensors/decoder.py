@@ -268,7 +268,9 @@ class StreamDecoder(Resync):
         pbit = b1 >> 7
         out["p"] = (pbit == 0) if self.settings.off_bit_set else (pbit != 0)
         self.events_decoded += m
-        self.bytes_decoded += int((sc.ends - sc.starts).sum())
+        # The events of one cut lie back to back; between cuts lie the bytes skipped.
+        one_cut = len(self._pending) == 1
+        self.bytes_decoded += int(sc.ends[-1] - sc.starts[0]) if one_cut else int((sc.ends - sc.starts).sum())
         return out
 
     def decode(self, data: bytes, *, host_t: int | None = None, fresh: bool = True, after_t: int | None = None,
