@@ -13,12 +13,12 @@ E = 1_000_000  # host us at which the board's clock read 0
 
 def fresh(readings):
     r = np.asarray(readings, np.float64)
-    return Arrivals(r, r.copy(), np.ones(r.size, bool))
+    return Arrivals(r, r.copy(), np.ones(r.size, bool), np.ones(r.size, bool))
 
 
 def late(after, readings):
     r = np.asarray(readings, np.float64)
-    return Arrivals(r, np.full(r.size, float(after)), np.zeros(r.size, bool))
+    return Arrivals(r, np.full(r.size, float(after)), np.zeros(r.size, bool), np.zeros(r.size, bool))
 
 
 @pytest.mark.parametrize("jitter", [-19_000, -5_000, 0, 7_000, 19_000])
@@ -74,8 +74,8 @@ def test_undecided_readings_teach_the_clock_nothing():
     clock = WrapClock(W)
     clock.reset(E)
     got = clock.decide(np.array([0.0]), late(E - 10_000, [E + 200_000]))
-    clock.observe(np.array([0.0]), Arrivals(np.array([E + 200_000.0]), np.array([E - 10_000.0]), np.array([True])),
-                  got)
+    clock.observe(np.array([0.0]), Arrivals(np.array([E + 200_000.0]), np.array([E - 10_000.0]), np.array([True]),
+                                            np.array([True])), got)
     assert (clock.lo, clock.hi) == (E, E) and clock.undecided
 
 
@@ -93,3 +93,19 @@ def test_pieces_give_each_event_its_arrival():
     assert pieces.arrivals(np.array([0]), np.array([4]), 400_000).hi.tolist() == [200_000 - 15]
     pieces.add(20, None, True, None)
     assert pieces.arrivals(np.array([0]), np.array([4]), 400_000) is None
+
+
+def test_a_burst_behind_a_stalled_sender_bounds_its_wraps_from_above_only():
+    # The sender stalled and sent three events 0, 25 and 50 ms apart at once, 85 ms after the first. Read alone,
+    # the first is decided a wrap later (85 - 65.5 ms lies within the jitter, 85 ms does not); read with the
+    # others, it is seen to have waited 50 ms longer than the last (beyond the readings' spread), and so have
+    # the bytes queued behind it: no count is decided, and the fewest is taken.
+    clock = WrapClock(W)
+    clock.reset(E)
+    t = np.array([0.0, 25_000.0, 50_000.0])
+    read = np.full(3, E + 85_000.0)
+    alone = clock.decide(t[:1], Arrivals(read[:1], read[:1], np.ones(1, bool), np.ones(1, bool)))
+    assert alone.added.tolist() == [1] and alone.decided.tolist() == [True]
+    waited = np.array([True, False, False])
+    got = clock.decide(t, Arrivals(read, read, waited, waited))
+    assert got.added.tolist() == [0, 0, 0] and not got.decided.any()
