@@ -162,7 +162,8 @@ def resolve_recordings(specs: Iterable[str], *, progress: bool = False) -> list[
 
     A spec is a path, a glob (``data/*.npz``), ``preset:NAME`` or ``preset:NAME:SECONDS`` (a simulated
     preset, generated once and cached, see :func:`cvstereo.simulate.presets.cached_preset`), or
-    ``suite:NAME`` (every recording of a simulated suite, where the simulator has one).
+    ``suite:NAME`` (every recording of a simulated suite, where the simulator has one; ``suite:NAME:tune`` or
+    ``suite:NAME:eval`` one half of a suite that has a tuning and an evaluation half).
 
     Raises
     ------
@@ -191,7 +192,9 @@ def resolve_recordings(specs: Iterable[str], *, progress: bool = False) -> list[
     return list(dict.fromkeys(out))
 
 
-def _suite_paths(name: str, *, progress: bool) -> list[str]:
+def _suite_paths(spec: str, *, progress: bool) -> list[str]:
     from cvstereo.simulate import suite_recordings
 
-    return [os.fspath(path) for _, path in suite_recordings(name, progress=progress)]
+    name, _, half = spec.partition(":")  # NAME, or NAME:HALF of a suite with a tuning and an evaluation half
+    extra = {"half": half} if half else {}
+    return [os.fspath(path) for _, path in suite_recordings(name, progress=progress, **extra)]
