@@ -434,10 +434,14 @@ def bench_markdown(results: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: The files :func:`write_results` writes into its folder.
+RESULT_FILES = ("results.json", "results.md")
+
+
 def write_results(results: dict, folder: Path) -> tuple[Path, Path]:
     """Write ``results.json`` and ``results.md`` into ``folder`` (atomically)."""
     folder.mkdir(parents=True, exist_ok=True)
-    json_path, md_path = folder / "results.json", folder / "results.md"
+    json_path, md_path = (folder / name for name in RESULT_FILES)
     write_text_atomic(json_path, to_json(results, indent=1))
     write_text_atomic(md_path, bench_markdown(results))
     return json_path, md_path

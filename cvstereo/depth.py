@@ -12,6 +12,7 @@ squares; or they come from the rig (focal length in px, baseline in m, axis offs
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -64,6 +65,27 @@ class DepthModel:
 
     def to_dict(self) -> dict:
         return {"a": self.a, "c": self.c}
+
+
+def depth_from_meta(meta: Mapping) -> DepthModel | None:
+    """The disparity-to-distance model a file's meta holds or implies, or None.
+
+    Uses ``meta["depth"] = {"a": ..., "c": ...}`` when present (what `cvstereo match` stores), else the rig's
+    ``focal_px`` and ``baseline_m`` (and ``axis_offset_px`` as c), as the simulator writes them.
+
+    Raises
+    ------
+    ValueError, TypeError
+        The values are not a valid model (:class:`DepthModel`).
+    """
+    depth = meta.get("depth")
+    if isinstance(depth, Mapping) and "a" in depth:
+        return DepthModel(a=float(depth["a"]), c=float(depth.get("c", 0.0)))
+    rig = meta.get("rig")
+    if isinstance(rig, Mapping) and "focal_px" in rig and "baseline_m" in rig and float(rig["baseline_m"]) > 0:
+        return DepthModel.from_rig(focal_px=float(rig["focal_px"]), baseline_m=float(rig["baseline_m"]),
+                                   offset_px=float(rig.get("axis_offset_px", rig.get("offset_px", 0.0))))
+    return None
 
 
 def fit_depth_model(distances_m, disparities_px, *, weights=None) -> DepthModel:

@@ -27,6 +27,8 @@ from cvstereo.io._atomic import write_text_atomic
 
 FORMAT = "cvstereo-depth-model"
 VERSION = 1
+#: What a depth-model file is, for a message about a missing one.
+WHAT = "depth-model file (write one with `cvstereo depth-fit -o`)"
 
 
 def save_depth_model(path: str | os.PathLike, model: DepthModel, *, points: list[dict] | None = None,
@@ -62,7 +64,7 @@ def load_depth_model(path: str | os.PathLike) -> DepthModel:
         with open(path, encoding="utf-8") as fh:
             text = fh.read()
     except FileNotFoundError:
-        raise FileNotFoundError(f"{path}: no such depth-model file (write one with `cvstereo depth-fit -o`).") from None
+        raise FileNotFoundError(f"{path}: no such {WHAT}.") from None
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:

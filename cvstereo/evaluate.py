@@ -237,29 +237,76 @@ def _anchor_cameras(value) -> list[int] | None:
     return [int(c) for c in value]
 
 
-def check_same_recording(recording: Recording, meta: Mapping) -> None:
-    """Refuse scoring matches computed on another recording: the event count and sensor size stored in the
-    matches' meta (``input_events``, ``resolution``) must be the recording's.
+def check_same_recording(recording: Recording, meta: Mapping, matches: np.ndarray | None = None) -> str | None:
+    """Refuse matches computed on another recording than ``recording`` (the events as read from its files).
+
+    The matches' meta holds a fingerprint of the events they were computed on (:mod:`cvstereo.fingerprint`):
+    other events, or the same on a shifted clock, are refused, saying which. A matches file written before
+    fingerprints is checked by what it has: its event count and sensor size, and that its matches fall within
+    the recording's time span (else every match would count as false).
+
+    Parameters
+    ----------
+    recording : Recording
+        As read, before any swap of its cameras.
+    meta : mapping
+        The matches file's meta.
+    matches : (N,) ndarray of MATCH_DTYPE, optional
+        The matches, for the time-span check of files without a fingerprint.
+
+    Returns
+    -------
+    str or None
+        A note when the matches carry no fingerprint, or one this version cannot read (the check was partial),
+        else None.
 
     Raises
     ------
     ValueError
         Saying what differs and which input the matches file names.
     """
+    from cvstereo.fingerprint import difference
+
     source = meta.get("input")
     source = ", ".join(map(str, source)) if isinstance(source, list) else source
     where = f" (the matches file names {source} as its input)" if source else ""
-    n = int(recording.left.size + recording.right.size)
-    stored = meta.get("input_events")
-    if stored is not None and stored != n:
-        raise ValueError(f"the matches were computed on {stored} events but this recording has {n:,}{where}: "
-                         "they come from another recording (or a clip of it); give the recording they were "
-                         "computed on, or --force to score them anyway.")
+    advice = "give the recording they were computed on, or --force to use them anyway."
     res = meta.get("resolution")
     if res is not None and list(res) != list(recording.resolution):
         w, h = recording.resolution
-        raise ValueError(f"the matches were computed on a {res} sensor, this recording is {w}x{h}{where}; give "
-                         "the recording they were computed on, or --force to score them anyway.")
+        raise ValueError(f"the matches were computed on a {res} sensor, this recording is {w}x{h}{where}; {advice}")
+    unchecked = "holds no fingerprint of its recording (written by an older cvstereo)"
+    if "fingerprint" in meta:
+        try:
+            why = difference(meta["fingerprint"], recording)
+        except ValueError as exc:
+            unchecked = str(exc)
+        else:
+            if why is None:
+                return None
+            if why.startswith("the same events"):
+                raise ValueError(f"the matches were computed on {why}{where}; {advice}")
+            raise ValueError(f"the matches were computed on another recording: {why}{where}; {advice}")
+    n = int(recording.left.size + recording.right.size)
+    stored = meta.get("input_events")
+    if stored is not None and stored != n:
+        raise ValueError(f"the matches were computed on another recording: {stored} events, this recording has "
+                         f"{n:,}{where} (or a clip of it); {advice}")
+    _check_overlap(recording, meta, matches, where, advice)
+    return f"{unchecked}: not checked that it was computed on these events beyond their count and time span"
+
+
+def _check_overlap(recording: Recording, meta: Mapping, matches, where: str, advice: str) -> None:
+    """Matches none of whose windows meet the recording's time span come from another clock or recording."""
+    if matches is None or not matches.size or not (recording.left.size or recording.right.size):
+        return
+    window = int(meta.get("window_us") or 0) if meta.get("anchor") == "window" else 0
+    first, last = int(matches["t"][0]) - window, int(matches["t"][-1])
+    if last < recording.t_start or first > recording.t_end:
+        raise ValueError(f"not one of the matches falls among this recording's events (matches at "
+                         f"{first / 1e6:.6g}..{last / 1e6:.6g} s, events at {recording.t_start / 1e6:.6g}.."
+                         f"{recording.t_end / 1e6:.6g} s): the clocks differ, or it is another recording{where}; "
+                         f"{advice}")
 
 
 def to_json(figures: Mapping, **kwargs) -> str:

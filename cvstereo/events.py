@@ -16,64 +16,16 @@ from typing import NamedTuple
 
 import numpy as np
 
+from cvstereo.columns import check_coordinates, check_polarity, check_times, labelled
 from cvstereo.errors import EventFormatError
+from cvstereo.sensor_size import DEFAULT_RESOLUTION as DEFAULT_RESOLUTION
+from cvstereo.sensor_size import MAX_RESOLUTION as MAX_RESOLUTION
+from cvstereo.sensor_size import check_resolution as check_resolution
 
 #: The event dtype of formats.md: t (us), x (column, 0 = left), y (row, 0 = top), p (1 = ON, 0 = OFF).
 EVENT_DTYPE = np.dtype([("t", "<i8"), ("x", "<i2"), ("y", "<i2"), ("p", "i1")])
 
-#: Sensor size of the DVS128 / eDVS128, (width, height).
-DEFAULT_RESOLUTION = (128, 128)
-
-#: The largest sensor size accepted anywhere a resolution comes in (files, options, matchers), (width, height).
-MAX_RESOLUTION = (2048, 2048)
-
 _FIELDS = ("t", "x", "y", "p")
-
-
-def check_resolution(resolution, *, source: str = "resolution", error: type[Exception] = ValueError) -> tuple[int, int]:
-    """Return ``resolution`` as two ints, or raise unless it is a sensor size this library accepts.
-
-    Width and height must be whole numbers with ``1 <= width <= MAX_RESOLUTION[0]`` and
-    ``1 <= height <= MAX_RESOLUTION[1]``: every buffer a matcher or reader allocates is sized by it, so
-    a size no sensor has (100000x100000 would ask for tens of GB) is refused where it comes in.
-
-    Parameters
-    ----------
-    resolution : (width, height)
-    source : str, keyword-only
-        What to name in the message (a file and key, an option).
-    error : exception class, keyword-only
-        Raised on a bad value (a ValueError subclass, e.g. CorruptFileError for a file's header).
-
-    Examples
-    --------
-    >>> check_resolution((240, 180))
-    (240, 180)
-    >>> check_resolution((0, 0))  # doctest: +ELLIPSIS
-    Traceback (most recent call last):
-    ...
-    ValueError: resolution (0, 0): width and height must be whole numbers in 1..2048 ...
-    """
-    try:
-        width, height = resolution
-        ok = all(float(v) == int(v) and not isinstance(v, bool) for v in (width, height))
-    except (TypeError, ValueError, OverflowError):
-        ok = False
-    if ok:
-        width, height = int(width), int(height)
-        ok = 1 <= width <= MAX_RESOLUTION[0] and 1 <= height <= MAX_RESOLUTION[1]
-    if not ok:
-        shown = resolution if isinstance(resolution, tuple | list) else repr(resolution)
-        raise error(
-            f"{source} {_short(shown)}: width and height must be whole numbers in 1..{MAX_RESOLUTION[0]} and "
-            f"1..{MAX_RESOLUTION[1]} (the largest supported sensor is {MAX_RESOLUTION[0]}x{MAX_RESOLUTION[1]})."
-        )
-    return width, height
-
-
-def _short(value, limit: int = 60) -> str:
-    text = str(tuple(value) if isinstance(value, list) else value)
-    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def empty_events(n: int = 0) -> np.ndarray:
@@ -103,11 +55,12 @@ def make_events(t, x, y, p) -> np.ndarray:
 
 
 def as_events(data, *, resolution: tuple[int, int] | None = DEFAULT_RESOLUTION, source: str = "events",
-              index_offset: int = 0) -> np.ndarray:
+              index_offset: int = 0, t_floor: int | None = None) -> np.ndarray:
     """Convert and validate an event array.
 
-    Accepts a structured array with the fields ``t, x, y, p`` under any widths and order (tonic's
+    Accepts a structured array with the fields ``t, x, y, p`` under any integer widths and order (tonic's
     ``x, y, t, p`` included), ``p`` as bool, 1/0 or +1/-1. Returns a new array of :data:`EVENT_DTYPE`.
+    Values are checked as given, before the cast (:func:`events_from_columns`).
 
     Parameters
     ----------
@@ -119,6 +72,8 @@ def as_events(data, *, resolution: tuple[int, int] | None = DEFAULT_RESOLUTION, 
         Named in error messages (a file name, "left camera", ...).
     index_offset : int, keyword-only
         Added to indices in error messages, for arrays that are chunks of a longer stream.
+    t_floor : int, optional, keyword-only
+        The last time of the preceding chunk: the first event must not be earlier.
 
     Returns
     -------
@@ -128,7 +83,8 @@ def as_events(data, *, resolution: tuple[int, int] | None = DEFAULT_RESOLUTION, 
     ------
     EventFormatError
         Missing fields, non-integer fields, polarity other than 0/1/-1, negative or out-of-range
-        coordinates, timestamps going backwards. The message names the source, field and first index.
+        coordinates, times beyond int64, timestamps going backwards. The message names the source, field and
+        first index.
     """
     arr = np.asarray(data)
     names = arr.dtype.names
@@ -145,44 +101,77 @@ def as_events(data, *, resolution: tuple[int, int] | None = DEFAULT_RESOLUTION, 
         )
     if arr.ndim != 1:
         raise EventFormatError(f"{source}: expected a 1-D event array, got shape {arr.shape}.")
-    for f in _FIELDS:
-        kind = arr.dtype[f].kind
-        if kind not in "iub" or (kind == "b" and f != "p"):
-            raise EventFormatError(
-                f"{source}: field '{f}' has dtype {arr.dtype[f]}; it must be an integer type "
-                f"(cast it, e.g. events['{f}'].astype('int64'))."
-            )
-    p = arr["p"]
-    if p.dtype.kind == "b":
-        p = p.astype(np.int8)
-    else:
-        bad = np.flatnonzero((p != 0) & (p != 1) & (p != -1))
-        if bad.size:
-            i = int(bad[0])
-            raise EventFormatError(
-                f"{source}: field 'p' at index {i + index_offset} is {int(p[i])}; polarity must be 1/0 or +1/-1."
-            )
-    out = np.empty(arr.shape[0], dtype=EVENT_DTYPE)
-    out["t"] = arr["t"]
-    out["x"] = _checked_int16(arr["x"], "x", source, index_offset)
-    out["y"] = _checked_int16(arr["y"], "y", source, index_offset)
-    out["p"] = p > 0
-    validate_events(out, resolution=resolution, source=source, index_offset=index_offset)
+    return events_from_columns(arr["t"], arr["x"], arr["y"], arr["p"], resolution=resolution, source=source,
+                               index_offset=index_offset, t_floor=t_floor)
+
+
+def events_from_columns(t, x, y, p, *, resolution: tuple[int, int] | None = DEFAULT_RESOLUTION,
+                        source: str = "events", index_offset: int = 0, labels: dict[str, str] | None = None,
+                        t_offset: int = 0, t_floor: int | None = None) -> np.ndarray:
+    """Check four raw columns value by value, then cast them into a new array of :data:`EVENT_DTYPE`.
+
+    The columns keep the dtype they were stored in until every value has been checked against what the
+    event dtype can hold (:mod:`cvstereo.columns`): a cast would turn int32 65541 into x = 5, uint16 65535
+    into -1, uint64 2**63 into a negative time and a polarity of 256 into OFF, silently.
+
+    Parameters
+    ----------
+    t, x, y, p : (N,) ndarray
+        Integer columns (``p`` may be bool); floats are refused here (see
+        :func:`cvstereo.columns.whole_numbers` and :func:`cvstereo.columns.times_to_us`).
+    resolution, source, index_offset : keyword-only
+        As for :func:`as_events`.
+    labels : dict, optional, keyword-only
+        How to name each field in messages, e.g. ``{"x": "/events/x"}`` for a file's dataset.
+    t_offset : int, keyword-only
+        Added to every time (a file's time base, as DSEC's ``/t_offset``); the sums must fit int64.
+    t_floor : int, optional, keyword-only
+        The last time of the preceding chunk, as stored (before ``t_offset``): the first time must not be
+        earlier. Order is checked on the stored values, so that a message quotes what the file holds.
+
+    Raises
+    ------
+    EventFormatError
+    """
+    names = labelled(labels)
+    if resolution is not None:
+        resolution = check_resolution(resolution, source=f"{source}: resolution")
+    columns = {"t": np.asarray(t), "x": np.asarray(x), "y": np.asarray(y), "p": np.asarray(p)}
+    for f, values in columns.items():
+        kind = values.dtype.kind
+        if kind not in "iub" or (kind == "b" and f != "p") or values.ndim != 1:
+            raise EventFormatError(f"{source}: {names[f]} has dtype {values.dtype} and shape {values.shape}; "
+                                   f"{_FIX_KIND[f]}")
+    if len({v.shape[0] for v in columns.values()}) != 1:
+        raise EventFormatError(f"{source}: the columns have different lengths "
+                               f"({', '.join(f'{names[f]}: {v.shape[0]}' for f, v in columns.items())}).")
+    check_times(columns["t"], t_offset=t_offset, source=source, label=names["t"], index_offset=index_offset)
+    check_coordinates(columns["x"], columns["y"], resolution, source=source, labels=labels,
+                      index_offset=index_offset)
+    check_polarity(columns["p"], source=source, label=names["p"], index_offset=index_offset)
+    _check_order(columns["t"], source, names["t"], index_offset, t_floor)
+    out = np.empty(columns["t"].shape[0], dtype=EVENT_DTYPE)
+    out["t"] = columns["t"]
+    if t_offset:
+        out["t"] += t_offset
+    out["x"] = columns["x"]
+    out["y"] = columns["y"]
+    out["p"] = columns["p"] > 0
     return out
 
 
-def _checked_int16(values: np.ndarray, field: str, source: str, index_offset: int) -> np.ndarray:
-    bad = np.flatnonzero((values < -32768) | (values > 32767)) if values.dtype.itemsize > 2 else ()
-    if len(bad):
-        i = int(bad[0])
-        raise EventFormatError(
-            f"{source}: field '{field}' at index {i + index_offset} is {int(values[i])}, beyond int16."
-        )
-    return values
+#: What to do about a field of the wrong kind: times have a unit that a cast would lose, the rest do not.
+_FIX_KIND = {
+    "t": "times must be integer microseconds: for float times say their unit with "
+         "cvstereo.arrays.events_from(data, time_unit='s') (or 'ms', 'us', 'ns').",
+    **{f: f"it must be a 1-D integer column (cast it, e.g. events['{f}'].astype('int64'), if it holds whole numbers)."
+       for f in "xyp"},
+}
 
 
 def validate_events(events: np.ndarray, *, resolution: tuple[int, int] | None = DEFAULT_RESOLUTION,
-                    source: str = "events", index_offset: int = 0, t_floor: int | None = None) -> None:
+                    source: str = "events", index_offset: int = 0, t_floor: int | None = None,
+                    labels: dict[str, str] | None = None) -> None:
     """Check an array of :data:`EVENT_DTYPE` against the contract; raise on the first violation.
 
     Parameters
@@ -195,6 +184,8 @@ def validate_events(events: np.ndarray, *, resolution: tuple[int, int] | None = 
         Added to indices in error messages.
     t_floor : int or None, keyword-only
         The last timestamp of the preceding chunk: the first event must not be earlier.
+    labels : dict, optional, keyword-only
+        How to name each field in messages (see :func:`events_from_columns`).
 
     Raises
     ------
@@ -206,47 +197,27 @@ def validate_events(events: np.ndarray, *, resolution: tuple[int, int] | None = 
         raise EventFormatError(f"{source}: expected a 1-D event array, got shape {events.shape}.")
     if events.size == 0:
         return
-    _check_coordinates(events, resolution, source, index_offset)
-    t = events["t"]
+    check_coordinates(events["x"], events["y"], resolution, source=source, labels=labels, index_offset=index_offset)
+    _check_order(events["t"], source, labelled(labels)["t"], index_offset, t_floor)
+
+
+def _check_order(t: np.ndarray, source: str, label: str, index_offset: int, t_floor: int | None) -> None:
+    """Raise naming the first time earlier than the one before it (or than ``t_floor``, the previous chunk's)."""
+    if t.size == 0:
+        return
     if t_floor is not None and t[0] < t_floor:
         raise EventFormatError(
-            f"{source}: field 't' at index {index_offset} is {int(t[0])}, earlier than the preceding event "
+            f"{source}: {label} at index {index_offset} is {int(t[0])}, earlier than the preceding event "
             f"({t_floor}); timestamps must not go backwards."
         )
     back = t[1:] < t[:-1]
     if back.any():
         i = int(np.argmax(back)) + 1
         raise EventFormatError(
-            f"{source}: field 't' at index {i + index_offset} is {int(t[i])}, earlier than index "
+            f"{source}: {label} at index {i + index_offset} is {int(t[i])}, earlier than index "
             f"{i - 1 + index_offset} ({int(t[i - 1])}); timestamps must not go backwards "
             "(sort with np.sort(events, order='t', kind='stable') if the order is known to be wrong)."
         )
-
-
-def _check_coordinates(events: np.ndarray, resolution, source: str, index_offset: int) -> None:
-    """Raise naming the first event (and of it, x before y) whose coordinate is negative or off the sensor."""
-    firsts = []
-    for k, field in enumerate(("x", "y")):
-        column = events[field]
-        # Read as unsigned, a negative int16 is >= 32768, beyond any sensor: one comparison tests both bounds
-        # (this runs on every packet a matcher is fed, so it is kept to one pass per coordinate).
-        bad = column < 0 if resolution is None else column.view(np.uint16) >= resolution[k]
-        if bad.any():
-            firsts.append((int(np.argmax(bad)), k, field))
-    if not firsts:
-        return
-    i, k, field = min(firsts)
-    value = int(events[field][i])
-    if value < 0:
-        raise EventFormatError(
-            f"{source}: field '{field}' at index {i + index_offset} is {value}; "
-            "coordinates must be >= 0 (one-based files need the one-based option)."
-        )
-    raise EventFormatError(
-        f"{source}: field '{field}' at index {i + index_offset} is {value}, outside "
-        f"the {resolution[0]}x{resolution[1]} sensor (valid 0..{resolution[k] - 1}); "
-        "give the right resolution, or the one-based option if the file counts from 1."
-    )
 
 
 def time_slice(events: np.ndarray, t_start: int | None = None, t_stop: int | None = None) -> slice:

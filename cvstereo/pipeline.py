@@ -10,6 +10,7 @@ import numpy as np
 
 import cvstereo
 from cvstereo.events import StereoPacket, distinct_sorted, is_time_ordered
+from cvstereo.fingerprint import EventFingerprint
 from cvstereo.matches import MatchResult, concat_matches
 from cvstereo.recording import Recording
 from cvstereo.registry import METHODS, create_matcher
@@ -24,7 +25,9 @@ DEFAULT_PACKET_US = 40_000
 
 
 class _Counted(Iterator[StereoPacket]):
-    """Packets passed through, counting events and the first and last timestamp (for the meta)."""
+    """Packets passed through, counting events and the first and last timestamp (for the meta), and taking the
+    fingerprint of the events as read (:mod:`cvstereo.fingerprint`; the seconds it takes are kept apart, as
+    they are not the matcher's)."""
 
     def __init__(self, packets: Iterator[StereoPacket]):
         self._packets = iter(packets)
@@ -32,9 +35,14 @@ class _Counted(Iterator[StereoPacket]):
         self.t_first: int | None = None
         self.t_last: int | None = None
         self.windows: set[int] = set()  # absolute 40 ms windows that hold events (for the diagnostics)
+        self.fingerprint = EventFingerprint()
+        self.fingerprint_s = 0.0
 
     def __next__(self) -> StereoPacket:
         packet = next(self._packets)
+        start = time.perf_counter()
+        self.fingerprint.update(packet.left, packet.right)
+        self.fingerprint_s += time.perf_counter() - start
         for ev in (packet.left, packet.right):
             if ev.size:
                 first, last = int(ev["t"][0]), int(ev["t"][-1])
@@ -65,7 +73,7 @@ def _windows_of(t: np.ndarray, first: int, last: int) -> list[int]:
 def match(recording, right=None, *, method: str = "frame", variant: str | None = None,
           packet_us: int = DEFAULT_PACKET_US, progress: bool = False, row_offset: float = 0,
           time_offset_us: int = 0, rectification=None, param_set: str = "adaptive", columns: str | None = None,
-          time_unit: str = "us", resolution: tuple[int, int] | None = None, **params) -> MatchResult:
+          time_unit: str | None = None, resolution: tuple[int, int] | None = None, **params) -> MatchResult:
     """Run one matcher over a recording, streaming it packet by packet.
 
     Parameters
@@ -89,8 +97,11 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         and its times by ``-time_offset_us`` before matching, and right-anchored matches are mapped back;
         recorded in meta under ``rig_correction``. :func:`cvstereo.rigcheck.check_rig` estimates both.
     columns, time_unit, resolution : keyword-only
-        For events given as arrays: the column order of ``(N, 4)`` arrays, the unit of their times and the
-        sensor size (default 128x128); see :func:`cvstereo.arrays.events_from`.
+        For events given as arrays (or lists of rows): the column order of ``(N, 4)`` arrays, the unit of their
+        times (required for float times) and the sensor size (default 128x128; tonic's ``sensor_size``
+        ``(W, H, 2)`` is accepted as it is); see :func:`cvstereo.arrays.events_from`. With a Recording,
+        ``resolution`` may only repeat the recording's; ``columns`` and ``time_unit`` are refused (nothing
+        would use them).
     rectification : cvstereo.rectify.Rectification, optional, keyword-only
         Rectify the events with a calibration before matching (:mod:`cvstereo.rectify`); matches are mapped
         back to the recording's pixels, disparities are the rectified pair's; recorded in meta under
@@ -104,10 +115,13 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
     Returns
     -------
     MatchResult
-        Time-ordered matches and the meta of formats.md. ``meta["diagnostics"]`` says how much of the
-        recording answered (:func:`cvstereo.signal_level.silence_warning` turns it into one line): windows with
-        events and with matches (40 ms, absolute clock), and for the thesis matchers windows seen, windows with
-        candidates, the highest value against its threshold and the threshold in force over time.
+        Time-ordered matches and the meta of formats.md. ``meta["fingerprint"]`` identifies the events as read
+        (before rig correction or rectification: :mod:`cvstereo.fingerprint`), so that the matches can be told
+        from those of another recording; ``elapsed_s`` leaves out the time it took. ``meta["diagnostics"]`` says
+        how much of the recording answered (:func:`cvstereo.signal_level.silence_warning` turns it into one
+        line): windows with events and with matches (40 ms, absolute clock), and for the thesis matchers windows
+        seen, windows with candidates, the highest value against its threshold and the threshold in force over
+        time.
 
     Examples
     --------
@@ -154,7 +168,7 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         if bar is not None:
             bar.update(packet.left.size + packet.right.size)
     parts.append(restored(matcher.flush()))
-    elapsed = time.perf_counter() - start
+    elapsed = time.perf_counter() - start - counted.fingerprint_s
     if bar is not None:
         bar.close()
     meta = matcher.describe()
@@ -165,6 +179,7 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         resolution=list(stream.resolution),
         version=cvstereo.__version__,
         input=source,
+        fingerprint=counted.fingerprint.result(),
     )
     meta["param_set"] = param_set
     matches = concat_matches(parts)
@@ -212,28 +227,42 @@ def _diagnostics(matcher, event_windows: set[int], matches, meta: dict) -> dict:
 
 
 def _as_source(recording, right, method: str, *, columns, time_unit, resolution):
-    """A Recording or a path for :func:`match`, after catching the easy mistakes with the arguments."""
+    """A Recording or a path for :func:`match`, after catching the easy mistakes with the arguments.
+
+    An argument that would be ignored is refused rather than dropped: ``columns`` and ``time_unit`` apply to
+    arrays only, and ``resolution`` to arrays (a Recording and a file carry their own; given with a Recording
+    it must agree with it).
+    """
     from cvstereo.arrays import events_from, is_event_data
+    from cvstereo.events import DEFAULT_RESOLUTION, check_resolution
 
     if isinstance(right, str) and right in METHODS and not os.path.exists(right):
         raise TypeError(f"match(recording, {right!r}): the method is keyword-only; write "
                         f"match(recording, method={right!r}) (the second argument is the right camera).")
+    res = None if resolution is None else check_resolution(resolution, source="match(resolution=...)")
     if isinstance(recording, Recording):
         if right is not None:
             raise TypeError("match(recording, right): a Recording holds both cameras already; give right only "
                             "with the left camera's file or events.")
+        if columns is not None or time_unit is not None:
+            raise TypeError("match(recording, columns=/time_unit=): these say how to read event arrays; a "
+                            "Recording's events are converted already.")
+        if res is not None and res != tuple(recording.resolution):
+            raise ValueError(f"match(recording, resolution={res}): the recording is "
+                             f"{recording.resolution[0]}x{recording.resolution[1]}; build it with the right "
+                             "resolution (Recording(..., resolution=...)) instead.")
         return recording
     if is_event_data(recording):
         if right is None or not is_event_data(right):
             raise TypeError("match(left_events, right_events, method=...): give the right camera's events too.")
-        res = resolution or (128, 128)
+        res = res or DEFAULT_RESOLUTION
         return Recording(events_from(recording, columns=columns, time_unit=time_unit, resolution=res,
                                      source="left events"),
                          events_from(right, columns=columns, time_unit=time_unit, resolution=res,
                                      source="right events"), resolution=res, meta={"source": "arrays"})
     if is_event_data(right):
         raise TypeError("match(path, right_events): give both cameras as files, or both as event arrays.")
-    if columns is not None or resolution is not None or time_unit != "us":
+    if columns is not None or resolution is not None or time_unit is not None:
         raise TypeError("columns=, time_unit= and resolution= are for events given as arrays; a file says its "
                         "own (or use the --format options of open_recording).")
     return recording

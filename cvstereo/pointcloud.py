@@ -18,8 +18,9 @@ the PLY header says it.
 
 from __future__ import annotations
 
+import math
 import os
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,29 +52,61 @@ class Intrinsics:
     source: str
 
     @classmethod
-    def from_options(cls, resolution: tuple[int, int], *, focal_px: float | None = None, calibration=None
-                     ) -> Intrinsics:
-        """From a calibration when given, else from the rig options.
+    def from_options(cls, resolution: tuple[int, int], *, focal_px: float | None = None, calibration=None,
+                     rig: Mapping | None = None) -> Intrinsics:
+        """From a calibration when given, else ``focal_px``, else the recording's rig, else the thesis rig's.
+
+        The order is :mod:`cvstereo.geometry_source`'s: what the user calibrated or said before what the
+        recording carries.
 
         Parameters
         ----------
         resolution : (width, height)
             The principal point defaults to the sensor centre ``((w-1)/2, (h-1)/2)``.
         focal_px : float, optional, keyword-only
-            Default :data:`THESIS_FOCAL_PX`; ignored (an error) with a calibration.
+            A finite focal length > 0; not together with a calibration (it has its own).
         calibration : StereoCalibration, optional, keyword-only
+        rig : mapping, optional, keyword-only
+            A recording's ``meta["rig"]`` (the simulator's :meth:`~cvstereo.simulate.rig.Rig.describe`):
+            ``focal_px`` and the left camera's principal point, shifted from the centre by half of
+            ``axis_offset_px`` and ``vertical_offset_px``; used only when it is for this sensor size.
+
+        Raises
+        ------
+        ValueError
+            ``focal_px`` with a calibration, or not a finite number > 0.
         """
         if calibration is not None:
             if focal_px is not None:
                 raise ValueError("give a calibration or --focal-px, not both: the calibration has the focal length.")
             (cx, cy), f = calibration.principal_point, calibration.focal_px
             return cls(f, cx, cy, f"calibration {calibration.source} (rectified left view)")
-        f = THESIS_FOCAL_PX if focal_px is None else float(focal_px)
-        if not f > 0:
-            raise ValueError(f"--focal-px must be positive, got {f}.")
-        how = "default, the thesis rig's" if focal_px is None else "--focal-px"
         w, h = resolution
-        return cls(f, (w - 1) / 2, (h - 1) / 2, f"rig options (focal {f:g} px: {how}; principal point: sensor centre)")
+        if focal_px is not None:
+            f = float(focal_px)
+            if not (math.isfinite(f) and f > 0):
+                raise ValueError(f"--focal-px must be a finite number > 0, got {f:g}.")
+            return cls(f, (w - 1) / 2, (h - 1) / 2, f"--focal-px (focal {f:g} px; principal point: sensor centre)")
+        if _rig_fits(rig, resolution):
+            f = float(rig["focal_px"])
+            cx = (w - 1) / 2 - float(rig.get("axis_offset_px", 0.0)) / 2
+            cy = (h - 1) / 2 - float(rig.get("vertical_offset_px", 0.0)) / 2
+            return cls(f, cx, cy, f"the recording's rig (focal {f:g} px, its left camera's principal point)")
+        return cls(THESIS_FOCAL_PX, (w - 1) / 2, (h - 1) / 2,
+                   f"rig options (focal {THESIS_FOCAL_PX:g} px: default, the thesis rig's; principal point: sensor "
+                   "centre)")
+
+
+def _rig_fits(rig, resolution) -> bool:
+    """Whether a recording's rig description gives a usable focal length for a sensor of ``resolution``."""
+    if not isinstance(rig, Mapping):
+        return False
+    try:
+        f = float(rig["focal_px"])
+        size = tuple(int(v) for v in rig.get("resolution", resolution))
+    except (KeyError, TypeError, ValueError):
+        return False
+    return math.isfinite(f) and f > 0 and size == tuple(resolution)
 
 
 def depth_per_match(matches: np.ndarray, model: DepthModel) -> np.ndarray:

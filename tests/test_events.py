@@ -38,7 +38,7 @@ def test_wrong_dtype_is_named(data, words):
     ("p", 2, ["field 'p'", "index 12", "polarity"]),
     ("x", -1, ["field 'x'", "index 12", ">= 0"]),
     ("y", 128, ["field 'y'", "index 12", "128x128"]),
-    ("x", 40_000, ["field 'x'", "index 12", "int16"]),
+    ("x", 40_000, ["field 'x'", "index 12", "is 40000", "outside the 128x128 sensor"]),
 ])
 def test_bad_value_names_field_and_index_with_offset(field, value, words):
     raw = np.zeros(5, dtype=[("t", "<i8"), ("x", "<i4"), ("y", "<i4"), ("p", "<i4")])

@@ -126,6 +126,10 @@ CASES = {
                            absent="out"),
     "preset-too-many-parts": case(f"sweep preset:1arm-50cm:1:2 -m frame {RUN}", 1, "preset:1arm-50cm:1:2",
                                   absent="out"),
+    "suite-unknown": case(f"sweep suite:telepathy -m frame {RUN}", 1, ("suite:telepathy", "robustness"),
+                          absent="out"),
+    "suite-half-unknown": case(f"sweep suite:robustness:half -m frame {RUN}", 1, "suite:robustness:half",
+                               absent="out"),
     # --- grid files: shape and types -------------------------------------------------------------------
     "grid-list-of-numbers": grid_case("g_grid5", "[[grid]]"),
     "grid-a-number": grid_case("g_grid_number", "[[grid]]"),

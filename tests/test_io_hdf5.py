@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cvstereo.errors import CorruptFileError
+from cvstereo.errors import CorruptFileError, EventFormatError
 from cvstereo.io.stream import MONO
 from tests._io_helpers import assert_same_events, random_events
 
@@ -83,7 +83,7 @@ def test_bad_files_name_what_is_wrong(tmp_path):
         open_dsec(path)
     with h5py.File(path, "w") as f:
         f.create_dataset("davis/left/events", data=np.array([[1.0, 2.0, 0.5, 1.0], [1.5, 2.0, 0.6, 1.0]]))
-    with pytest.raises(CorruptFileError, match=r"row 1 is \[1.5, 2.0, 0.6, 1.0\]"):
+    with pytest.raises(EventFormatError, match=r"/davis/left/events column x at index 1 is 1.5, not a whole"):
         open_mvsec(path).read_camera(MONO)
     (tmp_path / "junk.h5").write_bytes(b"not hdf5")
     with pytest.raises(CorruptFileError, match="not a readable HDF5 file"):

@@ -111,8 +111,8 @@ def test_argument_mistakes_raise_type_error(pair, tmp_path, args, kwargs, messag
     (np.zeros((3, 4)), {}, "needs its column order"),
     (np.zeros((3, 4)), {"columns": "txyx"}, "order of the letters"),
     (np.zeros((3, 5)), {"columns": "txyp"}, r"\(N, 4\) array"),
-    (np.array([[0, 1.5, 2, 1]]), {"columns": "txyp"}, "field 'x' at index 0 is 1.5"),
-    (np.array([[np.nan, 1, 2, 1]]), {"columns": "txyp"}, "field 't' at index 0 is not a finite time"),
+    (np.array([[0, 1.5, 2, 1]]), {"columns": "txyp", "time_unit": "us"}, "field 'x' at index 0 is 1.5"),
+    (np.array([[np.nan, 1, 2, 1]]), {"columns": "txyp", "time_unit": "us"}, "field 't' at index 0 is nan, not a"),
 ])
 def test_events_from_refuses_what_it_cannot_read_safely(data, kwargs, message):
     with pytest.raises(EventFormatError, match=message):

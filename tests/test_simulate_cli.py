@@ -80,10 +80,17 @@ def test_fan_scene_writes_a_fan_recording(tmp_path):
 def test_list_suites_names_every_recording():
     out = _run("--list-suites")
     assert out.returncode == 0, out.stderr
-    lines = out.stdout.splitlines()
-    assert lines[0].startswith("robustness (v1): 29 recordings")
-    names = [line.split()[0] for line in lines[1:]]
+    suites: dict[str, list[str]] = {}  # header line -> the recordings' names below it (indented)
+    for line in out.stdout.splitlines():
+        if line.startswith("  "):
+            suites[next(reversed(suites))].append(line.split()[0])
+        else:
+            suites[line] = []
+    (v1, names), (v2, names2) = suites.items()
+    assert v1.startswith("robustness (v1): 29 recordings")
     assert names[0] == "base" and "fan-right-3ms-early" in names and len(names) == 29
+    assert v2.startswith("generalization (v2): 48 recordings of 1.5 s;")
+    assert names2[0] == "objects-tune-128x128" and names2[-1] == "thin-eval-640x480" and len(names2) == 48
 
 
 def test_suite_output_must_be_a_folder(tmp_path):

@@ -163,19 +163,29 @@ def format_options(args: argparse.Namespace) -> dict:
     return opts
 
 
-def load_recording(args: argparse.Namespace, *, outputs: Iterable = ()):
-    """Read the recording that :func:`add_recording_arguments` took, with its format options.
+def recording_plan(args: argparse.Namespace):
+    """The output plan of a command that reads the recording :func:`add_recording_arguments` took: the
+    recording, the right camera's file, the matches file and a ``--depth MODEL.json`` declared as its inputs; the
+    command adds its outputs and checks the plan (:class:`~cvstereo.io.output_plan.OutputPlan`) before reading
+    anything."""
+    from cvstereo.depth_file import WHAT
+    from cvstereo.io.output_plan import OutputPlan
 
-    Before reading: every input (the recording, the right camera's file, the matches file) is a regular file
-    and no output is one of them (:func:`check_files`). Errors name the file.
-    """
+    settle_recording_inputs(args)
+    plan = OutputPlan()
+    plan.read(args.recording, args.right, getattr(args, "matches", None))
+    plan.read(depth_file(args), what=WHAT)
+    return plan
+
+
+def load_recording(args: argparse.Namespace):
+    """Read the recording that :func:`add_recording_arguments` took, with its format options (errors name the
+    file); its plan (:func:`recording_plan`) has checked the files."""
     from cvstereo.io import read_recording
 
     settle_recording_inputs(args)
-    path, right = args.recording, args.right
-    check_files([path, right, getattr(args, "matches", None)], outputs)
-    with naming(path, right):
-        return read_recording(path, right, **format_options(args))
+    with naming(args.recording, args.right):
+        return read_recording(args.recording, args.right, **format_options(args))
 
 
 def load_matches(path: str | os.PathLike):
@@ -187,25 +197,52 @@ def load_matches(path: str | os.PathLike):
         return read_matches(path)
 
 
-def check_files(inputs: Iterable, outputs: Iterable = (), *, option: str = "-o") -> None:
-    """Before reading anything: every input is a regular file, and no output is one of the inputs.
+def load_matches_for(args: argparse.Namespace, recording):
+    """The matches file ``args.matches`` and the recording as the matches used it.
+
+    Unless ``--force``, the matches must come from this recording
+    (:func:`cvstereo.evaluate.check_same_recording`: one line saying what differs); a file too old to tell is
+    read with a note on stderr. The recording comes back with its cameras in the matches' order
+    (:func:`cvstereo.geometry_source.as_matched`).
+
+    Returns
+    -------
+    (Recording, MatchResult)
+    """
+    import sys
+
+    from cvstereo.evaluate import check_same_recording
+    from cvstereo.geometry_source import as_matched
+
+    result = load_matches(args.matches)
+    if not args.force:
+        with naming(args.matches):
+            note = check_same_recording(recording, result.meta, result.matches)
+        if note is not None:
+            print(f"note: {args.matches}: {note}", file=sys.stderr)
+    return as_matched(recording, result.meta), result
+
+
+def add_force_option(parser: argparse.ArgumentParser, verb: str) -> None:
+    """``--force``: use a matches file that says it was computed on another recording."""
+    parser.add_argument("--force", action="store_true",
+                        help=f"{verb} even when the matches file says it was computed on another recording (other "
+                        "events, another clock or sensor size)")
+
+
+def check_files(inputs: Iterable) -> None:
+    """Before reading anything: every input is a regular file (the input check of an output plan).
 
     Raises
     ------
     OSError
         An input is missing, a folder, a FIFO or a device (said as such).
-    cvstereo.io._paths.OutputIsInputError
-        An output resolves (through symlinks or hard links too) to an input.
     """
-    from cvstereo.io._paths import refuse_output_over_input
-    from cvstereo.io._source import require_regular_file
+    from cvstereo.io.output_plan import OutputPlan
 
-    inputs = [p for p in inputs if p is not None]
-    for path in inputs:
-        require_regular_file(path)
-    for out in outputs:
-        if out is not None:
-            refuse_output_over_input(out, inputs, option=option)
+    plan = OutputPlan()
+    plan.read(*inputs)
+    plan.check()
 
 
 @contextlib.contextmanager
@@ -249,25 +286,33 @@ def add_depth_options(p: argparse.ArgumentParser) -> None:
                    help="show distances where a depth model is known (default: yes)")
 
 
-def depth_model(args: argparse.Namespace, recording):
-    """The DepthModel the options ask for, or None."""
-
-    if not args.metres:
-        return None
-    if args.depth is not None:
-        return parse_depth_option(args.depth)
-    return meta_depth(recording.meta, getattr(args, "recording", None) or "the recording")
+def depth_file(args: argparse.Namespace) -> str | None:
+    """The depth-model file ``--depth MODEL.json`` names (an input of the command), or None."""
+    depth = getattr(args, "depth", None)
+    return depth[0] if depth is not None and len(depth) == 1 else None
 
 
-def meta_depth(meta, source):
-    """The depth model stored in a file's meta (rig or ``depth``), or None; a bad one names ``source``."""
-    from cvstereo.viz import depth_from_meta
+@contextlib.contextmanager
+def conflicts_as_usage_errors(args: argparse.Namespace) -> Iterator[None]:
+    """Report options that exclude each other (:class:`~cvstereo.geometry_source.GeometryConflict`) as usage
+    errors (exit 2), as argparse does for its own."""
+    from cvstereo.geometry_source import GeometryConflict
 
     try:
-        return depth_from_meta(meta)
-    except (ValueError, TypeError) as exc:
-        raise ValueError(f"{source}: its meta holds no valid depth model ({exc}); give --depth A C or "
-                         "--no-metres.") from None
+        yield
+    except GeometryConflict as exc:
+        args._parser.error(str(exc))
+
+
+def picture_depth(args: argparse.Namespace, recording, result):
+    """The depth model of pictures (:func:`cvstereo.geometry_source.depth_for_matches`): from ``--depth``, the
+    matches file, the recording's rig; None with ``--no-metres``."""
+    from cvstereo.geometry_source import depth_for_matches
+
+    explicit = parse_depth_option(args.depth) if args.depth is not None and args.metres else None
+    names = (getattr(args, "matches", None) or "the matches file", getattr(args, "recording", None) or "the recording")
+    return depth_for_matches({} if result is None else result.meta, recording.meta, depth=explicit,
+                             metres=args.metres, names=names)
 
 
 def parse_depth_option(values: list[str]):

@@ -33,22 +33,23 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 0:
         raise ValueError(f"--workers {args.workers}: give 0 (in this process) or a positive number of workers.")
-    out = Path(args.output)
-    if out.exists() and not out.is_dir():
-        raise NotADirectoryError(f"-o {out}: exists and is not a folder; bench writes results.json and results.md "
-                                 "into a folder.")
     import cv2
 
-    from cvstereo.benchmark import BenchConfig, run_bench, write_results
+    from cvstereo.benchmark import RESULT_FILES, BenchConfig, run_bench, write_results
     from cvstereo.cli.demo import shared_folder
+    from cvstereo.io.output_plan import ANY_FILE, OutputPlan
+
+    plan = OutputPlan()
+    plan.write_folder(args.output, RESULT_FILES, ANY_FILE)
 
     # Speed is reported per core: OpenCV would otherwise spread its kernels over every CPU.
     cv2.setNumThreads(1)
     config = BenchConfig(quick=args.quick, methods=tuple(args.methods) if args.methods else None,
                          shared=shared_folder(args.shared), distance=not args.no_distance,
                          workers=args.workers)
-    results = run_bench(config, progress=progress_wanted(args), log=lambda msg: print(msg, file=sys.stderr))
-    json_path, md_path = write_results(results, Path(args.output))
+    with plan:  # the folder checked before the long run; both files published together
+        results = run_bench(config, progress=progress_wanted(args), log=lambda msg: print(msg, file=sys.stderr))
+        json_path, md_path = write_results(results, Path(args.output))
     print(md_path.read_text())
     print(f"written: {json_path}, {md_path}", file=sys.stderr)
     return 0

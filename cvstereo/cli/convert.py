@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from cvstereo.cli._common import add_recording_arguments, check_files, format_options, naming
+from cvstereo.cli._common import add_recording_arguments, format_options, naming, recording_plan
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
@@ -30,6 +30,7 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     from cvstereo.io import open_recording, output_format, write_recording
+    from cvstereo.io.output_plan import ANY_FILE
     from cvstereo.recording import Recording
 
     if len(args.output) > 2:
@@ -38,15 +39,18 @@ def run(args: argparse.Namespace) -> int:
         return _usage("--to edvs-text writes two files: give -o LEFT RIGHT (and only then two outputs)")
     right_out = args.output[1] if len(args.output) == 2 else None
     # Everything about the outputs is checked before a possibly long read: format, names, inputs.
-    to = output_format(args.output[0], format=args.to, right=right_out)
-    check_files([args.recording, args.right], args.output)
-    with naming(args.recording, args.right):
-        stream = open_recording(args.recording, args.right, **format_options(args))
-        rec = stream.read()
-    # The reader's decisions (left retina, one-based, ...) stay in meta, marked as the source's.
-    meta = {**rec.meta, "converted_from": {"format": stream.format, "files": list(stream.files)}}
-    rec = Recording(rec.left, rec.right, rec.left_disparity, rec.right_disparity, rec.resolution, meta)
-    write_recording(args.output[0], rec, format=to, right=right_out, left_retina=args.out_left_retina)
+    to = output_format(args.output[0], format=args.to, right=right_out)  # the names fit the format (its table)
+    plan = recording_plan(args)
+    for path in args.output:
+        plan.write(path, ANY_FILE)
+    with plan:  # the files checked before reading; both cameras' files published together
+        with naming(args.recording, args.right):
+            stream = open_recording(args.recording, args.right, **format_options(args))
+            rec = stream.read()
+        # The reader's decisions (left retina, one-based, ...) stay in meta, marked as the source's.
+        meta = {**rec.meta, "converted_from": {"format": stream.format, "files": list(stream.files)}}
+        rec = Recording(rec.left, rec.right, rec.left_disparity, rec.right_disparity, rec.resolution, meta)
+        write_recording(args.output[0], rec, format=to, right=right_out, left_retina=args.out_left_retina)
     print(f"wrote {' and '.join(args.output)}: {rec.left.size:,} left and {rec.right.size:,} right events"
           + (" (ground truth dropped: only .npz keeps it)" if rec.has_truth and to != "npz" else ""))
     return 0

@@ -23,6 +23,10 @@ FIGURE_RECORDING = "1arm-50cm"
 FIGURE_COMBOS = (("frame", "separate"), ("event-area", "gaussian"), ("stereobm", "default"))
 FIGURE_WINDOW_US = 40_000
 
+#: What the demo writes into its folder: the tables, and the figures in a folder of their own.
+TABLE_FILES = ("results.md", "results.json")
+FIGURE_FOLDER = "figures"
+
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p = sub.add_parser(name, help="run the thesis' experiment on the built-in simulated recordings",
@@ -63,27 +67,47 @@ def _real_recordings(shared: Path) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from cvstereo.io.output_plan import ANY_FILE, OutputPlan
+
     out = Path(args.output)
-    if out.exists() and not out.is_dir():
-        raise NotADirectoryError(f"-o {out}: exists and is not a folder; the demo writes its tables and figures "
-                                 "into a folder.")
-    _real_recordings(shared_folder(args.shared))
-    print()
+    plan = OutputPlan()
+    plan.write_folder(out, TABLE_FILES, ANY_FILE)  # a file named like the folder is refused before the long run
     if importlib.util.find_spec("cvstereo.simulate") is None:
-        print("The simulator has not landed yet: no simulated recordings to run the matchers on.")
+        _real_recordings(shared_folder(args.shared))
+        print("\nThe simulator has not landed yet: no simulated recordings to run the matchers on.")
         return 0
-    from cvstereo.evaluate import to_json
-    from cvstereo.experiment import all_combos, experiment_markdown, run_experiment
-    from cvstereo.io import read_recording
-    from cvstereo.io._atomic import write_text_atomic
     from cvstereo.registry import available_methods
-    from cvstereo.simulate import cached_preset
-    from cvstereo.thesis import RECORDINGS
 
     methods = args.methods or [m for m in available_methods() if m in DEMO_METHODS]
     if not methods:
         print("No matcher has landed yet: nothing to run on the simulated recordings.")
         return 0
+    combos = [c for c in FIGURE_COMBOS if c[0] in methods]
+    figures = importlib.util.find_spec("matplotlib") is not None
+    if figures:
+        plan.write_folder(out / FIGURE_FOLDER, _figure_names(combos), ANY_FILE)
+    with plan:  # the folder checked first; tables and figures published together once all are made
+        _real_recordings(shared_folder(args.shared))
+        print()
+        _experiment(args, methods, out, combos if figures else None)
+    print(f"\nTables written to {out / TABLE_FILES[0]} and {out / TABLE_FILES[1]}")
+    if figures:
+        print(f"Figures of {FIGURE_RECORDING} written to {out / FIGURE_FOLDER}/: {', '.join(_figure_names(combos))}")
+    else:
+        print("(figures skipped: matplotlib is not installed; pip install 'cvstereo[viz]')")
+    return 0
+
+
+def _experiment(args: argparse.Namespace, methods: list[str], out: Path, combos) -> None:
+    """Simulate the six presets (cached), run every variant of ``methods`` and write the tables; the figures of
+    ``combos`` too (None: none)."""
+    from cvstereo.evaluate import to_json
+    from cvstereo.experiment import all_combos, experiment_markdown, run_experiment
+    from cvstereo.io import read_recording
+    from cvstereo.io._atomic import write_text_atomic
+    from cvstereo.simulate import cached_preset
+    from cvstereo.thesis import RECORDINGS
+
     print("Simulating the thesis' six recordings (cached after the first run) ...", file=sys.stderr)
     progress = progress_wanted(args)
     recordings = {name: read_recording(cached_preset(name, seconds=args.seconds, progress=progress))
@@ -92,23 +116,25 @@ def run(args: argparse.Namespace) -> int:
     result = run_experiment(recordings, all_combos(methods, param_sets=("thesis", "adaptive")), progress=progress)
     text = experiment_markdown(result)
     print(text)
-    out.mkdir(parents=True, exist_ok=True)  # only now: a stopped or failed demo leaves no empty folder
-    write_text_atomic(out / "results.md", text + "\n")
-    write_text_atomic(out / "results.json", to_json({c.label: rows for c, rows in result.figures.items()}, indent=2))
-    print(f"\nTables written to {out / 'results.md'} and {out / 'results.json'}")
-    _figures(recordings[FIGURE_RECORDING], [c for c in FIGURE_COMBOS if c[0] in methods], out / "figures")
-    return 0
+    write_text_atomic(out / TABLE_FILES[0], text + "\n")
+    write_text_atomic(out / TABLE_FILES[1], to_json({c.label: rows for c, rows in result.figures.items()}, indent=2))
+    if combos is not None:
+        _figures(recordings[FIGURE_RECORDING], combos, out / FIGURE_FOLDER)
+
+
+def _figure_names(combos) -> list[str]:
+    """The files :func:`_figures` writes, under the figures folder."""
+    names = ["events.png", "filtered.png", "dynamic.png"]
+    for method, variant in combos:
+        names += [f"{method}-{variant}/{kind}.png" for kind in ("disparity-time", "disparity-map", "error-hist")]
+    return names
 
 
 def _figures(recording, combos, folder: Path) -> None:
-    """The thesis' figures for one preset and a few matchers (needs the viz extra; skipped without it)."""
-    if importlib.util.find_spec("matplotlib") is None:
-        print("(figures skipped: matplotlib is not installed; pip install 'cvstereo[viz]')")
-        return
+    """The thesis' figures for one preset and a few matchers (:func:`_figure_names`; needs the viz extra)."""
     from cvstereo import viz
     from cvstereo.pipeline import match
 
-    folder.mkdir(parents=True, exist_ok=True)
     t0 = viz.busiest_window(recording, FIGURE_WINDOW_US)
     pictures = {
         "events.png": viz.plot_event_frames(recording, t0),
@@ -120,10 +146,8 @@ def _figures(recording, combos, folder: Path) -> None:
     for method, variant in combos:
         result = match(recording, method=method, variant=variant)
         name = f"{method}-{variant}"
-        (folder / name).mkdir(exist_ok=True)
         pictures[f"{name}/disparity-time.png"] = viz.plot_disparity_over_time(recording, result, depth=depth)
         pictures[f"{name}/disparity-map.png"] = viz.plot_disparity_map(recording, result, depth=depth)
         pictures[f"{name}/error-hist.png"] = viz.plot_error_histogram(recording, result)
     for file, fig in pictures.items():
         viz.save_figure(fig, folder / file)
-    print(f"Figures of {FIGURE_RECORDING} written to {folder}/: {', '.join(pictures)}")

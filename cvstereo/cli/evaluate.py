@@ -5,7 +5,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from cvstereo.cli._common import add_recording_arguments, load_matches, load_recording, naming
+from cvstereo.cli._common import (
+    add_force_option,
+    add_recording_arguments,
+    load_matches_for,
+    load_recording,
+    naming,
+    recording_plan,
+)
 from cvstereo.cli._text import printable
 
 
@@ -19,21 +26,17 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
     )
     add_recording_arguments(p, matches="required")
     p.add_argument("--json", action="store_true", help="print a JSON object instead of a table")
-    p.add_argument("--force", action="store_true",
-                   help="score even when the matches file says it was computed on another recording (other "
-                   "event count or sensor size)")
+    add_force_option(p, "score")
     return p
 
 
 def run(args: argparse.Namespace) -> int:
-    from cvstereo.evaluate import FIGURES, check_same_recording, evaluate, markdown_table, to_json
+    from cvstereo.evaluate import FIGURES, evaluate, markdown_table, to_json
     from cvstereo.thesis import thesis_disparity
 
-    recording = load_recording(args)
-    result = load_matches(args.matches)
+    recording_plan(args).check()  # reads only: its inputs are regular files
+    recording, result = load_matches_for(args, load_recording(args))
     with naming(args.matches):
-        if not args.force:
-            check_same_recording(recording, result.meta)
         figures = evaluate(recording, result)
     meta = result.meta
     if args.json:

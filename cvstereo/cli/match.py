@@ -4,14 +4,16 @@ Runs one matcher over a recording (through :func:`cvstereo.pipeline.match`, so t
 ``match()`` returns) and writes the matches file of formats.md. ``--list-methods`` prints every registered
 method with its variants and parameters. ``--param-set thesis|adaptive`` picks the parameter set
 (:mod:`cvstereo.param_sets`). A run that answers in less than 1 % of the 40 ms windows with events says why on
-one ``warning:`` line on stderr (and still exits 0).
+one ``warning:`` line on stderr (and still exits 0). Where the geometry comes from (calibration, options, the
+recording's rig, the rig check: :mod:`cvstereo.geometry_source`) is said on one ``geometry:`` line and stored in the
+file; the matches file and a ``--point-cloud`` appear together, once both are written (an output plan:
+:mod:`cvstereo.io.output_plan`).
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
-import os
 import sys
 import typing
 
@@ -22,11 +24,13 @@ from cvstereo.cli._common import (
     add_matcher_options,
     add_progress_option,
     add_recording_arguments,
-    check_files,
-    depth_model,
+    conflicts_as_usage_errors,
     format_options,
+    load_recording,
     matcher_overrides,
+    parse_depth_option,
     progress_wanted,
+    recording_plan,
     require_range,
 )
 from cvstereo.cli._text import number, plain_text
@@ -47,7 +51,8 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
     )
     add_recording_arguments(p, required=False)
     add_matcher_options(p)
-    p.add_argument("-o", "--output", metavar="MATCHES.npz", default=None, help="matches file to write")
+    p.add_argument("-o", "--output", metavar="MATCHES.npz", default=None,
+                   help="matches file to write (.npz, or a name without extension)")
     p.add_argument("--packet-us", type=int, default=None, metavar="US",
                    help="stream the recording in packets of this length (the result does not depend on it)")
     add_progress_option(p)
@@ -68,7 +73,8 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
     g.add_argument("--point-cloud", metavar="FILE.ply", default=None,
                    help="also write the matches with a distance as a PLY point cloud (needs a depth model)")
     g.add_argument("--focal-px", type=float, default=None, metavar="F",
-                   help="point cloud without a calibration: focal length in px (default: the thesis rig's 165)")
+                   help="point cloud without a calibration: focal length in px (default: the recording's rig, where "
+                   "it has one, else the thesis rig's 165)")
     p.set_defaults(_parser=p)
     return p
 
@@ -79,65 +85,48 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if args.recording is None or args.output is None:
         args._parser.error("RECORDING and -o MATCHES.npz are required (or give --list-methods)")
+    if args.focal_px is not None and args.point_cloud is None:
+        args._parser.error("--focal-px is the point cloud's focal length: give --point-cloud FILE.ply with it")
     overrides = matcher_overrides(args)  # method, variant and values, before reading a possibly long recording
     require_range(args.packet_us, "--packet-us", gt=0)
     if args.time_offset_us is not None and abs(args.time_offset_us) > MAX_TIME_OFFSET_US:
         raise ValueError(f"--time-offset-us must be within +-{MAX_TIME_OFFSET_US:,} us (a day), got "
                          f"{args.time_offset_us:,}.")
-    refuse_other_format(args.output, "a matches file (.npz)", ".npz")
-    check_files([args.recording, args.right, args.calibration], [args.output, args.point_cloud])
-    if args.depth is not None:
-        depth_model(args, None)  # a bad --depth is said before the matching, not after
-    from cvstereo.cli._common import load_recording
     from cvstereo.io import write_matches
+    from cvstereo.io.output_plan import MATCHES_FILE, POINT_CLOUD
     from cvstereo.pipeline import DEFAULT_PACKET_US, match
 
-    calibration = None
-    if args.calibration is not None:
-        if args.auto or args.row_offset is not None or args.time_offset_us is not None:
-            args._parser.error("--calibration rectifies the rows itself: leave out --auto, --row-offset, "
-                               "--time-offset-us")
-        from cvstereo.calibration import load_calibration
-        from cvstereo.rectify import Rectification
-
-        calibration = load_calibration(args.calibration)
-        overrides_rect = {"rectification": Rectification(calibration)}
-    else:
-        overrides_rect = {}
-    recording = load_recording(args)
-    height = recording.resolution[1]
-    if args.row_offset is not None and abs(args.row_offset) >= height:
-        raise ValueError(f"--row-offset must be within +-{height - 1} rows (the sensor is {height} rows high), "
-                         f"got {args.row_offset}.")
-    depth = depth_model(args, recording)
-    recording, rig, offsets = _rig_correction(args, recording)
-    progress = progress_wanted(args)
-    result = match(recording, method=args.method, variant=args.variant, progress=progress,
-                   packet_us=args.packet_us or DEFAULT_PACKET_US, param_set=args.param_set, **offsets,
-                   **overrides_rect, **overrides)
-    if rig is not None:
-        result.meta["rigcheck"] = rig
-    result.meta["input"] = [args.recording] + ([args.right] if args.right else [])
-    result.meta["format_options"] = {k: list(v) if isinstance(v, tuple) else v
-                                     for k, v in format_options(args).items()}
-    if depth is None and calibration is not None and args.metres and args.depth is None:
-        depth = calibration.depth_model()
-    if depth is not None:
-        from cvstereo.pointcloud import depth_per_match
-
-        # The match dtype is a contract: distances go beside it (formats.md), with the model in meta.
-        result.meta["depth"] = depth.to_dict()
-        result.arrays["depth_m"] = depth_per_match(result.matches, depth)
-    if args.point_cloud is not None:
-        _write_point_cloud(args, result, depth, calibration, recording.resolution)
-    write_matches(args.output, result.matches, result.meta, arrays=result.arrays)
+    plan = recording_plan(args)
+    plan.read(args.calibration, what="calibration file")
+    plan.write(args.output, MATCHES_FILE)
+    plan.write(args.point_cloud, POINT_CLOUD, option="--point-cloud")
+    said = []  # lines about outputs, printed once they are published
+    with plan:  # every file checked before any work; the outputs published together at the end
+        options = _geometry_options(args)
+        recording = load_recording(args)
+        height = recording.resolution[1]
+        if args.row_offset is not None and abs(args.row_offset) >= height:
+            raise ValueError(f"--row-offset must be within +-{height - 1} rows (the sensor is {height} rows high), "
+                             f"got {args.row_offset}.")
+        geometry = options.resolve(recording.meta, recording.resolution, recording=recording)
+        if args.point_cloud is not None and geometry.depth is None:
+            raise ValueError("--point-cloud needs a depth model: give --depth A C (or MODEL.json) or --calibration.")
+        result = match(geometry.prepare(recording), method=args.method, variant=args.variant,
+                       progress=progress_wanted(args), packet_us=args.packet_us or DEFAULT_PACKET_US,
+                       param_set=args.param_set, **geometry.match_kwargs(), **overrides)
+        _record_geometry(args, result, geometry)
+        if args.point_cloud is not None:
+            said.append(_write_point_cloud(args, result, geometry))
+        write_matches(args.output, result.matches, result.meta, arrays=result.arrays)
     m = result.meta
+    print(geometry.summary(), *said, sep="\n")
     print(f"{len(result)} matches from {m['input_events']} events ({args.method}, {m['variant']}, "
           f"{args.param_set}) in {m['elapsed_s']:.2f} s -> {args.output}")
     warning = silence_warning(m, n_matches=len(result))
     if warning is not None:
         print(f"warning: {warning}", file=sys.stderr)
     if len(result):
+        depth = geometry.depth
         d50, d5, d95 = np.percentile(result.disparity, [50, 5, 95])
         line = f"disparity: median {number(d50)} px, 5-95 % {number(d5, '.1f')}..{number(d95, '.1f')} px"
         if depth is not None:
@@ -148,49 +137,62 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def refuse_other_format(path, what: str, *suffixes: str) -> None:
-    """Refuse an output name whose extension says another format than the one written (``-o m.txt`` for a
-    matches file would be read back as eDVS text). Names without a known extension (``/dev/null``) pass."""
-    from cvstereo.io import AEDAT_SUFFIXES, TEXT_SUFFIXES
+def _geometry_options(args: argparse.Namespace):
+    """What the command line gives towards the geometry (:class:`cvstereo.geometry_source.GeometryOptions`);
+    options that exclude each other are usage errors."""
+    from cvstereo.geometry_source import GeometryOptions
 
-    suffix = os.path.splitext(os.fspath(path))[1].lower()
-    if suffix in (".npz", *TEXT_SUFFIXES, *AEDAT_SUFFIXES) and suffix not in suffixes:
-        raise ValueError(f"-o {path}: '{suffix}' names another format; this writes {what}: name it "
-                         f"{' or '.join(suffixes)}.")
+    calibration = None
+    if args.calibration is not None:
+        from cvstereo.calibration import load_calibration
+
+        calibration = load_calibration(args.calibration)
+    with conflicts_as_usage_errors(args):
+        return GeometryOptions(calibration=calibration,
+                               depth=parse_depth_option(args.depth) if args.depth is not None and args.metres
+                               else None,
+                               focal_px=args.focal_px, row_offset=args.row_offset, time_offset_us=args.time_offset_us,
+                               metres=args.metres, point_cloud=args.point_cloud is not None,
+                               rig_check=_rig_check if args.auto else None)
 
 
-def _write_point_cloud(args: argparse.Namespace, result, depth, calibration, resolution) -> None:
-    from cvstereo.pointcloud import Intrinsics, point_cloud, write_ply
+def _rig_check(recording):
+    """``--auto``: the rig check, its report printed."""
+    from cvstereo.rigcheck import check_rig
 
-    if depth is None:
-        raise ValueError("--point-cloud needs a depth model: give --depth A C (or MODEL.json) or --calibration.")
-    intrinsics = Intrinsics.from_options(resolution, focal_px=args.focal_px, calibration=calibration)
-    points = point_cloud(result.matches, depth, intrinsics)
-    write_ply(args.point_cloud, points, model=depth, intrinsics=intrinsics,
+    report = check_rig(recording)
+    print(report.summary())
+    return report
+
+
+def _record_geometry(args: argparse.Namespace, result, geometry) -> None:
+    """Store in the matches' meta what they were computed on and with: the inputs, the geometry and where it came
+    from, the depth of every match (formats.md: the match dtype is a contract, distances go beside it)."""
+    from cvstereo.fingerprint import swap_cameras
+
+    meta = result.meta
+    meta["geometry"] = geometry.describe()
+    if geometry.rigcheck is not None:
+        meta["rigcheck"] = geometry.rigcheck
+    if geometry.swap:  # the fingerprint is of the files as read, not of the cameras as exchanged
+        meta["fingerprint"] = swap_cameras(meta["fingerprint"])
+    meta["input"] = [args.recording] + ([args.right] if args.right else [])
+    meta["format_options"] = {k: list(v) if isinstance(v, tuple) else v for k, v in format_options(args).items()}
+    if geometry.depth is not None:
+        from cvstereo.pointcloud import depth_per_match
+
+        meta["depth"] = geometry.depth.to_dict()
+        result.arrays["depth_m"] = depth_per_match(result.matches, geometry.depth)
+
+
+def _write_point_cloud(args: argparse.Namespace, result, geometry) -> str:
+    """Write ``--point-cloud`` (into the plan); return the line that says so."""
+    from cvstereo.pointcloud import point_cloud, write_ply
+
+    points = point_cloud(result.matches, geometry.depth, geometry.intrinsics)
+    write_ply(args.point_cloud, points, model=geometry.depth, intrinsics=geometry.intrinsics,
               comments=(f"input {' '.join(result.meta['input'])}", f"method {args.method} ({result.meta['variant']})"))
-    print(f"{points.size} points -> {args.point_cloud} (intrinsics from {intrinsics.source})")
-
-
-def _rig_correction(args: argparse.Namespace, recording):
-    """``--auto`` / ``--row-offset`` / ``--time-offset-us``: (recording to match, rigcheck meta or None, offsets)."""
-    rig, offsets = None, {}
-    if args.auto:
-        from cvstereo.rigcheck import check_rig
-
-        report = check_rig(recording)
-        print(report.summary())
-        prepared = report.prepare(recording)
-        swap, recording = prepared is not recording, prepared
-        offsets = report.match_kwargs()
-        rig = {**report.to_dict(), "applied": {"swap": swap, **offsets}}
-    for key in ("row_offset", "time_offset_us"):
-        if getattr(args, key) is not None:
-            offsets[key] = getattr(args, key)
-    if rig is not None:
-        rig["applied"].update(offsets)
-        print(f"applied: {'swapped cameras, ' if rig['applied']['swap'] else ''}row offset "
-              f"{offsets.get('row_offset', 0)}, time offset {offsets.get('time_offset_us', 0)} us")
-    return recording, rig, offsets
+    return f"{points.size} points -> {args.point_cloud} (intrinsics from {geometry.intrinsics.source})"
 
 
 def list_methods() -> str:

@@ -10,12 +10,14 @@ from pathlib import Path
 
 from cvstereo.cli._common import (
     add_depth_options,
+    add_force_option,
     add_recording_arguments,
-    depth_model,
-    load_matches,
+    conflicts_as_usage_errors,
+    load_matches_for,
     load_recording,
-    meta_depth,
     naming,
+    picture_depth,
+    recording_plan,
     require_range,
 )
 
@@ -35,14 +37,17 @@ def name_recording(recording, path) -> None:
         recording.meta["name"] = Path(path).name
 
 
-def picture_depth(args: argparse.Namespace, recording, result):
-    """The depth model for pictures: ``--depth``, else the one `cvstereo match` stored in the matches file, else
-    the recording's rig; None with ``--no-metres``."""
-    if args.metres and args.depth is None and result is not None:
-        stored = meta_depth(result.meta, getattr(args, "matches", None) or "the matches file")
-        if stored is not None:
-            return stored
-    return depth_model(args, recording)
+def load_picture_inputs(args: argparse.Namespace):
+    """What `plot` and `video` draw: (the recording, named for titles and with its cameras as the matches used
+    them; the matches, checked to come from it (:func:`~cvstereo.cli._common.load_matches_for`), or None; the
+    depth model, or None)."""
+    recording = load_recording(args)
+    name_recording(recording, args.recording)
+    result = None
+    if args.matches is not None:
+        recording, result = load_matches_for(args, recording)
+    with conflicts_as_usage_errors(args):
+        return recording, result, picture_depth(args, recording, result)
 
 
 def check_window_options(args: argparse.Namespace) -> None:
@@ -109,6 +114,8 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
                    help="the same as --width-in 3.5 (a single paper column)")
     add_depth_options(p)
     p.add_argument("--dpi", type=float, default=None, help="resolution of raster pictures (default: 120)")
+    add_force_option(p, "draw")
+    p.set_defaults(_parser=p)
     return p
 
 
@@ -127,40 +134,32 @@ def run(args: argparse.Namespace) -> int:
     if args.kind != "all" and KINDS[args.kind][0] and args.matches is None:
         raise ValueError(f"plot {args.kind} shows matches: give the MATCHES file written by `cvstereo match` "
                          f"after RECORDING (e.g. cvstereo plot {args.kind} rec.npz matches.npz -o out.png).")
+    from cvstereo.io.output_plan import FIGURE
     from cvstereo.viz import save_figure
 
-    folder = Path(args.output)
+    plan = recording_plan(args)
     if args.kind == "all":
-        if folder.exists() and not folder.is_dir():
-            raise NotADirectoryError(f"-o {folder}: exists and is not a folder; plot all writes one picture per "
-                                     "kind into a folder.")
-        outputs = [folder / f"{kind}.png" for kind in KINDS]
+        kinds = [kind for kind, (needs_matches, _) in KINDS.items() if args.matches is not None or not needs_matches]
+        outputs = plan.write_folder(args.output, [f"{kind}.png" for kind in kinds], FIGURE)
     else:
-        outputs = [args.output]
-    recording = load_recording(args, outputs=outputs)
-    name_recording(recording, args.recording)
-    check_window_inside(args, recording)
-    result = load_matches(args.matches) if args.matches is not None else None
-    depth = picture_depth(args, recording, result)
-    if args.kind != "all":
-        with naming(args.recording, args.matches):
-            figure = make_figure(args.kind, recording, result, args, depth)
-        save_figure(figure, args.output, dpi=args.dpi, width_in=args.width_in)
-        print(f"{args.kind} -> {args.output}")
-        return 0
-    folder.mkdir(parents=True, exist_ok=True)
-    for kind, (needs_matches, _) in KINDS.items():
-        if needs_matches and result is None:
-            print(f"{kind}: skipped (no MATCHES given)")
-            continue
-        if kind == "error-hist" and not recording.has_truth:
-            print(f"{kind}: skipped (the recording has no ground truth)")
-            continue
-        path = folder / f"{kind}.png"
-        with naming(args.recording, args.matches):
-            figure = make_figure(kind, recording, result, args, depth)
-        save_figure(figure, path, dpi=args.dpi, width_in=args.width_in)
-        print(f"{kind} -> {path}")
+        plan.write(args.output, FIGURE)
+        kinds, outputs = [args.kind], [args.output]
+    said = []
+    with plan:  # every file checked first; the pictures published together once all are drawn
+        recording, result, depth = load_picture_inputs(args)
+        check_window_inside(args, recording)
+        planned = dict(zip(kinds, outputs, strict=True))
+        for kind in KINDS if args.kind == "all" else kinds:
+            if kind not in planned:
+                said.append(f"{kind}: skipped (no MATCHES given)")
+            elif kind == "error-hist" and args.kind == "all" and not recording.has_truth:
+                said.append(f"{kind}: skipped (the recording has no ground truth)")
+            else:
+                with naming(args.recording, args.matches):
+                    figure = make_figure(kind, recording, result, args, depth)
+                save_figure(figure, planned[kind], dpi=args.dpi, width_in=args.width_in)
+                said.append(f"{kind} -> {planned[kind]}")
+    print("\n".join(said))
     return 0
 
 

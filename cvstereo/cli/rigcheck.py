@@ -11,7 +11,14 @@ from __future__ import annotations
 import argparse
 import json
 
-from cvstereo.cli._common import add_progress_option, add_recording_arguments, load_recording, progress_wanted
+from cvstereo.cli._common import (
+    add_progress_option,
+    add_recording_arguments,
+    load_recording,
+    naming,
+    progress_wanted,
+    recording_plan,
+)
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
@@ -35,11 +42,26 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cvstereo.rigcheck import RigCheckParams, check_rig
+    from cvstereo.rigcheck import RigCheckParams
 
     params = RigCheckParams(max_disparity=args.max_disparity, max_row_offset=args.max_row_offset,
                             max_time_offset_us=round(args.max_time_offset_ms * 1000))
+    recording_plan(args).check()  # reads only: its inputs are regular files
     recording = load_recording(args)
+    with naming(args.recording, args.right):
+        report = _check(args, recording, params)
+    if args.json:
+        # to_dict gives null for a figure that could not be estimated: strict JSON, never a bare NaN.
+        print(json.dumps(report.to_dict(), indent=2, allow_nan=False))
+    else:
+        print(report.summary())
+    return 0
+
+
+def _check(args: argparse.Namespace, recording, params):
+    """The rig check, with a progress bar of its stages where wanted."""
+    from cvstereo.rigcheck import check_rig
+
     if progress_wanted(args):
         from tqdm.auto import tqdm
 
@@ -53,11 +75,5 @@ def run(args: argparse.Namespace) -> int:
 
             report = check_rig(recording, params, progress=stage)
             bar.update(len(STAGES) - bar.n)
-    else:
-        report = check_rig(recording, params)
-    if args.json:
-        # to_dict gives null for a figure that could not be estimated: strict JSON, never a bare NaN.
-        print(json.dumps(report.to_dict(), indent=2, allow_nan=False))
-    else:
-        print(report.summary())
-    return 0
+        return report
+    return check_rig(recording, params)

@@ -11,6 +11,7 @@ Examples::
     cvstereo simulate --list-suites
     cvstereo simulate --suite robustness                 # fill the cache, print the paths
     cvstereo simulate --suite robustness -o suite/       # and copy each recording to suite/NAME.npz
+    cvstereo simulate --suite generalization             # suite v2: six scene families, tuning and eval halves
 """
 
 from __future__ import annotations
@@ -113,11 +114,15 @@ def _list_suites() -> int:
 
     for name in SUITES:
         suite = load_suite(name)
-        print(f"{name} (v{suite.version}): {len(suite.recordings)} recordings of {suite.seconds:g} s around "
-              f"{suite.base}; {suite.description}")
+        around = f" around {suite.base}" if suite.base else ""
+        print(f"{name} (v{suite.version}): {len(suite.recordings)} recordings of {suite.seconds:g} s{around}; "
+              f"{suite.description}")
         for rec in suite.recordings:
             w, h = rec.rig.resolution
-            print(f"  {rec.name:22s} {rec.factor:16s} {_value_text(rec.value)}  [{w}x{h}]")
+            if hasattr(rec, "summary"):  # a suite of scene families: what each recording drew
+                print(f"  {rec.name:24s} {rec.summary()}")
+            else:
+                print(f"  {rec.name:22s} {rec.factor:16s} {_value_text(rec.value)}  [{w}x{h}]")
     return 0
 
 
@@ -145,7 +150,9 @@ def _run_suite(args: argparse.Namespace) -> int:
         if folder is not None:
             target = folder / f"{name}.npz"
             shutil.copyfile(path, target)
-        print(f"{name:22s} {label['factor']:16s} {_value_text(label['value']):40s} {w}x{h} "
+        kind, value = ((label["factor"], label["value"]) if "factor" in label else
+                       (f"{label['family']} {label['half']}", ", ".join(label["photos"])))
+        print(f"{name:22s} {kind:16s} {_value_text(value):40s} {w}x{h} "
               f"{rec.left.size:>8d} {rec.right.size:>8d}  {target}")
     print(f"suite {args.suite}: {len(paths)} recordings ready in {total:.1f} s", file=sys.stderr)
     return 0

@@ -12,8 +12,9 @@ from collections.abc import Callable
 
 import numpy as np
 
+from cvstereo.columns import check_polarity, labelled
 from cvstereo.errors import EventFormatError
-from cvstereo.events import as_events, validate_events
+from cvstereo.events import as_events, events_from_columns, validate_events
 
 
 class ChunkChecker:
@@ -25,6 +26,10 @@ class ChunkChecker:
         Coordinates must lie inside; None skips the range check.
     source : str, keyword-only
         Named in error messages, e.g. ``"rec.dat [retina 1]"``.
+    labels : dict, optional, keyword-only
+        How the file names each field, e.g. ``{"t": "/events/t"}`` (see :func:`cvstereo.events.events_from_columns`).
+    start : int, keyword-only
+        Stream index of the first event checked (a reader that starts mid-file names file positions).
 
     Examples
     --------
@@ -38,11 +43,13 @@ class ChunkChecker:
     cvstereo.errors.EventFormatError: demo: field 't' at index 2 is 4, earlier than the preceding event (5); ...
     """
 
-    def __init__(self, *, resolution: tuple[int, int] | None, source: str):
+    def __init__(self, *, resolution: tuple[int, int] | None, source: str, labels: dict[str, str] | None = None,
+                 start: int = 0):
         self.resolution = resolution
         self.source = source
-        #: Events accepted so far (the stream index of the next chunk's first event).
-        self.count = 0
+        self.labels = labels
+        #: The stream index of the next chunk's first event (events accepted so far, plus ``start``).
+        self.count = start
         self._t_last: int | None = None
 
     def __call__(self, raw: np.ndarray, locate: Callable[[int], str] | None = None) -> np.ndarray:
@@ -74,17 +81,41 @@ class ChunkChecker:
             except EventFormatError as first:
                 exc = first
             raise EventFormatError(f"{exc} [{locate(i)}]") from None
+        return self._accepted(events)
+
+    def columns(self, t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray, *, t_offset: int = 0) -> np.ndarray:
+        """Validate the next chunk given as four raw columns (as a file stores them) and return it as EVENT_DTYPE.
+
+        Every value is checked in its stored dtype before the cast (:func:`cvstereo.events.events_from_columns`);
+        ``t_offset`` is added to the times.
+        """
+        floor = None if self._t_last is None else self._t_last - t_offset
+        return self._accepted(events_from_columns(t, x, y, p, resolution=self.resolution, source=self.source,
+                                                  index_offset=self.count, labels=self.labels, t_offset=t_offset,
+                                                  t_floor=floor))
+
+    def adopt(self, events: np.ndarray) -> np.ndarray:
+        """Validate the next chunk, an array of EVENT_DTYPE that the caller owns, in place, and return it.
+
+        For readers whose decoder already wrote the event dtype's layout (a buffer of its own): the values are
+        checked as :func:`cvstereo.events.events_from_columns` checks them, without a copy; polarities -1 become 0.
+        """
+        check_polarity(events["p"], source=self.source, label=labelled(self.labels)["p"], index_offset=self.count)
+        validate_events(events, resolution=self.resolution, source=self.source, index_offset=self.count,
+                        t_floor=self._t_last, labels=self.labels)
+        if events.size and events["p"].min() < 0:
+            events["p"] = events["p"] > 0
+        return self._accepted(events)
+
+    def _accepted(self, events: np.ndarray) -> np.ndarray:
         self.count += events.size
         if events.size:
             self._t_last = int(events["t"][-1])
         return events
 
     def _check(self, raw: np.ndarray) -> np.ndarray:
-        events = as_events(raw, resolution=self.resolution, source=self.source, index_offset=self.count)
-        if events.size and self._t_last is not None:
-            validate_events(events[:1], resolution=None, source=self.source, index_offset=self.count,
-                            t_floor=self._t_last)
-        return events
+        return as_events(raw, resolution=self.resolution, source=self.source, index_offset=self.count,
+                         t_floor=self._t_last)
 
     def _first_bad_row(self, raw: np.ndarray) -> int:
         lo, hi = 0, len(raw) - 1

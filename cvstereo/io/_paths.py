@@ -16,7 +16,7 @@ class OutputIsInputError(ValueError):
     """An output path names the same file as an input (or as another output of the same command)."""
 
 
-def _same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
+def same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
     """Whether two paths name one file: the same inode (symlinks followed, hard links seen), or, for paths
     that do not exist yet, the same resolved path."""
     try:
@@ -60,7 +60,7 @@ def refuse_output_over_input(output: str | os.PathLike | None, inputs: Iterable[
     for source in inputs:
         if source is None:
             continue
-        if _same_file(output, source):
+        if same_file(output, source):
             same = "" if os.fspath(output) == os.fspath(source) else f" {os.fspath(source)}"
             raise OutputIsInputError(
                 f"{option} {os.fspath(output)} is the {what}{same} (the same file): writing it would destroy "

@@ -11,7 +11,14 @@ MVSEC (``mvsec``; both cameras in one ``*_data.hdf5`` file, 346x260): ``/davis/l
 whole microseconds (``round(t * 1e6)``: the float64 seconds of a ROS clock resolve 0.25 us).
 
 Both are streamed: DSEC by time slices of ``chunk_ms`` milliseconds cut with ``ms_to_idx`` (files are
-gigabytes); MVSEC by blocks of rows. :func:`read_time_slice` reads only the events of one time window.
+gigabytes), never more than :data:`CHUNK_ROWS` events at once; MVSEC by blocks of rows.
+:func:`read_time_slice` reads only the events of one time window.
+
+Values are checked as stored, chunk by chunk, before any cast (:mod:`cvstereo.columns`): a float ``t`` (whose
+unit cannot be told), coordinates beyond the sensor or int16 (65541 is not read as 5, 65535 not as -1),
+polarities other than 0/1 or -1/+1 (256 is not read as OFF), times beyond int64 (a uint64 2**63, MVSEC's 1e300 s)
+and an index table that decreases or points outside the data are refused with the file, the dataset and the
+first bad index named, so that no event is silently moved or dropped.
 """
 
 from __future__ import annotations
@@ -22,9 +29,10 @@ from collections.abc import Iterator
 
 import numpy as np
 
+from cvstereo.columns import check_times, times_to_us, whole_numbers
 from cvstereo.errors import CorruptFileError
-from cvstereo.events import make_events
 from cvstereo.io._checked import ChunkChecker
+from cvstereo.io._hdf5_datasets import check_index_block, h5py_module, integer_scalar, numeric_dataset, read_rows
 from cvstereo.io.stream import MONO, Chunk, RecordingStream
 from cvstereo.recording import CAMERAS
 
@@ -32,28 +40,33 @@ DSEC_RESOLUTION = (640, 480)
 MVSEC_RESOLUTION = (346, 260)
 #: DSEC chunk length, milliseconds.
 CHUNK_MS = 50
-#: MVSEC chunk length, rows.
+#: The most events read at once (MVSEC's blocks, and the cap on a DSEC time slice: a sparse or damaged index
+#: must not make one slice the whole file).
 CHUNK_ROWS = 1 << 18
+#: Entries of DSEC's /ms_to_idx read and checked at once (an hour of recording has 3.6 million).
+INDEX_BLOCK = 1 << 16
 _DSEC_FIELDS = ("x", "y", "t", "p")
-
-
-def _h5py():
-    try:
-        import h5py
-        import hdf5plugin  # noqa: F401 -- registers the compression filters DSEC files use (Blosc, Zstd)
-    except ImportError as exc:
-        raise ImportError("reading HDF5 event files needs h5py and hdf5plugin: pip install 'cvstereo[hdf5]'") from exc
-    return h5py
+#: What each DSEC dataset holds, for the messages that refuse another kind.
+_DSEC_HOLDS = {"x": "pixel columns (uint16)", "y": "pixel rows (uint16)", "p": "polarities 0/1",
+               "t": "integer microseconds (uint32) relative to /t_offset"}
+_DSEC_LABELS = {f: f"/events/{f}" for f in _DSEC_FIELDS}
+#: MVSEC's column order in /davis/CAMERA/events.
+_MVSEC_COLUMNS = {"x": 0, "y": 1, "t": 2, "p": 3}
 
 
 def _open(path):
-    h5py = _h5py()
+    h5py = h5py_module()
     try:
         return h5py.File(path, "r")
     except FileNotFoundError:
         raise FileNotFoundError(f"{path}: no such file.") from None
     except OSError as exc:
         raise CorruptFileError(f"{path}: not a readable HDF5 file ({exc}).") from None
+
+
+def _is_dsec(f) -> bool:
+    events = f.get("events")
+    return isinstance(events, h5py_module().Group) and all(k in events for k in _DSEC_FIELDS)
 
 
 def hdf5_layout(path: str | os.PathLike) -> str:
@@ -65,82 +78,115 @@ def hdf5_layout(path: str | os.PathLike) -> str:
         Neither ``/events/{x,y,t,p}`` nor ``/davis/{left,right}/events``.
     """
     with _open(path) as f:
-        if "events" in f and all(k in f["events"] for k in _DSEC_FIELDS):
+        if _is_dsec(f):
             return "dsec"
-        if "davis" in f and any(f"{cam}/events" in f["davis"] for cam in CAMERAS):
+        davis = f.get("davis")
+        if isinstance(davis, h5py_module().Group) and any(f"{cam}/events" in davis for cam in CAMERAS):
             return "mvsec"
         raise CorruptFileError(f"{path}: neither the DSEC layout (/events/x, y, t, p) nor MVSEC's "
                                f"(/davis/left/events); top-level keys: {', '.join(f.keys()) or 'none'}.")
 
 
-def _dsec_header(path) -> tuple[int, int, np.ndarray | None]:
+def _dsec_header(path) -> tuple[int, int, int | None]:
+    """(events, t_offset, length of /ms_to_idx or None), after checking every dataset's kind and shape."""
     with _open(path) as f:
-        if "events" not in f or not all(k in f["events"] for k in _DSEC_FIELDS):
+        if not _is_dsec(f):
             raise CorruptFileError(f"{path}: not a DSEC event file (needs /events/x, /events/y, /events/t, "
                                    "/events/p).")
-        sizes = {k: f["events"][k].shape[0] for k in _DSEC_FIELDS}
+        datasets = {k: numeric_dataset(f, path, f"events/{k}", ndim=1, holds=_DSEC_HOLDS[k]) for k in _DSEC_FIELDS}
+        if datasets["t"].dtype.kind == "f":
+            raise CorruptFileError(
+                f"{path}: /events/t has dtype {datasets['t'].dtype}; DSEC stores t as {_DSEC_HOLDS['t']}, and the "
+                "unit of float times (seconds? microseconds?) cannot be told from them: convert them to integer "
+                "microseconds, e.g. np.round(t_seconds * 1e6).astype('uint32').")
+        sizes = {k: ds.shape[0] for k, ds in datasets.items()}
         if len(set(sizes.values())) != 1:
             raise CorruptFileError(f"{path}: /events/x, y, t, p have different lengths {sizes}.")
-        t_offset = int(f["t_offset"][()]) if "t_offset" in f else 0
-        ms_to_idx = np.asarray(f["ms_to_idx"][()], np.int64) if "ms_to_idx" in f else None
-    return sizes["x"], t_offset, ms_to_idx
+        t_offset = 0
+        if "t_offset" in f:
+            t_offset = integer_scalar(f, path, "t_offset", holds="the int64 microseconds added to every t")
+        index = None
+        if "ms_to_idx" in f:
+            index = numeric_dataset(f, path, "ms_to_idx", ndim=1, holds="event indices (integers)", integers=True)
+            index = index.shape[0]
+    return sizes["x"], t_offset, index
 
 
-def _dsec_bounds(path, n: int, ms_to_idx: np.ndarray | None, chunk_ms: int) -> list[int]:
-    if ms_to_idx is None:  # without the index: blocks of rows (still time-ordered)
-        return [*range(0, n, CHUNK_ROWS), n]
-    return [*(int(i) for i in ms_to_idx[::chunk_ms] if i < n), n]
+def _index_cuts(f, path, n: int, size: int, chunk_ms: int) -> Iterator[int]:
+    """Every ``chunk_ms``-th entry of /ms_to_idx but zeros (the row ranges start at 0 anyway), each block of the
+    table checked before it is used."""
+    index, previous = f["ms_to_idx"], None
+    for lo in range(0, size, INDEX_BLOCK):
+        block = read_rows(index, path, "ms_to_idx", lo, lo + INDEX_BLOCK)
+        previous = check_index_block(block, previous, n, path=path, key="ms_to_idx", index_offset=lo)
+        first = -lo % chunk_ms  # the block's first entry at a multiple of chunk_ms
+        yield from (int(v) for v in block[first::chunk_ms] if v > 0)
 
 
-def _dsec_rows(f, lo: int, hi: int, t_offset: int) -> np.ndarray:
+def _dsec_bounds(f, path, n: int, index_size: int | None, chunk_ms: int) -> Iterator[tuple[int, int]]:
+    """Row ranges that tile ``0..n`` in order: cut where the index says a slice begins, at most CHUNK_ROWS long.
+
+    The ranges start at 0 and end at n whatever the index says, so that an index that is not DSEC's (its
+    first entry not 0, entries missing at the end) still reads every event once; one that decreases or points
+    outside the data is refused by :func:`check_index_block`.
+    """
+    cuts = _index_cuts(f, path, n, index_size, chunk_ms) if index_size else iter(())
+    lo = 0
+    for cut in itertools.chain(cuts, (n,)):
+        while cut - lo > CHUNK_ROWS:
+            yield lo, lo + CHUNK_ROWS
+            lo += CHUNK_ROWS
+        if cut > lo:
+            yield lo, cut
+            lo = cut
+
+
+def _dsec_rows(f, path, lo: int, hi: int, t_offset: int, check: ChunkChecker) -> np.ndarray:
+    """Rows ``lo:hi`` of a DSEC file as EVENT_DTYPE, every value checked as stored before the cast."""
     ev = f["events"]
-    return make_events(ev["t"][lo:hi].astype(np.int64) + t_offset, ev["x"][lo:hi], ev["y"][lo:hi],
-                       ev["p"][lo:hi].astype(np.int8))
+    raw = {k: read_rows(ev[k], path, f"events/{k}", lo, hi) for k in _DSEC_FIELDS}
+    x, y, p = (whole_numbers(raw[k], label=_DSEC_LABELS[k], source=str(path), index_offset=lo) for k in "xyp")
+    return check.columns(raw["t"], x, y, p, t_offset=t_offset)
 
 
-def _dsec_chunks(path, label: str, resolution, chunk_ms: int) -> Iterator[Chunk]:
-    n, t_offset, ms_to_idx = _dsec_header(path)
-    bounds = _dsec_bounds(path, n, ms_to_idx, chunk_ms)
-    check = ChunkChecker(resolution=resolution, source=f"{path} [{label}]")
+def _dsec_chunks(path, resolution, chunk_ms: int) -> Iterator[Chunk]:
+    n, t_offset, index_size = _dsec_header(path)
+    check = ChunkChecker(resolution=resolution, source=str(path), labels=_DSEC_LABELS)
     with _open(path) as f:
-        for lo, hi in itertools.pairwise(bounds):
-            if hi > lo:
-                yield check(_dsec_rows(f, lo, hi, t_offset)), None
-
-
-def _mvsec_rows(data: np.ndarray) -> np.ndarray:
-    return make_events(np.round(data[:, 2] * 1e6).astype(np.int64), data[:, 0].astype(np.int64),
-                       data[:, 1].astype(np.int64), (data[:, 3] > 0).astype(np.int8))
+        for lo, hi in _dsec_bounds(f, path, n, index_size, chunk_ms):
+            yield _dsec_rows(f, path, lo, hi, t_offset, check), None
 
 
 def _mvsec_dataset(f, path, camera: str):
     key = f"davis/{camera}/events"
     if key not in f:
         raise CorruptFileError(f"{path}: no /{key} in this MVSEC file.")
-    ds = f[key]
-    if ds.ndim != 2 or ds.shape[1] < 4:
+    ds = numeric_dataset(f, path, key, ndim=2, holds="rows of numbers x, y, t (s), p")
+    if ds.shape[1] < 4:
         raise CorruptFileError(f"{path}: /{key} has shape {ds.shape}; MVSEC events are (N, 4): x, y, t, p.")
     return ds
 
 
+def _mvsec_labels(camera: str) -> dict[str, str]:
+    return {f: f"/davis/{camera}/events column {f}" for f in _MVSEC_COLUMNS}
+
+
+def _mvsec_rows(data: np.ndarray, path, camera: str, lo: int, check: ChunkChecker) -> np.ndarray:
+    """MVSEC rows (x, y, t in seconds, p) as EVENT_DTYPE: whole-pixel coordinates, times that fit int64 us."""
+    labels = _mvsec_labels(camera)
+    t = times_to_us(data[:, _MVSEC_COLUMNS["t"]], "s", label=labels["t"], source=str(path), index_offset=lo)
+    x, y, p = (whole_numbers(data[:, _MVSEC_COLUMNS[k]], label=labels[k], source=str(path), index_offset=lo)
+               for k in "xyp")
+    return check.columns(t, x, y, p)
+
+
 def _mvsec_chunks(path, camera: str, resolution) -> Iterator[Chunk]:
-    check = ChunkChecker(resolution=resolution, source=f"{path} [/davis/{camera}/events]")
+    check = ChunkChecker(resolution=resolution, source=str(path), labels=_mvsec_labels(camera))
     with _open(path) as f:
         ds = _mvsec_dataset(f, path, camera)
         for lo in range(0, ds.shape[0], CHUNK_ROWS):
-            data = ds[lo:lo + CHUNK_ROWS]
-            _check_mvsec_values(data, path, camera, lo)
-            yield check(_mvsec_rows(data)), None
-
-
-def _check_mvsec_values(data: np.ndarray, path, camera: str, offset: int) -> None:
-    whole = np.isfinite(data[:, :2]).all(axis=1) & (data[:, :2] == np.round(data[:, :2])).all(axis=1)
-    whole &= np.isfinite(data[:, 2]) & np.isin(data[:, 3], (-1.0, 1.0, 0.0))
-    bad = np.flatnonzero(~whole)
-    if bad.size:
-        i = int(bad[0])
-        raise CorruptFileError(f"{path}: /davis/{camera}/events row {offset + i} is {data[i, :4].tolist()}; "
-                               "MVSEC rows are whole-pixel x, y, finite t (s) and p -1/+1.")
+            data = read_rows(ds, path, f"davis/{camera}/events", lo, lo + CHUNK_ROWS)
+            yield _mvsec_rows(data, path, camera, lo, check), None
 
 
 def open_dsec(path: str | os.PathLike, right: str | os.PathLike | None = None, *,
@@ -161,7 +207,8 @@ def open_dsec(path: str | os.PathLike, right: str | os.PathLike | None = None, *
     Returns
     -------
     RecordingStream
-        Absolute times (``t + t_offset``), us.
+        Absolute times (``t + t_offset``), us. Each chunk is checked before it is cast; errors name the file,
+        the dataset (``/events/x``, ``/ms_to_idx``, ...) and the first bad index.
     """
     files = (os.fspath(path),) + (() if right is None else (os.fspath(right),))
     for f in files:
@@ -171,7 +218,7 @@ def open_dsec(path: str | os.PathLike, right: str | os.PathLike | None = None, *
     by_camera = dict(zip(cameras, files, strict=True))
     meta = {"source": list(files), "format": "dsec"}
     return RecordingStream("dsec", files, cameras, res, meta, False,
-                           lambda camera: _dsec_chunks(by_camera[camera], camera, res, chunk_ms))
+                           lambda camera: _dsec_chunks(by_camera[camera], res, chunk_ms))
 
 
 def open_mvsec(path: str | os.PathLike, *, resolution: tuple[int, int] | None = None) -> RecordingStream:
@@ -186,7 +233,7 @@ def open_mvsec(path: str | os.PathLike, *, resolution: tuple[int, int] | None = 
     Returns
     -------
     RecordingStream
-        Microseconds, ``round(t * 1e6)`` of MVSEC's seconds.
+        Microseconds, ``round(t * 1e6)`` of MVSEC's seconds; rows are checked before they are cast.
     """
     path = os.fspath(path)
     with _open(path) as f:
@@ -210,7 +257,9 @@ def dsec_time_range(path: str | os.PathLike) -> tuple[int, int] | None:
         return None
     with _open(path) as f:
         t = f["events"]["t"]
-        return int(t[0]) + t_offset, int(t[n - 1]) + t_offset
+        ends = np.concatenate([read_rows(t, path, "events/t", 0, 1), read_rows(t, path, "events/t", n - 1, n)])
+    check_times(ends, t_offset=t_offset, source=str(path), label="/events/t (first and last)")
+    return int(ends[0]) + t_offset, int(ends[1]) + t_offset
 
 
 def read_time_slice(path: str | os.PathLike, t_start: int, t_stop: int, *, camera: str = "left") -> np.ndarray:
@@ -228,30 +277,44 @@ def read_time_slice(path: str | os.PathLike, t_start: int, t_stop: int, *, camer
     Returns
     -------
     (N,) ndarray of EVENT_DTYPE
-        Unvalidated beyond the conversion; use the streams for checked reading.
+        The window's events, checked as the streams check them except against a sensor size (coordinates
+        must fit int16); a file whose times go backwards outside the window is not noticed here.
     """
     if hdf5_layout(path) == "dsec":
-        n, t_offset, ms_to_idx = _dsec_header(path)
+        n, t_offset, index_size = _dsec_header(path)
         with _open(path) as f:
             t = f["events"]["t"]
-            lo, hi = (_bisect(lambda i: int(t[i]) + t_offset, n, v, ms_to_idx, t_offset) for v in (t_start, t_stop))
-            return _dsec_rows(f, lo, hi, t_offset)
+            lo, hi = (_bisect(lambda i: int(t[i]) + t_offset, n, v, _dsec_narrowed(f, n, index_size, v - t_offset))
+                      for v in (t_start, t_stop))
+            check = ChunkChecker(resolution=None, source=str(path), labels=_DSEC_LABELS, start=lo)
+            return _dsec_rows(f, path, lo, max(lo, hi), t_offset, check)
     with _open(path) as f:
         ds = _mvsec_dataset(f, path, camera)
-        lo, hi = (_bisect(lambda i: round(float(ds[i, 2]) * 1e6), ds.shape[0], v) for v in (t_start, t_stop))
-        return _mvsec_rows(ds[lo:hi])
+        lo, hi = (_bisect(lambda i: float(ds[i, 2]) * 1e6, ds.shape[0], v, (0, ds.shape[0])) for v in (t_start, t_stop))
+        check = ChunkChecker(resolution=None, source=str(path), labels=_mvsec_labels(camera), start=lo)
+        return _mvsec_rows(read_rows(ds, path, f"davis/{camera}/events", lo, max(lo, hi)), path, camera, lo, check)
 
 
-def _bisect(time_at, n: int, target: int, ms_to_idx: np.ndarray | None = None, t_offset: int = 0) -> int:
-    """First index whose time is >= target, reading O(log n) single values (narrowed by ms_to_idx)."""
-    lo, hi = 0, n
-    if ms_to_idx is not None and ms_to_idx.size:
-        ms = (target - t_offset) // 1000
-        if ms < 0:
-            return 0
-        lo = int(ms_to_idx[min(ms, ms_to_idx.size - 1)]) if ms < ms_to_idx.size else int(ms_to_idx[-1])
-        hi = int(ms_to_idx[ms + 1]) if ms + 1 < ms_to_idx.size else n
-        lo, hi = min(lo, n), min(max(hi, lo), n)
+def _dsec_narrowed(f, n: int, index_size: int | None, relative_us: int) -> tuple[int, int]:
+    """The rows /ms_to_idx says hold the millisecond of ``relative_us`` (two entries read), or all rows."""
+    ms = relative_us // 1000
+    if not index_size or ms < 0 or ms >= index_size:
+        return 0, n
+    index = f["ms_to_idx"]
+    lo = int(index[ms])
+    hi = int(index[ms + 1]) if ms + 1 < index_size else n
+    return min(max(lo, 0), n), min(max(hi, lo, 0), n)
+
+
+def _bisect(time_at, n: int, target, narrowed: tuple[int, int]) -> int:
+    """First index whose time is >= target, reading O(log n) single values within ``narrowed``.
+
+    The narrowed range is used only where it brackets the target (the time before it is earlier, the time at
+    its end is not), so that a damaged index cannot pick the wrong events; else the whole file is searched.
+    """
+    lo, hi = narrowed
+    if not ((lo == 0 or time_at(lo - 1) < target) and (hi >= n or time_at(hi) >= target)):
+        lo, hi = 0, n
     while lo < hi:
         mid = (lo + hi) // 2
         if time_at(mid) < target:

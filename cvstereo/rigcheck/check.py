@@ -19,6 +19,10 @@ from cvstereo.rigcorrect import RigCorrection
 #: The stages :func:`check_rig` reports to its ``progress`` callback, in order (the two repeats may be skipped).
 STAGES = ("row offset", "time offset", "row offset again", "time offset again", "side and disparity", "counts")
 
+#: Bounds of the accumulation window when it follows the event rate, us. The shortest is also the shortest
+#: recording checked: rates, bursts and time offsets over less are not estimates but divisions by almost nothing.
+MIN_WINDOW_US, MAX_WINDOW_US = 10_000, 1_000_000
+
 
 def check_rig(recording: Recording, params: RigCheckParams | None = None, *,
               progress: Callable[[str], None] | None = None, **overrides) -> RigReport:
@@ -43,7 +47,7 @@ def check_rig(recording: Recording, params: RigCheckParams | None = None, *,
     Raises
     ------
     ValueError
-        Too few events in a camera, or options out of range.
+        Too few events in a camera, a recording shorter than :data:`MIN_WINDOW_US`, or options out of range.
     TypeError
         An override that is no field of :class:`RigCheckParams`.
     """
@@ -56,12 +60,19 @@ def check_rig(recording: Recording, params: RigCheckParams | None = None, *,
                 f"check_rig: the {name} camera has {ev.size} events; at least {params.min_events} per camera are "
                 "needed (give a longer recording, or check that both cameras were read)."
             )
+    span_us = recording.t_end - recording.t_start
+    if span_us < MIN_WINDOW_US:
+        raise ValueError(
+            f"check_rig: the recording's events span {span_us} us (from t = {recording.t_start} us); the rig check "
+            f"needs a duration of at least {MIN_WINDOW_US / 1000:g} ms to tell event rates, noise and time offsets "
+            "(give a longer recording)."
+        )
     width, height = res = recording.resolution
     left, right = recording.left, recording.right
     window_us = params.window_us
     if window_us is None:
-        rate = min(left.size, right.size) / max(recording.duration_s, 1e-3)
-        window_us = int(np.clip(params.window_events / rate * 1e6, 10_000, 1_000_000))
+        rate = min(left.size, right.size) / recording.duration_s
+        window_us = int(np.clip(params.window_events / rate * 1e6, MIN_WINDOW_US, MAX_WINDOW_US))
     settings = dataclasses.asdict(dataclasses.replace(params, window_us=window_us))
 
     # 1. Row offset from the 2-D overlay of accumulated frames over (dx, dy): windows long against any time
@@ -104,7 +115,7 @@ def check_rig(recording: Recording, params: RigCheckParams | None = None, *,
         band_offsets = tuple(-b for b in band_offsets)
         alternatives = tuple(-a for a in alternatives)
     stage(STAGES[5])
-    counts = count_statistics(left, right, duration_s=max(recording.duration_s, 1e-6), resolution=res,
+    counts = count_statistics(left, right, duration_s=recording.duration_s, resolution=res,
                               noise_window_us=params.noise_window_us, burst_window_us=params.burst_window_us)
     confident = [b for b, c in zip(band_offsets, rows2.band_confidences, strict=True) if c >= 0.3]
     varies = bool(len(confident) >= 2 and max(confident) - min(confident) > 1.0)
@@ -119,7 +130,7 @@ def check_rig(recording: Recording, params: RigCheckParams | None = None, *,
         time_offset_period_us=float(tau.period_us),
         disparity_peak=disp.peak, disparity_peaks=disp.peaks, disparity_percentiles=pct,
         disparity_range=(pct[5], pct[95]), disparity_confidence=disp.confidence,
-        **counts._asdict(), duration_s=float(max(recording.duration_s, 1e-6)), settings=settings,
+        **counts._asdict(), duration_s=float(recording.duration_s), settings=settings,
     )
 
 

@@ -8,8 +8,29 @@ format; the format is given by ``size`` (shortest event), ``ts_bytes`` (absolute
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numba
 import numpy as np
+
+
+@dataclass
+class Scan:
+    """Events cut from a buffer: byte offsets, raw timestamps and where the cut stopped."""
+
+    starts: np.ndarray
+    ends: np.ndarray
+    ts: np.ndarray  # raw timestamp (absolute formats) or delta (E1); zeros for E0
+    stop: int
+    failed: bool
+
+    def __len__(self) -> int:
+        return self.starts.size
+
+    def head(self, k: int) -> Scan:
+        stop = int(self.starts[k]) if k < len(self) else self.stop
+        return Scan(self.starts[:k], self.ends[:k], self.ts[:k], stop, False)
+
 
 #: Return codes of :func:`event_at`.
 OK, BAD, SHORT = 0, 1, 2

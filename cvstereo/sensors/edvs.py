@@ -123,6 +123,13 @@ class EDVS:
         self._epoch_us = int(epoch_us)
         self.decoder.reset_time(self._epoch_us)
 
+    def reset_clock(self) -> None:
+        """Reset the board's timestamp counter (``!ET0``) and tell the decoder when: the host time just before
+        the command, so that the wraps before the first event are counted too."""
+        epoch = host_us()
+        self.command(self.settings.commands.timestamp_reset)
+        self.clock_reset(epoch)
+
     # -- connection -------------------------------------------------------------------------------
     def open(self) -> EDVS:
         """Open the port.

@@ -123,9 +123,7 @@ class StereoEDVS:
                 cam.clock_reset(epoch)
         else:
             for cam in self.cams:
-                epoch = host_us()
-                cam.command(c.timestamp_reset)
-                cam.clock_reset(epoch)
+                cam.reset_clock()
         for cam in self.cams:
             cam.drain(0.02)
         for cam in self.cams:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import queue
 import select
 import threading
 import time
@@ -83,6 +84,7 @@ class VirtualEDVS:
         self.commands: list[str] = []
         self.streaming = False
         self.sent_events = 0
+        self.late_us = 0  # longest an event waited past its time before this board sent it (its thread ran late)
         self.sent_bytes = 0
         self.garbage_bytes = 0
         self.port: str | None = None
@@ -263,6 +265,7 @@ class VirtualEDVS:
             garbage, self._garbage = b"".join(self._garbage), []
         if hi > self._next:
             chunk = self.events[self._next:hi].copy()
+            self.late_us = max(self.late_us, round(t_due - int(chunk["t"][0])))
             chunk["t"] = chunk["t"] - self._t0 + self.lead_us
             s = ProtocolSettings(event_format=self.format, sync_bit_set=self.settings.sync_bit_set,
                                  off_bit_set=self.settings.off_bit_set, numbering=self.settings.numbering)
@@ -314,3 +317,34 @@ class VirtualEDVS:
                 credit_t = max(credit_t + n / rate, now - 0.01)
         except OSError:
             return
+
+
+def read_back(events: np.ndarray, *, settings: ProtocolSettings | None = None, timeout_s: float | None = None):
+    """Play ``events`` on a virtual board in real time and read them back as ``record`` does (one board, its
+    clock reset before streaming), until the board is done and has gone silent, or ``timeout_s`` (default:
+    twice the stream's length plus 10 s) has passed.
+
+    Returns
+    -------
+    (N,) ndarray of EVENT_DTYPE, EDVS, VirtualEDVS
+        The events decoded (times on the board's clock: the events' own, from ``t = 0``, plus the board's lead),
+        the reader (its ``decoder`` and ``status()``) and the board (``done``: it sent every event).
+    """
+    from cvstereo.sensors.edvs import EDVS  # loads the decoder (numba) only when a stream is read
+
+    if timeout_s is None:
+        timeout_s = 2 * (int(events["t"][-1]) / 1e6 if events.size else 0) + 10
+    board = VirtualEDVS(events, settings=settings, time_origin_us=0)
+    got = []
+    with board as port, EDVS(port, settings=settings) as reader:
+        reader.configure()
+        reader.reset_clock()
+        reader.start()
+        deadline = time.monotonic() + timeout_s
+        while not (board.done and reader.silent) and time.monotonic() < deadline:
+            with contextlib.suppress(queue.Empty):
+                got.append(reader.queue.get(timeout=0.05).events)
+        reader.stop()
+        while not reader.queue.empty():
+            got.append(reader.queue.get().events)
+    return (np.concatenate(got) if got else events[:0]), reader, board

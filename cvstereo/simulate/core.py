@@ -9,7 +9,7 @@ from tqdm import tqdm
 
 from cvstereo.events import make_events
 from cvstereo.recording import Recording
-from cvstereo.simulate.dvs import PixelArray, background_noise, jitter, log_intensity
+from cvstereo.simulate.dvs import PixelArray, background_noise, hot_pixels, jitter, log_intensity
 from cvstereo.simulate.rig import Rig
 
 #: Bump whenever a change alters the events a seed produces: cached presets carry it in their key.
@@ -97,7 +97,8 @@ def simulate(scene, *, rig: Rig | None = None, seconds: float = 1.0, seed: int =
                 bar.update(ts.size + (lo == 0))
             t, x, y, p, z = (np.concatenate(col) for col in zip(*parts, strict=True))
             truth = rig.disparity_from_depth(index, x, y, z).astype(np.float32)
-            nt, nx, ny, npol = background_noise(sensor, (h, w), duration_us, rng)
+            noise = (background_noise(sensor, (h, w), duration_us, rng), hot_pixels(sensor, (h, w), duration_us, rng))
+            nt, nx, ny, npol = (np.concatenate(col) for col in zip(*noise, strict=True))
             t, x, y, p = (np.concatenate(pair) for pair in ((t, nt), (x, nx), (y, ny), (p, npol)))
             truth = np.concatenate([truth, np.full(nt.size, np.nan, np.float32)])
             if index == 1 and rig.time_offset_us:

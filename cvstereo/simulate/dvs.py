@@ -1,4 +1,4 @@
-"""The DVS pixel: contrast-threshold events from log intensity, background noise, timestamp jitter.
+"""The DVS pixel: contrast-threshold events from log intensity, background noise, hot pixels, timestamp jitter.
 
 Each pixel keeps a reference log intensity. Between two render instants the log intensity is taken to
 change linearly; every time it crosses the reference plus the ON threshold (or minus the OFF threshold) the
@@ -229,12 +229,38 @@ def background_noise(sensor: SensorModel, shape: tuple[int, int], duration_us: f
         Unsorted.
     """
     h, w = shape
-    counts = rng.poisson(sensor.noise_rate_hz * duration_us * 1e-6, size=h * w)
+    return _poisson_events(np.arange(h * w), sensor.noise_rate_hz, duration_us, sensor.noise_on_fraction, w, rng)
+
+
+def hot_pixels(sensor: SensorModel, shape: tuple[int, int], duration_us: float, rng: np.random.Generator):
+    """Events of the hot pixels: ``round(hot_pixel_fraction * H * W)`` pixels drawn at random, each firing at
+    ``hot_pixel_rate_hz`` (Poisson, uniform in time, ON with ``noise_on_fraction``) whatever it sees.
+
+    Draws nothing from ``rng`` when the sensor has no hot pixels, so that adding the model left the events of
+    every earlier seed as they were.
+
+    Returns
+    -------
+    t : (N,) float64, x, y : (N,) int16, p : (N,) int8
+        Unsorted.
+    """
+    h, w = shape
+    n_hot = round(sensor.hot_pixel_fraction * h * w)
+    if n_hot == 0 or sensor.hot_pixel_rate_hz == 0:
+        return _poisson_events(np.zeros(0, np.int64), 0.0, duration_us, 0.0, w, rng)
+    pixels = rng.choice(h * w, size=n_hot, replace=False)
+    return _poisson_events(pixels, sensor.hot_pixel_rate_hz, duration_us, sensor.noise_on_fraction, w, rng)
+
+
+def _poisson_events(pixels: np.ndarray, rate_hz: float, duration_us: float, on_fraction: float, width: int,
+                    rng: np.random.Generator):
+    """Poisson events at ``rate_hz`` on each of the flat pixel indices ``pixels``: (t, x, y, p), unsorted."""
+    counts = rng.poisson(rate_hz * duration_us * 1e-6, size=pixels.size)
     n = int(counts.sum())
-    pix = np.repeat(np.arange(h * w), counts)
+    pix = np.repeat(pixels, counts)
     t = rng.uniform(0.0, duration_us, size=n)
-    p = (rng.random(n) < sensor.noise_on_fraction).astype(np.int8)
-    return t, (pix % w).astype(np.int16), (pix // w).astype(np.int16), p
+    p = (rng.random(n) < on_fraction).astype(np.int8)
+    return t, (pix % width).astype(np.int16), (pix // width).astype(np.int16), p
 
 
 def jitter(t_us: np.ndarray, sensor: SensorModel, duration_us: float, rng: np.random.Generator) -> np.ndarray:

@@ -113,7 +113,8 @@ class MotorcycleScene:
         image, disp = images[index], images[2 + index]
         with np.errstate(divide="ignore"):
             depth = (rig.focal_px * rig.baseline_m / disp).astype(np.float32)
-        return render_image(rig.camera(index).rays, rig.focal_px, image, depth, self.pan(rig, times_s))
+        camera = rig.camera(index)  # its own focal length: the rig's focal_ratio scales the right one
+        return render_image(camera.rays, camera.focal_px, image, depth, self.pan(rig, times_s))
 
     def describe(self) -> dict:
         return {"type": self.kind, **dataclasses.asdict(self), "source": "skimage.data.stereo_motorcycle",

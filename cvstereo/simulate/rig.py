@@ -17,6 +17,17 @@ the left of the sensor centre and the right camera's ``c/2`` to the right, so th
 exactly ``d = f*B/Z - c``; this is the small-angle equivalent of optical axes that diverge by ``c / f``
 radians. The right camera's principal point also lies ``dy`` rows lower than the left one's (the vertical
 offset of about one row between the sensors).
+
+Real uncalibrated rigs differ between their cameras in more ways, each a :class:`Rig` field that is neutral by
+default: a roll (each sensor turned about its optical axis, by ``-/+roll_deg/2``: between steps 1 and 2 the
+normalised coordinates are rotated, ``x`` towards ``y`` for a positive angle), a focal mismatch (the right
+camera's focal length is ``focal_ratio`` times the left one's) and its own barrel distortion
+(``right_distortion_k1``).
+
+The true disparity of a scene point is ``x_left - x_right`` of where it lands in the two *recorded* (distorted,
+misaligned) images, at sub-pixel precision. Where the two images put it on different rows (the vertical offset,
+a roll), the disparity is still the difference of the columns alone: the row it lands on in the other camera
+is not part of it (:meth:`Rig.project` gives both).
 """
 
 from __future__ import annotations
@@ -30,6 +41,28 @@ from cvstereo.events import DEFAULT_RESOLUTION
 
 #: Fixed-point iterations that invert the radial distortion; 12 reach 1e-9 for |k1 * r^2| < 0.2.
 _UNDISTORT_ITERATIONS = 12
+
+#: A rig's cameras turned against each other by more than this (degrees) are not an accident of mounting.
+MAX_ROLL_DEG = 10.0
+
+#: The rig fields that differ between real uncalibrated cameras beyond the thesis' rig, at their neutral values.
+_NEUTRAL_RIG = {"roll_deg": 0.0, "focal_ratio": 1.0, "right_distortion_k1": None}
+
+#: Sensor sizes (width x height) the suites use: DVS128, DAVIS240, DAVIS346, a VGA event camera.
+SENSORS = ("128x128", "240x180", "346x260", "640x480")
+
+
+def _describe(obj, neutral: dict) -> dict:
+    """``dataclasses.asdict(obj)`` without the fields that hold their ``neutral`` value.
+
+    Fields added after recordings were first cached (hot pixels, roll, ...) are left out of a description while
+    they do nothing, so that the meta and cache keys of recordings made before them stay exactly what they were.
+    """
+    d = dataclasses.asdict(obj)
+    for name, value in neutral.items():
+        if d[name] == value:
+            del d[name]
+    return d
 
 
 @dataclass(frozen=True)
@@ -53,6 +86,12 @@ class SensorModel:
         Share of noise events that are ON.
     jitter_us : float
         Standard deviation of the Gaussian timestamp jitter (readout latency) added to every event.
+    hot_pixel_fraction : float
+        Share of the pixels that are hot: each fires on its own, whatever it sees, at ``hot_pixel_rate_hz``
+        (Poisson; ON with ``noise_on_fraction``, as leakage), beside the scene's events. Their events carry NaN
+        truth. ``round(fraction * W * H)`` pixels, drawn per sensor.
+    hot_pixel_rate_hz : float
+        Events per second of each hot pixel.
     """
 
     on_threshold: float = 0.25
@@ -64,21 +103,28 @@ class SensorModel:
     # Background activity of a DVS is mostly ON (junction leakage slowly raises the pixel's level).
     noise_on_fraction: float = 0.6
     jitter_us: float = 30.0
+    hot_pixel_fraction: float = 0.0
+    hot_pixel_rate_hz: float = 0.0
 
     def __post_init__(self):
         for name in ("on_threshold", "off_threshold", "min_threshold"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"SensorModel.{name} must be positive, got {getattr(self, name)}.")
-        for name in ("threshold_mismatch", "refractory_us", "noise_rate_hz", "jitter_us"):
+        for name in ("threshold_mismatch", "refractory_us", "noise_rate_hz", "jitter_us", "hot_pixel_rate_hz"):
             if getattr(self, name) < 0:
                 raise ValueError(f"SensorModel.{name} must be >= 0, got {getattr(self, name)}.")
-        if not 0 <= self.noise_on_fraction <= 1:
-            raise ValueError(f"SensorModel.noise_on_fraction must lie in [0, 1], got {self.noise_on_fraction}.")
+        for name in ("noise_on_fraction", "hot_pixel_fraction"):
+            if not 0 <= getattr(self, name) <= 1:
+                raise ValueError(f"SensorModel.{name} must lie in [0, 1], got {getattr(self, name)}.")
 
     def ideal(self) -> SensorModel:
-        """The same thresholds without mismatch, refractory period, noise or jitter (for tests)."""
+        """The same thresholds without mismatch, refractory period, noise, hot pixels or jitter (for tests)."""
         return dataclasses.replace(self, threshold_mismatch=0.0, refractory_us=0.0, noise_rate_hz=0.0,
-                                   jitter_us=0.0)
+                                   jitter_us=0.0, hot_pixel_fraction=0.0)
+
+    def describe(self) -> dict:
+        """JSON-serialisable fields (hot pixels only when there are any)."""
+        return _describe(self, {"hot_pixel_fraction": 0.0, "hot_pixel_rate_hz": 0.0})
 
 
 # The thesis' eDVS2 (our left camera) gives 23 % more ON than OFF events and the fewer events; eDVS1 (our
@@ -94,7 +140,7 @@ EDVS1_RIGHT = SensorModel(on_threshold=0.23, off_threshold=0.272, noise_rate_hz=
 
 @dataclass(frozen=True)
 class Camera:
-    """One camera of a rig: intrinsics, distortion, position, and the rays of its raw pixels.
+    """One camera of a rig: intrinsics, distortion, roll, position, and the rays of its raw pixels.
 
     Build it with :meth:`Rig.camera`; the fields are derived from the rig.
 
@@ -107,6 +153,9 @@ class Camera:
     position_x : float
         X of the optical centre in the rig frame (metres).
     resolution : (width, height)
+    roll_rad : float
+        The sensor's turn about the optical axis: normalised coordinates are rotated by it (``x`` towards ``y``)
+        before the distortion.
     """
 
     index: int
@@ -116,6 +165,7 @@ class Camera:
     k1: float
     position_x: float
     resolution: tuple[int, int]
+    roll_rad: float = 0.0
     _rays: tuple[np.ndarray, np.ndarray] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -128,8 +178,17 @@ class Camera:
         """Undistorted normalised ray coordinates ``(xn, yn)`` of every raw pixel centre, each (H, W)."""
         return self._rays
 
+    @staticmethod
+    def _turn(x, y, angle: float):
+        """``(x, y)`` rotated by ``angle`` radians, ``x`` towards ``y`` (unchanged at 0: no rounding either)."""
+        if angle == 0.0:
+            return x, y
+        c, s = np.cos(angle), np.sin(angle)
+        return c * x - s * y, s * x + c * y
+
     def distort(self, xn: np.ndarray, yn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Raw pixel coordinates ``(u, v)`` of undistorted normalised coordinates (same shapes)."""
+        xn, yn = self._turn(xn, yn, self.roll_rad)
         g = 1.0 + self.k1 * (xn * xn + yn * yn)
         return self.cx + self.focal_px * xn * g, self.cy + self.focal_px * yn * g
 
@@ -141,7 +200,7 @@ class Camera:
         for _ in range(_UNDISTORT_ITERATIONS):
             g = 1.0 + self.k1 * (xn * xn + yn * yn)
             xn, yn = xd / g, yd / g
-        return xn, yn
+        return self._turn(xn, yn, -self.roll_rad)
 
 
 @dataclass(frozen=True)
@@ -168,6 +227,13 @@ class Rig:
         How much later the right camera stamps the same change than the left one (its clock runs behind):
         ``t_right = t_left + time_offset_us``, the convention of :mod:`cvstereo.rigcheck`. Negative: the right
         camera stamps early. Events whose stamp falls outside the recording are lost, as with a real late start.
+    roll_deg : float
+        How much the right sensor is turned against the left one about the optical axis (each by half, in
+        opposite senses; positive: the right image turns from x towards y, i.e. clockwise on screen).
+    focal_ratio : float
+        The right camera's focal length over the left one's (a focal mismatch; the left one has ``focal_px``).
+    right_distortion_k1 : float or None
+        The right lens' own distortion coefficient; None: ``distortion_k1``, as the left one.
     """
 
     baseline_m: float = 0.10
@@ -182,28 +248,42 @@ class Rig:
     left: SensorModel = EDVS2_LEFT
     right: SensorModel = EDVS1_RIGHT
     time_offset_us: float = 0.0
+    roll_deg: float = 0.0
+    focal_ratio: float = 1.0
+    right_distortion_k1: float | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "resolution", (int(self.resolution[0]), int(self.resolution[1])))
-        if not np.isfinite(self.time_offset_us):
-            raise ValueError(f"Rig.time_offset_us must be finite, got {self.time_offset_us}.")
+        for name in ("time_offset_us", "roll_deg"):
+            if not np.isfinite(getattr(self, name)):
+                raise ValueError(f"Rig.{name} must be finite, got {getattr(self, name)}.")
+        if abs(self.roll_deg) > MAX_ROLL_DEG:
+            raise ValueError(f"Rig.roll_deg must lie within +-{MAX_ROLL_DEG:g} (a rig mounted on purpose), "
+                             f"got {self.roll_deg}.")
         if self.baseline_m < 0:
             raise ValueError(f"Rig.baseline_m must be >= 0, got {self.baseline_m}.")
         if not self.focal_px > 0:
             raise ValueError(f"Rig.focal_px must be positive, got {self.focal_px}.")
+        if not 0.5 <= self.focal_ratio <= 2.0:
+            raise ValueError(f"Rig.focal_ratio must lie in [0.5, 2] (the right focal length over the left one), "
+                             f"got {self.focal_ratio}.")
         w, h = self.resolution
         if w < 2 or h < 2:
             raise ValueError(f"Rig.resolution must be at least 2x2, got {w}x{h}.")
-        corner_r2 = ((w / 2) ** 2 + (h / 2) ** 2) / self.focal_px**2
-        if not -0.2 < self.distortion_k1 * corner_r2 < 0.2:
-            raise ValueError(
-                f"Rig.distortion_k1={self.distortion_k1} distorts the sensor corners by more than 20 %; "
-                f"the model is meant for slight distortion (|k1| < {0.2 / corner_r2:.2f} at f={self.focal_px})."
-            )
+        for index in (0, 1):
+            name = "distortion_k1" if index == 0 or self.right_distortion_k1 is None else "right_distortion_k1"
+            k1, focal = getattr(self, name), self.focal_px * (self.focal_ratio if index else 1.0)
+            corner_r2 = ((w / 2) ** 2 + (h / 2) ** 2) / focal**2
+            if not -0.2 < k1 * corner_r2 < 0.2:
+                raise ValueError(
+                    f"Rig.{name}={k1} distorts the sensor corners by more than 20 %; "
+                    f"the model is meant for slight distortion (|k1| < {0.2 / corner_r2:.2f} at f={focal:g})."
+                )
 
     def ideal(self) -> Rig:
-        """The same rig without distortion, axis offset or vertical offset."""
-        return dataclasses.replace(self, axis_offset_px=0.0, vertical_offset_px=0.0, distortion_k1=0.0)
+        """The same rig without distortion, axis or vertical offset, roll or focal mismatch."""
+        return dataclasses.replace(self, axis_offset_px=0.0, vertical_offset_px=0.0, distortion_k1=0.0,
+                                   roll_deg=0.0, focal_ratio=1.0, right_distortion_k1=None)
 
     def for_sensor(self, resolution: tuple[int, int]) -> Rig:
         """The same optics on a sensor of another size: the view angle stays, so everything in pixels scales.
@@ -228,15 +308,26 @@ class Rig:
             raise ValueError(f"camera index must be 0 (left) or 1 (right), got {index}.")
         w, h = self.resolution
         side = -1.0 if index == 0 else 1.0
+        right_k1 = self.distortion_k1 if self.right_distortion_k1 is None else self.right_distortion_k1
         return Camera(
             index=index,
-            focal_px=self.focal_px,
+            focal_px=self.focal_px if index == 0 else self.focal_px * self.focal_ratio,
             cx=(w - 1) / 2 + side * self.axis_offset_px / 2,
             cy=(h - 1) / 2 + side * self.vertical_offset_px / 2,
-            k1=self.distortion_k1,
+            k1=self.distortion_k1 if index == 0 else right_k1,
             position_x=side * self.baseline_m / 2,
             resolution=self.resolution,
+            roll_rad=float(np.deg2rad(side * self.roll_deg / 2)),
         )
+
+    def project(self, index: int, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Raw pixel coordinates ``(u, v)`` in camera ``index`` of points ``(X, Y, Z)`` of the rig frame, (N, 3).
+
+        The exact forward model (pinhole, roll, distortion, intrinsics) that the renderer inverts.
+        """
+        camera = self.camera(index)
+        p = np.asarray(points, np.float64).reshape(-1, 3)
+        return camera.distort((p[:, 0] - camera.position_x) / p[:, 2], p[:, 1] / p[:, 2])
 
     def disparity_from_depth(self, index: int, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
         """True disparity of the scene points seen at raw pixels of one camera, from their depth.
@@ -267,10 +358,15 @@ class Rig:
         return x - u_other if index == 0 else u_other - x
 
     def describe(self) -> dict:
-        """JSON-serialisable description for a recording's meta."""
-        d = dataclasses.asdict(self)
+        """JSON-serialisable description for a recording's meta (roll, focal ratio and the right lens' own
+        distortion only where they are set)."""
+        d = _describe(self, _NEUTRAL_RIG)
         d["resolution"] = list(self.resolution)
-        d["left_sensor"], d["right_sensor"] = d.pop("left"), d.pop("right")
+        d.pop("left"), d.pop("right")
+        d["left_sensor"], d["right_sensor"] = self.left.describe(), self.right.describe()
         d["model"] = ("pinhole, radial distortion (xd = xn*(1+k1*r^2)), principal points shifted by "
                       "-/+axis_offset_px/2 and -/+vertical_offset_px/2 (left/right); d = f*B/Z - c undistorted")
+        if set(d) & set(_NEUTRAL_RIG):
+            d["model"] += ("; roll -/+roll_deg/2 before the distortion, right focal length focal_px*focal_ratio, "
+                           "right lens right_distortion_k1")
         return d

@@ -1,11 +1,14 @@
 """Recording suites: named lists of simulated recordings, committed as data, generated once and cached.
 
-A suite file (TOML, in ``cvstereo/simulate/suites/``) names a base preset, a length and a seed, and lists
-recordings; each sets some *factors* (:data:`FACTORS`) away from the base, and may change the scene (``scene =
-"fan"``). A recording that sets one factor is labelled with it (``factor``, ``value``); one that sets several
-is a ``joint`` draw. :func:`suite_recordings` generates each recording on first use into the preset cache
+A suite file (TOML, in ``cvstereo/simulate/suites/``) of the robustness suite v1 names a base preset, a length
+and a seed, and lists recordings; each sets some *factors* (:data:`FACTORS`) away from the base, and may change
+the scene (``scene = "fan"``). A recording that sets one factor is labelled with it (``factor``, ``value``); one
+that sets several is a ``joint`` draw. A file with ``[families]`` is a suite of scene families with a tuning and
+an evaluation half (the generalization suite v2, :mod:`cvstereo.simulate.generalization`).
+:func:`suite_recordings` generates each recording on first use into the preset cache
 (:func:`~cvstereo.simulate.presets.default_cache_dir`), under a key of suite, name, length, seed, generator
-version and a hash of the parameters, and returns the paths in the suite's order.
+version and a hash of the parameters, and returns the paths in the suite's order; :func:`tuning_recordings`
+only the tuning half's, and :func:`require_tuning` refuses any recording of an evaluation half.
 
 >>> [name for name, _ in load_suite("robustness").items()][:3]
 ['base', 'threshold-x0.5', 'threshold-x1.5']
@@ -14,8 +17,6 @@ version and a hash of the parameters, and returns the paths in the suite's order
 from __future__ import annotations
 
 import dataclasses
-import hashlib
-import json
 import os
 import tomllib
 from collections.abc import Callable
@@ -25,19 +26,17 @@ from pathlib import Path
 
 import numpy as np
 
-from cvstereo.recording import Recording
-from cvstereo.simulate.core import DEFAULT_RENDER_HZ, GENERATOR_VERSION, MAX_SECONDS, simulate
+from cvstereo.simulate.core import DEFAULT_RENDER_HZ, MAX_SECONDS
 from cvstereo.simulate.fan import FanScene
+from cvstereo.simulate.generalization import HALVES, EvaluationRecordingError, FamilySuite, parse_family_suite
 from cvstereo.simulate.presets import _seeded, default_cache_dir, get_preset
-from cvstereo.simulate.rig import Rig
+from cvstereo.simulate.recipe import Recipe, Suite
+from cvstereo.simulate.rig import SENSORS, Rig
 from cvstereo.simulate.scenes import ArmsScene
 from cvstereo.simulate.textures import SLEEVE_PATTERNS
 
 #: Suite name -> its file in ``cvstereo/simulate/suites``.
-SUITES: dict[str, str] = {"robustness": "robustness_v1.toml"}
-
-#: Sensor sizes a suite may ask for (width x height): DVS128, DAVIS240, DAVIS346, a VGA event camera.
-SENSORS = ("128x128", "240x180", "346x260", "640x480")
+SUITES: dict[str, str] = {"robustness": "robustness_v1.toml", "generalization": "generalization_v2.toml"}
 
 #: The wall stays at least this far behind an arm moved back (the presets' wall is at 2.5 m).
 _WALL_GAP_M = 1.5
@@ -152,7 +151,7 @@ def draw_joint(seed: int) -> dict:
 
 
 @dataclass(frozen=True)
-class SuiteRecording:
+class SuiteRecording(Recipe):
     """One recording of a suite: what to simulate, and its label (factor and value).
 
     Attributes
@@ -183,11 +182,6 @@ class SuiteRecording:
     seed: int
     render_hz: float
 
-    @property
-    def max_disparity(self) -> int:
-        """Disparity range a matcher needs on this sensor: 64 px at 128 wide, scaled with the width."""
-        return round(64 * self.rig.resolution[0] / 128)
-
     def label(self) -> dict:
         """What the recording's meta says under ``suite``."""
         out = {"name": self.suite, "recording": self.name, "factor": self.factor, "value": self.value,
@@ -196,45 +190,6 @@ class SuiteRecording:
             ideal = self.rig.focal_px * self.rig.baseline_m / self.scene.distance_m - self.rig.axis_offset_px
             out.update(blade_period_s=self.scene.blade_period_s, fan_disparity_px=ideal)
         return out
-
-    def describe(self) -> dict:
-        """Everything that determines the events (for the cache key)."""
-        return {"label": self.label(), "scene": self.scene.describe(), "rig": self.rig.describe(),
-                "seconds": self.seconds, "seed": self.seed, "render_hz": self.render_hz,
-                "generator_version": GENERATOR_VERSION}
-
-    def cache_name(self) -> str:
-        """File name in the cache: suite, name, length, seed, generator version and a parameter hash."""
-        digest = hashlib.sha256(json.dumps(self.describe(), sort_keys=True, default=str).encode()).hexdigest()[:10]
-        return f"{self.suite}_{self.name}_{self.seconds:g}s_seed{self.seed}_v{GENERATOR_VERSION}_{digest}.npz"
-
-    def simulate(self, *, progress: bool = False) -> Recording:
-        """Generate the recording; its meta carries :meth:`label` under ``suite``."""
-        rec = simulate(self.scene, rig=self.rig, seconds=self.seconds, seed=self.seed, render_hz=self.render_hz,
-                       progress=progress)
-        return dataclasses.replace(rec, meta={**rec.meta, "suite": self.label()})
-
-
-@dataclass(frozen=True)
-class Suite:
-    """A suite as loaded from its file: name, version, base preset and the recordings in order."""
-
-    name: str
-    version: int
-    base: str
-    seconds: float
-    recordings: tuple[SuiteRecording, ...]
-    description: str = ""
-
-    def items(self) -> list[tuple[str, SuiteRecording]]:
-        """(name, recording) pairs in the suite's order."""
-        return [(r.name, r) for r in self.recordings]
-
-    def __getitem__(self, name: str) -> SuiteRecording:
-        for r in self.recordings:
-            if r.name == name:
-                return r
-        raise KeyError(f"suite '{self.name}' has no recording '{name}'.")
 
 
 def _suite_text(name: str) -> tuple[str, str]:
@@ -262,6 +217,8 @@ def load_suite(name: str, *, seconds: float | None = None) -> Suite:
     """
     text, filename = _suite_text(name)
     data = tomllib.loads(text)
+    if "families" in data:
+        return parse_family_suite(data, where=filename, seconds=seconds)
     return parse_suite(data, where=filename, seconds=seconds)
 
 
@@ -320,9 +277,9 @@ def parse_suite(data: dict, *, where: str = "suite", seconds: float | None = Non
     return Suite(name, version, base, length, tuple(recordings), str(data.get("description", "")))
 
 
-def suite_recordings(name: str = "robustness", *, seconds: float | None = None,
+def suite_recordings(name: str = "robustness", *, seconds: float | None = None, half: str | None = None,
                      cache_dir: str | os.PathLike | None = None, only: list[str] | None = None,
-                     progress: bool = False, on_generate: Callable[[SuiteRecording, Path, float], None] | None = None
+                     progress: bool = False, on_generate: Callable[[Recipe, Path, float], None] | None = None
                      ) -> list[tuple[str, Path]]:
     """The recordings of a suite, in order, as ``(name, path)``; each generated once into the cache.
 
@@ -332,6 +289,8 @@ def suite_recordings(name: str = "robustness", *, seconds: float | None = None,
         One of :data:`SUITES`.
     seconds : float or None, keyword-only
         Length of every recording (None: the suite's).
+    half : {"tune", "eval"} or None, keyword-only
+        Only this half's recordings (suites of scene families); None: all.
     cache_dir : path-like or None, keyword-only
         Folder; default :func:`~cvstereo.simulate.presets.default_cache_dir`.
     only : list of str or None, keyword-only
@@ -346,6 +305,12 @@ def suite_recordings(name: str = "robustness", *, seconds: float | None = None,
     list of (str, pathlib.Path)
         Read a path with :func:`cvstereo.io.npz.read_recording_npz`.
 
+    Raises
+    ------
+    ValueError
+        Unknown suite or recording name; a half that is not ``tune`` or ``eval``, or one asked of a suite
+        without halves.
+
     Examples
     --------
     >>> from cvstereo.io.npz import read_recording_npz
@@ -357,14 +322,23 @@ def suite_recordings(name: str = "robustness", *, seconds: float | None = None,
     from cvstereo.io.npz import write_recording_npz
 
     suite = load_suite(name, seconds=seconds)
+    recordings = list(suite.recordings)
+    if half is not None:
+        if half not in HALVES:
+            raise ValueError(f"suite '{name}': half must be one of {', '.join(HALVES)}, got {half!r}.")
+        if not isinstance(suite, FamilySuite):
+            halved = [n for n in SUITES if "families" in tomllib.loads(_suite_text(n)[0])]
+            raise ValueError(f"suite '{name}' has no tuning and evaluation halves (take it whole: "
+                             f"suite:{name}); {', '.join(halved)} {'has' if len(halved) == 1 else 'have'} them.")
+        recordings = [r for r in recordings if r.half == half]
     if only is not None:
-        missing = sorted(set(only) - {r.name for r in suite.recordings})
+        missing = sorted(set(only) - {r.name for r in recordings})
         if missing:
-            raise ValueError(f"suite '{name}' has no recording {', '.join(missing)}; it has "
-                             f"{', '.join(r.name for r in suite.recordings)}.")
+            raise ValueError(f"suite '{name}'{f' ({half} half)' if half else ''} has no recording "
+                             f"{', '.join(missing)}; it has {', '.join(r.name for r in recordings)}.")
     folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     out = []
-    for rec in suite.recordings:
+    for rec in recordings:
         if only is not None and rec.name not in only:
             continue
         path = folder / rec.cache_name()
@@ -376,3 +350,53 @@ def suite_recordings(name: str = "robustness", *, seconds: float | None = None,
                 on_generate(rec, path, time.perf_counter() - start)
         out.append((rec.name, path))
     return out
+
+
+def tuning_recordings(name: str = "generalization", **kwargs) -> list[tuple[str, Path]]:
+    """The tuning half of a suite with halves: what a tuning script may see (:func:`suite_recordings` with
+    ``half="tune"``; the other keywords as there)."""
+    return suite_recordings(name, half="tune", **kwargs)
+
+
+def require_tuning(recording) -> None:
+    """Refuse a recording of an evaluation half: tuning code calls this on every recording it is given.
+
+    What is tuned on the evaluation half is no longer scored on scenes it has not seen (issue 24). Recordings
+    without a half (real ones, suite v1's, the presets) pass.
+
+    Parameters
+    ----------
+    recording : path-like, Recording or suite recording
+        A recording file (``.npz``: only its meta is read), a :class:`~cvstereo.recording.Recording` or an entry
+        of a loaded suite.
+
+    Raises
+    ------
+    EvaluationRecordingError
+        (a ValueError) naming the recording, its suite and half, and what to use instead.
+
+    Examples
+    --------
+    >>> eval_half = [r for r in load_suite("generalization").recordings if r.half == "eval"]
+    >>> require_tuning(eval_half[0])  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    cvstereo.simulate.generalization.EvaluationRecordingError: objects-eval-128x128 (suite generalization) ...
+    """
+    where = None
+    if isinstance(recording, Recipe):
+        label = recording.label()
+    elif hasattr(recording, "meta"):
+        label = recording.meta.get("suite") or {}
+    else:
+        from cvstereo.io.npz import read_npz_header
+
+        where = os.fspath(recording)
+        label = read_npz_header(where)[1].get("suite") or {} if where.endswith(".npz") else {}
+    if label.get("half") == "tune" or "half" not in label:
+        return
+    name = f"{label.get('recording', '?')} (suite {label.get('name', '?')})"
+    raise EvaluationRecordingError(
+        f"{name}{f' in {where}' if where else ''} belongs to the {label['half']} half, which tuning must never see;"
+        f" tune on tuning_recordings('{label.get('name', 'generalization')}') (sweep: "
+        f"suite:{label.get('name', 'generalization')}:tune)")

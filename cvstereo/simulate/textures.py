@@ -29,13 +29,17 @@ def texel_size(distance_m: float, focal_px: float, *, texels_per_pixel: float = 
     return distance_m / focal_px / texels_per_pixel
 
 
-def blur(intensity: np.ndarray, alpha: np.ndarray, sigma_texels: float) -> tuple[np.ndarray, np.ndarray]:
+def blur(intensity: np.ndarray, alpha: np.ndarray, sigma_texels: float, *,
+         sigma_y_texels: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Blur a texture with coverage: premultiplied, so that edges fade into what lies behind, not into black.
 
     Parameters
     ----------
     intensity, alpha : (H, W) float32 ndarray
     sigma_texels : float
+    sigma_y_texels : float or None, keyword-only
+        Another sigma along the rows (a surface seen at a grazing angle, whose pixels' footprints are longer
+        in depth than across); None: ``sigma_texels``.
 
     Returns
     -------
@@ -43,9 +47,11 @@ def blur(intensity: np.ndarray, alpha: np.ndarray, sigma_texels: float) -> tuple
     """
     if sigma_texels <= 0:
         return intensity.astype(np.float32), alpha.astype(np.float32)
-    pre = cv2.GaussianBlur((intensity * alpha).astype(np.float32), (0, 0), sigma_texels,
+    sigma_y = 0 if sigma_y_texels is None else sigma_y_texels  # 0: OpenCV takes sigma_texels
+    pre = cv2.GaussianBlur((intensity * alpha).astype(np.float32), (0, 0), sigma_texels, sigmaY=sigma_y,
                            borderType=cv2.BORDER_CONSTANT)
-    a = cv2.GaussianBlur(alpha.astype(np.float32), (0, 0), sigma_texels, borderType=cv2.BORDER_CONSTANT)
+    a = cv2.GaussianBlur(alpha.astype(np.float32), (0, 0), sigma_texels, sigmaY=sigma_y,
+                         borderType=cv2.BORDER_CONSTANT)
     with np.errstate(invalid="ignore", divide="ignore"):
         out = np.where(a > 1e-6, pre / np.maximum(a, 1e-6), 0.0)
     return out.astype(np.float32), np.clip(a, 0.0, 1.0).astype(np.float32)

@@ -21,7 +21,8 @@ def resolve_recordings(specs: Iterable[str], *, progress: bool = False) -> list[
 
     A spec is a path, a glob (``data/*.npz``), ``preset:NAME`` or ``preset:NAME:SECONDS`` (a simulated
     preset, generated once and cached, see :func:`cvstereo.simulate.presets.cached_preset`), or
-    ``suite:NAME`` (every recording of a simulated suite). Every spec is checked before any recording is
+    ``suite:NAME`` (every recording of a simulated suite; ``suite:NAME:tune`` or ``suite:NAME:eval`` one half
+    of a suite that has a tuning and an evaluation half). Every spec is checked before any recording is
     generated, so that a typo in the last one does not cost the simulation of the first.
 
     Raises
@@ -92,17 +93,18 @@ def _preset(spec: str) -> _Source:
 
 
 def _suite(spec: str) -> _Source:
-    """``suite:NAME``, checked: a suite the simulator has."""
-    from cvstereo.simulate import SUITES
+    """``suite:NAME[:HALF]``, checked by the simulator itself (a known suite, a half it has) without generating
+    a recording (``only=[]``)."""
+    from cvstereo.simulate import suite_recordings
 
-    name = spec.partition(":")[2]
-    if name not in SUITES:
-        raise ValueError(f"recording '{spec}': no suite '{name}'; choose one of {', '.join(SUITES)}.")
+    name, _, half = spec.partition(":")[2].partition(":")  # NAME, or NAME:HALF (tune, eval)
+    extra = {"half": half} if half else {}
+    try:
+        suite_recordings(name, only=[], **extra)
+    except ValueError as exc:
+        raise ValueError(f"recording '{spec}': {exc}") from None
 
     def generate(progress: bool) -> list[str]:
-        from cvstereo.simulate import suite_recordings
-
-        return [os.fspath(path) for _, path in suite_recordings(name, progress=progress)]
+        return [os.fspath(path) for _, path in suite_recordings(name, progress=progress, **extra)]
 
     return generate
-

@@ -7,12 +7,11 @@ the same pixels, and lets tests check the data without rendering anything.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 
 import cv2
 import numpy as np
 
-from cvstereo.depth import DepthModel
+from cvstereo.depth import depth_from_meta  # noqa: F401  (re-exported by cvstereo.viz)
 
 # The data of the disparity pictures is public in cvstereo.disparity_maps; re-exported for the plots and video.
 from cvstereo.disparity_maps import disparity_image, match_window_slice, pixel_mean  # noqa: F401
@@ -210,22 +209,6 @@ def colorize(image: np.ndarray, vmin: float, vmax: float, *, background: np.ndar
     rgb = np.ascontiguousarray(rgb)
     rgb[~finite] = NO_DATA_RGB if background is None else background[~finite]
     return rgb
-
-
-def depth_from_meta(meta: Mapping) -> DepthModel | None:
-    """The disparity-to-distance model a recording's meta implies, or None.
-
-    Uses ``meta["depth"] = {"a": ..., "c": ...}`` when present, else the rig's ``focal_px`` and ``baseline_m``
-    (and ``axis_offset_px`` as c), as the simulator writes them.
-    """
-    depth = meta.get("depth")
-    if isinstance(depth, Mapping) and "a" in depth:
-        return DepthModel(a=float(depth["a"]), c=float(depth.get("c", 0.0)))
-    rig = meta.get("rig")
-    if isinstance(rig, Mapping) and "focal_px" in rig and "baseline_m" in rig and float(rig["baseline_m"]) > 0:
-        return DepthModel.from_rig(focal_px=float(rig["focal_px"]), baseline_m=float(rig["baseline_m"]),
-                                   offset_px=float(rig.get("axis_offset_px", rig.get("offset_px", 0.0))))
-    return None
 
 
 def format_distance(metres: float) -> str:

@@ -17,7 +17,7 @@ import numpy as np
 
 from cvstereo.depth import DepthModel
 from cvstereo.events import time_slice
-from cvstereo.io._atomic import atomic_path
+from cvstereo.io._atomic import atomic_path, inspect_target
 from cvstereo.recording import Recording
 from cvstereo.viz._images import (
     CAMERA_NAMES,
@@ -73,7 +73,8 @@ def write_video(recording: Recording, path: str | os.PathLike, result=None, *, f
     ----------
     recording : Recording
     path : path-like
-        Output ``.mp4``; written to a temporary file first and renamed when complete.
+        Output ``.mp4`` (or a name without extension, or a device or FIFO: MP4 all the same); written to a
+        temporary file first and renamed when complete.
     result : MatchResult or (N,) ndarray of MATCH_DTYPE, optional
     fps : float, keyword-only
         Playback rate; 25 fps with 40 ms windows plays in real time.
@@ -242,8 +243,8 @@ def _quiet_stderr():
 def _video_writer(path: str | os.PathLike, fps: float, size: tuple[int, int]):
     """A cv2.VideoWriter on a temporary file that becomes ``path`` when the block completes."""
     target = Path(path)
-    if target.suffix.lower() != ".mp4":
-        raise ValueError(f"{target}: the video is written as MP4; give a file name ending in .mp4.")
+    if target.suffix and target.suffix.lower() != ".mp4" and not inspect_target(target)[2]:
+        raise ValueError(f"{target}: the video is written as MP4; give a file name ending in .mp4 (or none).")
     fourcc = video_codec()
     with atomic_path(target) as tmp:
         # OpenCV picks the container from the extension, so the temporary file must end in .mp4 itself.
