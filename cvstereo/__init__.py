@@ -6,15 +6,32 @@ sister package :mod:`calibration_free` and register through the entry-point grou
 that nothing here imports them by name.
 """
 
+import importlib
+
 from cvstereo import _numba_cache
 
 # Before any module with numba kernels is imported: a read-only installation must still compile them.
 _numba_cache.configure()
 
-from cvstereo.events import EVENT_DTYPE  # noqa: E402, as_events, make_events
-from cvstereo.matches import MATCH_DTYPE, MatchResult  # noqa: E402
-from cvstereo.recording import Recording  # noqa: E402
-
 __version__ = "0.1.0"
 
+#: The names this package exports -> the module that defines each. They are imported on first use, so that
+#: ``import cvstereo`` (which every ``cvstereo`` command starts with) loads no numpy: the command line handles
+#: Ctrl-C and SIGTERM from its first line on, and a stop during the heavy imports after that is a clean one.
+_EXPORTS = {"EVENT_DTYPE": "cvstereo.events", "as_events": "cvstereo.events", "make_events": "cvstereo.events",
+            "MATCH_DTYPE": "cvstereo.matches", "MatchResult": "cvstereo.matches", "Recording": "cvstereo.recording"}
+
 __all__ = ["EVENT_DTYPE", "MATCH_DTYPE", "MatchResult", "Recording", "__version__", "as_events", "make_events"]
+
+
+def __getattr__(name: str):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'cvstereo' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_EXPORTS})

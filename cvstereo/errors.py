@@ -15,6 +15,11 @@ class CorruptFileError(ValueError):
     """A file is truncated or holds bytes or lines that cannot be decoded."""
 
 
+class StreamEndedError(ValueError):
+    """A packet fed to a matcher after its ``flush()``: the stream has ended (as a closed file refuses I/O
+    with a ValueError); a new stream needs a new matcher."""
+
+
 class MissingExtraError(ImportError):
     """An optional dependency is not installed; the message names the extra that brings it."""
 

@@ -4,7 +4,9 @@ A matcher is a stateful object: ``feed(left_packet, right_packet) -> matches`` a
 ``flush() -> matches``. Packets may be of any size, and the result does not depend on how the stream was
 cut, provided the packets are *time slices*: every event fed later has ``t >=`` every event fed earlier,
 on both cameras. This base class keeps that bookkeeping (the "watermark": the time before which the
-stream is complete) so that subclasses only decide what to do with complete data.
+stream is complete) so that subclasses only decide what to do with complete data. ``flush`` ends the stream:
+a packet fed after it is refused (:class:`~cvstereo.errors.StreamEndedError`), since the state it would
+need has been emptied.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numba import njit
 
-from cvstereo.errors import EventFormatError
+from cvstereo.errors import EventFormatError, StreamEndedError
 from cvstereo.events import DEFAULT_RESOLUTION, EVENT_DTYPE, MAX_RESOLUTION, check_resolution, validate_events
 from cvstereo.matches import empty_matches
 from cvstereo.params import canonical_params
@@ -32,6 +34,9 @@ MAX_PARAM_INT = 2**31 - 1
 #: beyond the largest sensor is meaningless and would allocate side**2 values (99999: 75 GB).
 _EXTENT_FIELDS = ("kernel_size", "block", "block_size")
 MAX_EXTENT = max(MAX_RESOLUTION) - 1
+
+#: The range of ``until``: event times are int64 microseconds.
+_INT64 = np.iinfo(np.int64)
 
 
 def check_param_value(name: str, value, kind: type, *, where: str = "parameter") -> Any:
@@ -82,6 +87,30 @@ def check_param_value(name: str, value, kind: type, *, where: str = "parameter")
         if name in _EXTENT_FIELDS and value > MAX_EXTENT:
             raise ValueError(f"{where} '{name}' must be at most {MAX_EXTENT} px (the largest sensor's side), "
                              f"got {value}.")
+    return value
+
+
+def check_until(until) -> int:
+    """Return ``until`` (:meth:`StreamMatcher.feed`) as an int; raise a ValueError naming it otherwise.
+
+    ``until`` is a time on the events' clock, int64 microseconds: a whole number that int64 holds (a numpy
+    integer, or a float without a fraction such as ``80000.0``). NaN, infinities, fractions, bools and strings
+    are refused rather than converted, as ``int(inf)`` raises an OverflowError and ``int(1.5)`` would move
+    the watermark silently.
+    """
+    if isinstance(until, bool) or not isinstance(until, numbers.Real):
+        raise ValueError(f"until={_shown(until)}: must be a time in whole microseconds (an int), "
+                         f"not a {type(until).__name__}.")
+    if not isinstance(until, numbers.Integral):
+        try:
+            whole = math.isfinite(until) and until == int(until)
+        except OverflowError:
+            whole = False
+        if not whole:
+            raise ValueError(f"until={_shown(until)}: must be a finite whole number of microseconds.")
+    value = int(until)
+    if not _INT64.min <= value <= _INT64.max:
+        raise ValueError(f"until={_shown(until)}: beyond the int64 microseconds of event times.")
     return value
 
 
@@ -151,6 +180,8 @@ class StreamMatcher(abc.ABC):
         #: Every event fed from now on has t >= watermark (None before the first feed).
         self.watermark: int | None = None
         self.input_events = 0
+        #: Set by :meth:`flush`: the stream has ended, further packets are refused.
+        self.ended = False
 
     @classmethod
     def from_variant(cls, variant: str | None = None, *, resolution=DEFAULT_RESOLUTION, **params):
@@ -159,8 +190,12 @@ class StreamMatcher(abc.ABC):
         Defaults that are sizes in pixels follow the sensor (:meth:`sensor_defaults`): on a 346x260 sensor the
         disparity range is ``round(64 * 346 / 128) = 173`` px unless ``max_disparity`` is given.
         """
-        params = cls.sensor_defaults(resolution, variant, params)
-        return cls(cls.make_params(variant, **params), resolution=resolution)
+        return cls(cls.params_for(variant, resolution=resolution, **params), resolution=resolution)
+
+    @classmethod
+    def params_for(cls, variant: str | None = None, *, resolution=DEFAULT_RESOLUTION, **params):
+        """The parameters :meth:`from_variant` builds the matcher with (every check of the values run)."""
+        return cls.make_params(variant, **cls.sensor_defaults(resolution, variant, params))
 
     @classmethod
     def sensor_defaults(cls, resolution, variant: str | None, given: dict) -> dict:
@@ -227,18 +262,28 @@ class StreamMatcher(abc.ABC):
             Time-ordered; no event earlier than any event fed before.
         until : int, optional
             The caller vouches that no event fed later has ``t < until`` (lets a matcher close windows
-            while a camera is silent).
+            while a camera is silent); a whole number of microseconds (:func:`check_until`).
 
         Returns
         -------
         (M,) ndarray of MATCH_DTYPE
             Time-ordered, and not earlier than matches returned before.
+
+        Raises
+        ------
+        StreamEndedError
+            After :meth:`flush`.
+        EventFormatError, ValueError
+            A packet or ``until`` the matcher cannot take; the matcher is left as it was.
         """
+        if self.ended:
+            raise StreamEndedError(f"{type(self).__name__}.feed after flush(): the stream has ended and the state "
+                                   "it needs is gone; make a new matcher for another stream.")
         lasts = []
         for name, ev in (("left", left), ("right", right)):
             lasts.extend(self._check_packet(name, ev))
         if until is not None:
-            lasts.append(int(until))
+            lasts.append(check_until(until))
         self.input_events += left.size + right.size
         if lasts:
             self.watermark = max(lasts) if self.watermark is None else max(self.watermark, *lasts)
@@ -271,7 +316,14 @@ class StreamMatcher(abc.ABC):
         return [int(ev["t"][-1])] if ev.size else []
 
     def flush(self) -> np.ndarray:
-        """End of stream: return the matches still held back (open windows, pending candidates)."""
+        """End of stream: return the matches still held back (open windows, pending candidates).
+
+        The stream ends here: a later :meth:`feed` raises :class:`~cvstereo.errors.StreamEndedError`, and a
+        second ``flush`` returns no matches (everything was returned by the first).
+        """
+        if self.ended:
+            return empty_matches()
+        self.ended = True
         return self._flush()
 
     @abc.abstractmethod

@@ -115,6 +115,43 @@ def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 
     return matcher
 
 
+def matcher_params(method: str, variant: str | None = None, *, resolution=(128, 128), param_set: str = "adaptive",
+                   **params):
+    """The parameter object :func:`create_matcher` would give the matcher, without building the matcher.
+
+    Every check of the values runs (the generic range rule and the dataclass' own), so a grid of
+    configurations can be checked whole before any is run (:mod:`cvstereo.sweep`).
+
+    Raises
+    ------
+    ValueError
+        Unknown method, variant, parameter set or parameter, or a value the matcher refuses.
+    """
+    variant, set_params = resolve(method, variant, param_set)
+    return matcher_class(method).params_for(variant, resolution=resolution, **{**set_params, **params})
+
+
+def check_param_item(params_cls: type, key: str, value, *, where: str = "parameter"):
+    """Check one parameter value given already typed (Python, TOML, JSON) against its field; return it.
+
+    The field's type decides: a bool field takes only ``True``/``False`` (not 1), a text field only text, a
+    numeric one what :func:`~cvstereo.matcher.check_param_value` accepts, a ``Literal`` field one of its
+    values. Old field names are accepted (:mod:`cvstereo.params`).
+
+    Raises
+    ------
+    ValueError
+        Unknown name (the allowed ones listed) or a value of the wrong type or range, naming ``where`` and ``key``.
+    """
+    aliases = aliases_of(params_cls)
+    field = aliases[key].name if key in aliases else key
+    hints = typing.get_type_hints(params_cls)
+    if field not in {f.name for f in dataclasses.fields(params_cls)}:
+        names = ", ".join(sorted(f.name for f in dataclasses.fields(params_cls)))
+        raise ValueError(f"unknown parameter '{key}'; allowed: {names}.")
+    return _checked_value(key, value, hints[field], where)
+
+
 def parse_param_strings(params_cls: type, items: list[str]) -> dict:
     """Turn ``["key=value", ...]`` into typed overrides for the dataclass ``params_cls``.
 
@@ -153,9 +190,7 @@ def params_from_meta(meta: dict):
 
 
 def _parse_value(key: str, text: str, hint):
-    origin = typing.get_origin(hint)
-    choices = typing.get_args(hint) if origin is typing.Literal else None
-    base = type(choices[0]) if choices else hint
+    _, base = _field_base(hint)
     try:
         if base is bool:
             low = text.lower()
@@ -170,9 +205,25 @@ def _parse_value(key: str, text: str, hint):
             value = text
     except ValueError:
         raise ValueError(f"parameter '{key}' needs a {getattr(base, '__name__', base)}, got '{text}'.") from None
-    # The generic range rule of every matcher's parameters (finite floats, ints a C int holds), named as
-    # the option the user typed.
-    value = check_param_value(key, value, base, where="--param")
+    return _checked_value(key, value, hint, "--param")
+
+
+def _field_base(hint) -> tuple[tuple, type]:
+    """The choices of a ``Literal`` field (else empty) and the type its values have."""
+    choices = typing.get_args(hint) if typing.get_origin(hint) is typing.Literal else ()
+    return choices, type(choices[0]) if choices else hint
+
+
+def _checked_value(key: str, value, hint, where: str):
+    """``value`` checked against a field's type: the generic range rule of every matcher's numbers (finite
+    floats, ints a C int holds), bools and text by type, a ``Literal``'s choices; ``where`` names the source."""
+    choices, base = _field_base(hint)
+    if base is bool and not isinstance(value, bool):
+        raise ValueError(f"{where} '{key}' must be true or false, got {value!r}.")
+    if base in (int, float):
+        value = check_param_value(key, value, base, where=where)
+    elif base is str and not isinstance(value, str):
+        raise ValueError(f"{where} '{key}' must be text, got {value!r}.")
     if choices and value not in choices:
-        raise ValueError(f"parameter '{key}' must be one of {', '.join(map(str, choices))}, got '{text}'.")
+        raise ValueError(f"{where} '{key}' must be one of {', '.join(map(str, choices))}, got {value!r}.")
     return value

@@ -177,7 +177,9 @@ def test_sweep_takes_either_half_of_the_suite(monkeypatch, tiny):
     real = simulate.suite_recordings
     asked = []
 
-    def short(name, *, half=None, progress=False):
+    def short(name, *, half=None, progress=False, only=None):
+        if only == []:  # the sweep's check of the spec before anything is generated: nothing to shorten
+            return real(name, half=half, only=[])
         asked.append((name, half))
         first = [r.name for r in load_suite(name).recordings if half is None or r.half == half][:1]
         return real(name, half=half, seconds=0.05, cache_dir=cache, only=first, progress=progress)

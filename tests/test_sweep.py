@@ -207,7 +207,10 @@ def test_suite_spec_resolves_to_the_suite_recordings(monkeypatch, tmp_path):
     from cvstereo.sweep import resolve_recordings
 
     paths = [tmp_path / "a.npz", tmp_path / "b.npz"]
-    monkeypatch.setattr(simulate, "suite_recordings", lambda name, progress=False: [("a", paths[0]), ("b", paths[1])])
+    def fake_suite(name, *, progress=False, only=None):  # only=[]: the up-front check, which generates nothing
+        return [(n, p) for n, p in (("a", paths[0]), ("b", paths[1])) if only is None or n in only]
+
+    monkeypatch.setattr(simulate, "suite_recordings", fake_suite)
     assert resolve_recordings(["suite:robustness"]) == [os.fspath(p) for p in paths]
 
 

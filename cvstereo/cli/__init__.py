@@ -2,8 +2,9 @@
 
 User errors (bad files, bad values, missing extras, unplugged sensors) print one line on stderr and exit
 1; usage errors exit 2 (argparse); nothing prints a traceback. File names and contents in messages are
-escaped (no raw terminal codes). SIGTERM and SIGHUP stop a command like Ctrl-C does (temporary files are
-removed; exit 128 + signal number); a closed stdout (``cvstereo info a b | head -1``) ends it quietly (141).
+escaped (no raw terminal codes). SIGTERM and SIGHUP stop a command like Ctrl-C does, at any moment from the
+first import on: one line ``cvstereo CMD: stopped by SIGNAL``, temporary files removed, exit 128 + signal
+number; a closed stdout (``cvstereo info a b | head -1``) ends it quietly (141).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import sys
 import threading
 
 import cvstereo
+from cvstereo._signals import STOP_SIGNALS, TERMINATING_SIGNALS, Terminated, signal_of
 
 #: Subcommand name -> module under cvstereo.cli that implements it.
 COMMANDS: dict[str, str] = {
@@ -76,30 +78,22 @@ def plain_help(parser: argparse.ArgumentParser) -> None:
                 plain_help(subparser)
 
 
-class Terminated(KeyboardInterrupt):
-    """SIGTERM or SIGHUP arrived: raised in the main thread so that cleanup (``finally``, ``except
-    BaseException``) runs as for Ctrl-C; code that stops gracefully on KeyboardInterrupt stops so here too."""
-
-    def __init__(self, signum: int):
-        super().__init__(signum)
-        self.signum = signum
-
-
-#: Signals that stop a command through :class:`Terminated`.
-STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
-
-
 def _raise_terminated(signum, frame):
     raise Terminated(signum)
 
 
 @contextlib.contextmanager
 def _stop_signals_raise():
-    """Turn SIGTERM/SIGHUP into :class:`Terminated` while a command runs (main thread only); restore after."""
+    """Turn SIGTERM/SIGHUP into :class:`Terminated` while a command runs (main thread only); restore after.
+
+    SIGINT keeps Python's handler (KeyboardInterrupt), or stays ignored (a background job of a shell).
+    """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = {s: signal.signal(s, _raise_terminated) for s in STOP_SIGNALS}
+    previous = {s: signal.getsignal(s) for s in STOP_SIGNALS}
+    for s in TERMINATING_SIGNALS:
+        signal.signal(s, _raise_terminated)
     try:
         yield
     finally:
@@ -107,30 +101,46 @@ def _stop_signals_raise():
             signal.signal(s, handler)
 
 
+def _ignore_stop_signals() -> None:
+    """A stop is being reported: a second one (Ctrl-C pressed twice) must not cut the report into a traceback.
+    :func:`_stop_signals_raise` restores the handlers after."""
+    if threading.current_thread() is threading.main_thread():
+        for s in STOP_SIGNALS:
+            signal.signal(s, signal.SIG_IGN)
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run the CLI; return the exit code."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    try:
-        with _stop_signals_raise():
+    """Run the CLI; return the exit code.
+
+    The stop signals are handled before the commands are imported: a Ctrl-C or SIGTERM while their modules load
+    (numpy, numba, OpenCV: a second or more) is a stop like any other, one line and exit 128 + signal number.
+    A stop may carry notes (``exc.add_note``: what was kept, how to resume), printed on the same line.
+    """
+    given = sys.argv[1:] if argv is None else argv
+    command = " ".join(["cvstereo", *(a for a in given[:1] if a in COMMANDS)])  # named before the parser exists
+    with _stop_signals_raise():
+        try:
+            args = build_parser().parse_args(argv)
+            command = f"cvstereo {args.command}"
             settle = getattr(args, "_settle_inputs", None)
             if settle is not None:  # RECORDING [RIGHT] [MATCHES] and --right: see _common.add_recording_arguments
                 settle(args)
             return int(args._run(args) or 0)
-    except Terminated as exc:
-        print(f"cvstereo {args.command}: stopped by {signal.Signals(exc.signum).name}", file=sys.stderr)
-        return 128 + exc.signum
-    except KeyboardInterrupt:
-        print("cvstereo: interrupted", file=sys.stderr)
-        return 130
-    except BrokenPipeError as exc:
-        if _stdout_closed():
-            return 141  # as a shell reports a reader gone (128 + SIGPIPE); nothing to say: nobody reads
-        print(f"cvstereo {args.command}: error: {_one_line(exc)}", file=sys.stderr)
-        return 1
-    except (ValueError, OSError, ImportError, TimeoutError, RuntimeError) as exc:
-        print(f"cvstereo {args.command}: error: {_one_line(exc)}", file=sys.stderr)
-        return 1
+        except KeyboardInterrupt as exc:  # Ctrl-C, and SIGTERM/SIGHUP as Terminated
+            _ignore_stop_signals()
+            signum = signal_of(exc)
+            notes = "".join(f"; {note}" for note in getattr(exc, "__notes__", ()))
+            print(f"{command}: stopped by {signal.Signals(signum).name}{_one_line(notes) if notes else ''}",
+                  file=sys.stderr)
+            return 128 + signum
+        except BrokenPipeError as exc:
+            if _stdout_closed():
+                return 141  # as a shell reports a reader gone (128 + SIGPIPE); nothing to say: nobody reads
+            print(f"{command}: error: {_one_line(exc)}", file=sys.stderr)
+            return 1
+        except (ValueError, OSError, ImportError, TimeoutError, RuntimeError) as exc:
+            print(f"{command}: error: {_one_line(exc)}", file=sys.stderr)
+            return 1
 
 
 def _stdout_closed() -> bool:

@@ -42,6 +42,7 @@ def run(args: argparse.Namespace) -> int:
     from cvstereo.sensors.detect import ProtocolMismatchError
 
     with stop_on_signals() as stop, open_rig(args) as (rig, devices):
+        stop.raise_if_set()  # stopped while the boards were opened: nothing to show
         rig.start()
 
         def done() -> bool:

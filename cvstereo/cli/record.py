@@ -1,8 +1,9 @@
 """``cvstereo record``: record two eDVS128 boards into a stereo recording ``.npz``.
 
 Events go to a journal first (flushed at least every second); on Ctrl-C, SIGTERM or ``--seconds`` the
-journal is turned into the recording, written atomically, and the journal is removed. A journal left by a
-crash is never overwritten: ``--from-journal`` converts it.
+journal is turned into the recording, written atomically, and the journal is removed (exit 0). A stop before
+the boards stream ends the command with nothing written (exit 130 / 143); a second stop while the recording
+is written keeps the journal. A journal left by a crash is never overwritten: ``--from-journal`` converts it.
 """
 
 from __future__ import annotations
@@ -84,6 +85,7 @@ def run(args: argparse.Namespace) -> int:
     if os.path.lexists(journal_path):
         raise FileExistsError(journal_exists_message(journal_path))
     with stop_on_signals() as stop, open_rig(args) as (rig, devices):
+        stop.raise_if_set()  # stopped while the boards were opened: nothing received, no journal yet
         meta = {"source": "cvstereo record", "ports": [c.port for c in rig.cams],
                 "event_format": args.event_format, "clock": args.clock,
                 "simulated_from": args.simulate}
@@ -97,7 +99,12 @@ def run(args: argparse.Namespace) -> int:
         except ProtocolMismatchError:
             journal_path.unlink()  # this run's own journal: the settings were refused, nothing to keep
             raise
-    _write(journal_path, args.output, {"protocol": {cam.name: cam.protocol for cam in rig.cams}})
+    try:
+        _write(journal_path, args.output, {"protocol": {cam.name: cam.protocol for cam in rig.cams}})
+    except KeyboardInterrupt as exc:  # a second stop while the recording is written: the journal has it all
+        exc.add_note(f"journal {journal_path} kept with every event received; convert it with cvstereo record "
+                     f"--from-journal {journal_path} -o {args.output}")
+        raise
     journal_path.unlink()  # everything is in the recording now
     return 0
 

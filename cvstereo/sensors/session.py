@@ -108,13 +108,28 @@ def open_rig(args: argparse.Namespace) -> Iterator[tuple[StereoEDVS, list[Virtua
         yield rig, devices
 
 
+class Stop(threading.Event):
+    """Set by a stop signal, which it remembers (:attr:`signum`)."""
+
+    signum: int = signal.SIGINT
+
+    def raise_if_set(self) -> None:
+        """A stop before the boards stream (while they were opened) ends the command: raise it as the signal's
+        exception (:func:`cvstereo._signals.stop_exception`), since there is nothing to keep yet."""
+        if self.is_set():
+            from cvstereo._signals import stop_exception
+
+            raise stop_exception(self.signum)
+
+
 @contextlib.contextmanager
-def stop_on_signals() -> Iterator[threading.Event]:
-    """An event set by SIGTERM (and SIGINT): the loop stops cleanly and keeps what it has."""
-    stop = threading.Event()
+def stop_on_signals() -> Iterator[Stop]:
+    """A :class:`Stop` set by SIGTERM (and SIGINT): the loop stops cleanly and keeps what it has."""
+    stop = Stop()
     old = {}
 
     def handler(signum, frame):
+        stop.signum = signum
         stop.set()
 
     for sig in (signal.SIGTERM, signal.SIGINT):

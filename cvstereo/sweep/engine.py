@@ -14,26 +14,35 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from cvstereo._signals import held_stop_signals
 from cvstereo.registry import ENTRY_POINT_GROUP
+from cvstereo.sweep.cells import CELLS, FIGURE_COLUMNS, TIMING_COLUMNS, empty_row, error_text, read_cell, write_cell
 from cvstereo.sweep.grid import Cell
 
 if TYPE_CHECKING:
     from cvstereo.matches import MatchResult
     from cvstereo.recording import Recording
 
-#: Figures of :func:`cvstereo.evaluate.evaluate` kept per cell.
-FIGURE_COLUMNS = ("matches", "coverage", "bad1", "bad2", "mae", "rmse", "median_ae", "false_rate", "mean", "std",
-                  "truth_mean")
-#: Columns that depend on the machine and the moment, not on the grid.
-TIMING_COLUMNS = ("elapsed_s", "events_per_s", "realtime_x", "worker")
+#: Bytes read per block when hashing a recording.
+_DIGEST_BLOCK = 1 << 20
 
 
 def file_digest(path: str | os.PathLike) -> str:
-    """sha256 of a file's bytes (hex), read in 1 MiB blocks."""
+    """sha256 of a regular file's bytes (hex), read in 1 MiB blocks up to the size it had when opened.
+
+    Raises
+    ------
+    FileNotFoundError, IsADirectoryError, OSError
+        As the readers do for what is no regular file: a FIFO would block, ``/dev/zero`` never end.
+    """
+    from cvstereo.io._source import open_regular
+
     h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
+    with open_regular(path) as fh:
+        left = os.fstat(fh.fileno()).st_size
+        while left > 0 and (block := fh.read(min(_DIGEST_BLOCK, left))):
             h.update(block)
+            left -= len(block)
     return h.hexdigest()
 
 
@@ -110,8 +119,7 @@ def run_cell(cell: Cell, score: Score | None = None, recording: Recording | None
     recording : Recording, optional
         The recording in memory (in-process runs); None: read from ``cell.recording``, a path.
     """
-    row: dict = dict.fromkeys(FIGURE_COLUMNS)
-    row.update(dict.fromkeys(TIMING_COLUMNS), error=None, worker=f"{os.uname().nodename}:{os.getpid()}")
+    row = empty_row(worker=f"{os.uname().nodename}:{os.getpid()}")
     start = time.perf_counter()
     try:
         from cvstereo.evaluate import evaluate
@@ -129,7 +137,7 @@ def run_cell(cell: Cell, score: Score | None = None, recording: Recording | None
         if score is not None:
             row.update((name, _plain(value)) for name, value in score(cell, recording, result).items())
     except Exception as exc:  # a failing cell is recorded, never fatal to the sweep
-        row["error"] = f"{type(exc).__name__}: {' '.join(str(exc).split())}"
+        row["error"] = error_text(exc)
     row["elapsed_s"] = time.perf_counter() - start
     return row
 
@@ -155,25 +163,31 @@ class SweepResult:
         ``param.NAME`` column per swept parameter, the figures, timing columns and ``error``.
     computed, reused, failed : int
         Cells run now, cells taken from an earlier run of the same sweep, cells with an error.
+    recomputed : int
+        Cells whose file from an earlier run was not a whole row of the cell (:func:`cvstereo.sweep.cells.trusted`),
+        run again (counted in ``computed`` too).
     """
 
     rows: list[dict] = field(default_factory=list)
     computed: int = 0
     reused: int = 0
     failed: int = 0
+    recomputed: int = 0
 
 
 def run_sweep(cells: Sequence[Cell], out_dir: str | os.PathLike, *, workers: int | None = None,
               scheduler: str | None = None, progress: bool = False,
               on_row: Callable[[Cell, dict], None] | None = None, score: Score | None = None,
-              recordings: Mapping[str, Recording] | None = None) -> SweepResult:
+              recordings: Mapping[str, Recording] | None = None,
+              log: Callable[[str], None] | None = None) -> SweepResult:
     """Run every cell not already in ``out_dir`` and return all rows in grid order.
 
     Parameters
     ----------
     cells : sequence of Cell
     out_dir : path-like
-        Output folder; ``cells/`` inside it keeps one JSON file per finished cell.
+        Output folder (made by the first finished cell, none before); ``cells/`` inside it keeps one JSON
+        file per finished cell. A cell file that is not a whole row of its cell is recomputed.
     workers : int, optional, keyword-only
         Worker processes of the local cluster (default: one per core); 0 runs the cells here, one after
         another, without Dask.
@@ -188,11 +202,17 @@ def run_sweep(cells: Sequence[Cell], out_dir: str | os.PathLike, *, workers: int
     recordings : mapping, optional
         Recordings in memory, by the name the cells give as ``recording`` (their key hashes their arrays);
         only with ``workers=0``, since workers read recordings from paths.
+    log : callable, optional, keyword-only
+        Called with a line of text at the slow steps (a local cluster starting).
 
     Raises
     ------
     ValueError
         In-memory recordings with workers or a scheduler.
+    NotADirectoryError
+        ``out_dir`` or its ``cells/`` exists and is not a folder.
+    FileNotFoundError, IsADirectoryError, OSError
+        A recording that is no regular file, or a cell file that is no regular file.
 
     Returns
     -------
@@ -203,7 +223,7 @@ def run_sweep(cells: Sequence[Cell], out_dir: str | os.PathLike, *, workers: int
         raise ValueError("recordings in memory are matched in this process only (workers=0): workers read "
                          "recordings from paths, so give the cells file paths to run them on workers.")
     out = Path(out_dir)
-    (out / "cells").mkdir(parents=True, exist_ok=True)
+    check_output_folder(out, what="out_dir")
     code = source_digest()
     digests: dict[str, str] = {}
     keys = []
@@ -212,13 +232,20 @@ def run_sweep(cells: Sequence[Cell], out_dir: str | os.PathLike, *, workers: int
             rec = in_memory.get(cell.recording)
             digests[cell.recording] = file_digest(cell.recording) if rec is None else recording_digest(rec)
         keys.append(cell_key(cell, digests[cell.recording], code, score))
-    done = {k: _read_cell(out, k) for k in dict.fromkeys(keys) if (out / "cells" / f"{k}.json").exists()}
+    done, untrusted = {}, 0
+    for key in dict.fromkeys(keys):
+        row, bad = read_cell(out, key)
+        untrusted += bad
+        if row is not None:
+            done[key] = row
     todo = [(k, c) for k, c in dict(zip(keys, cells, strict=True)).items() if k not in done]
-    result = SweepResult(reused=len(done))
+    result = SweepResult(reused=len(done), recomputed=untrusted)
     bar = _bar(progress, total=len(todo), reused=len(done))
 
     def finished(key: str, cell: Cell, row: dict) -> None:
-        _write_cell(out, key, row)
+        (out / CELLS).mkdir(parents=True, exist_ok=True)  # made by the first result: a failed start leaves none
+        with held_stop_signals():  # a stop while a result is written keeps it: the cell is done
+            write_cell(out, key, row)
         done[key] = row
         result.computed += 1
         if on_row is not None:
@@ -227,46 +254,30 @@ def run_sweep(cells: Sequence[Cell], out_dir: str | os.PathLike, *, workers: int
             bar.update()
             bar.set_postfix(failed=sum(r.get("error") is not None for r in done.values()))
 
-    if todo:
-        if workers == 0 and scheduler is None:
+    try:
+        if todo and workers == 0 and scheduler is None:
             for key, cell in todo:
                 finished(key, cell, run_cell(cell, score, in_memory.get(cell.recording)))
-        else:
-            _run_on_dask(todo, finished, workers=workers, scheduler=scheduler, score=score)
-    if bar is not None:
-        bar.close()
+        elif todo:
+            from cvstereo.sweep.dask_run import run_on_dask
+
+            run_on_dask(todo, finished, run=run_cell, workers=workers, scheduler=scheduler, score=score, log=log)
+    finally:
+        if bar is not None:
+            bar.close()
+    out.mkdir(parents=True, exist_ok=True)  # for the table, also of a grid without cells
     result.rows = [_table_row(cell, key, done[key]) for cell, key in zip(cells, keys, strict=True)]
     result.failed = sum(r["error"] is not None for r in result.rows)
     return result
 
 
-def _run_on_dask(todo, finished, *, workers: int | None, scheduler: str | None, score: Score | None) -> None:
-    try:
-        from dask.distributed import Client, LocalCluster, as_completed
-    except ImportError:
-        raise ImportError("cvstereo sweep needs Dask: pip install 'cvstereo[sweep]'.") from None
-    cluster = None
-    if scheduler is None:
-        n = workers or os.cpu_count() or 1
-        # One single-threaded process per worker: the matchers are single-threaded numba/numpy code, and
-        # processes keep each cell's memory apart. No dashboard: it needs bokeh and a free port. The scheduler
-        # still serves /health on HTTP, by default on port 8787: on a free port instead (":0"), so that another
-        # cluster on the machine holding 8787 does not make it warn.
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                               scheduler_kwargs={"dashboard_address": ":0"})
-        client = Client(cluster)
-    else:
-        client = Client(scheduler)
-    try:
-        futures = {client.submit(run_cell, cell, score, key=f"cell-{key}", pure=False): (key, cell)
-                   for key, cell in todo}
-        for future in as_completed(futures):
-            key, cell = futures[future]
-            finished(key, cell, future.result())
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+def check_output_folder(out: str | os.PathLike, *, what: str) -> None:
+    """Refuse an output folder that exists as something else (a file, ``/dev/null``, a FIFO), or whose
+    ``cells/`` does, naming it as ``what`` (``-o``, ``out_dir``); an absent one is fine (it is made)."""
+    for path in (Path(out), Path(out) / CELLS):
+        if os.path.exists(path) and not os.path.isdir(path):
+            raise NotADirectoryError(f"{what} {path}: exists and is not a folder; a sweep writes results.parquet, "
+                                     "summary.md and cells/ into a folder.")
 
 
 def _bar(enabled: bool, *, total: int, reused: int):
@@ -275,20 +286,6 @@ def _bar(enabled: bool, *, total: int, reused: int):
     from tqdm.auto import tqdm
 
     return tqdm(total=total, unit="cell", desc=f"sweep ({reused} done before)" if reused else "sweep", leave=False)
-
-
-def _write_cell(out: Path, key: str, row: dict) -> None:
-    from cvstereo.io._atomic import write_text_atomic
-
-    write_text_atomic(out / "cells" / f"{key}.json", json.dumps(row, sort_keys=True))
-
-
-def _read_cell(out: Path, key: str) -> dict:
-    path = out / "cells" / f"{key}.json"
-    try:
-        return json.loads(path.read_text())
-    except (ValueError, UnicodeDecodeError):
-        raise ValueError(f"{path}: not a sweep cell file; delete it to recompute that cell.") from None
 
 
 def _table_row(cell: Cell, key: str, row: dict) -> dict:

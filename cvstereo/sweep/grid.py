@@ -1,12 +1,13 @@
-"""Sweep grids: cells (recording x method x variant x parameters x parameter set), grid files, recording specs."""
+"""Sweep grids: cells (recording x method x variant x parameters x parameter set), each configuration checked
+before any runs."""
 
 from __future__ import annotations
 
-import glob
 import itertools
+import json
+import math
 import os
-import tomllib
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -60,12 +61,70 @@ class Grid:
     param_sets : tuple of str or None
         Parameter sets to run each configuration under (``thesis``, ``adaptive``); ``(None,)``: the default.
         Applied to the methods that have sets (the thesis' five), others run once.
+    origin : str, optional
+        Where the grid was written (``grid.toml [[grid]] 2``, ``--param``): the start of every message about it.
     """
 
     methods: tuple[str, ...]
     variants: tuple[str, ...] = ()
     params: tuple[tuple[str, tuple], ...] = ()
     param_sets: tuple[str | None, ...] = (None,)
+    origin: str = "grid"
+
+    def configs(self) -> list[tuple[str, str | None, tuple[tuple[str, object], ...], str | None]]:
+        """Every configuration (method, variant, sorted parameters, parameter set), in a fixed order, each
+        checked as its matcher would check it: a value that would fail every cell fails here, before any runs.
+
+        Raises
+        ------
+        ValueError
+            Unknown method, variant or parameter set, a parameter no method has or without values, a value
+            of the wrong type or range for its field, or a combination the matcher refuses; the message
+            starts with :attr:`origin` and names the key and value.
+        """
+        from cvstereo.param_sets import DEFAULT_PARAM_SET, check_param_set
+        from cvstereo.registry import check_param_item, matcher_class, matcher_params
+
+        for ps in self.param_sets:
+            if ps is not None:
+                self._fail(f"param_sets = {toml_text(ps)}", check_param_set, ps)
+        used: set[str] = set()
+        configs = []
+        for method in self.methods:
+            cls = self._fail(f"method {toml_text(method)}", matcher_class, method)
+            fields = set(cls.Params.__dataclass_fields__)
+            if self.variants == ("all",):
+                variants = list(cls.variants)
+            elif self.variants:
+                bad = [v for v in self.variants if v not in cls.variants]
+                if bad:
+                    raise ValueError(f"{self.origin}: method '{method}' has no variant {', '.join(bad)}; it has: "
+                                     f"{', '.join(cls.variants)}.")
+                variants = list(self.variants)
+            else:
+                variants = [None]  # the method's default variant
+            mine = [(k, vals) for k, vals in self.params if k in fields]
+            for key, values in mine:
+                if not values:
+                    raise ValueError(f"{self.origin}: parameter '{key}' has no values; give at least one.")
+                for value in values:
+                    self._fail(f"{key} = {toml_text(value)}", check_param_item, cls.Params, key, value,
+                               where=f"{method} parameter")
+            used.update(k for k, _ in mine)
+            names = [k for k, _ in mine]
+            for variant in variants:
+                for values in itertools.product(*(vals for _, vals in mine)):
+                    params = tuple(sorted(zip(names, values, strict=True)))
+                    for param_set in (self.param_sets if _has_param_sets(method) else (None,)):
+                        shown = ", ".join(f"{k} = {toml_text(v)}" for k, v in params) or "defaults"
+                        self._fail(f"{method}/{variant or 'default'} with {shown}", matcher_params, method, variant,
+                                   param_set=param_set or DEFAULT_PARAM_SET, **dict(params))
+                        configs.append((method, variant, params, param_set))
+        unknown = [k for k, _ in self.params if k not in used]
+        if unknown:
+            raise ValueError(f"{self.origin}: parameter(s) {', '.join(unknown)} belong to none of the methods "
+                             f"{', '.join(self.methods)}; see `cvstereo match --list-methods`.")
+        return configs
 
     def cells(self, recordings: Sequence[str]) -> list[Cell]:
         """Every cell, in a fixed order: recording, then method, variant and parameter values.
@@ -73,38 +132,17 @@ class Grid:
         Raises
         ------
         ValueError
-            Unknown method, a variant a method does not have, or a parameter no method has.
+            A configuration that would fail (:meth:`configs`).
         """
-        from cvstereo.registry import matcher_class
-
-        used: set[str] = set()
-        configs = []
-        for method in self.methods:
-            cls = matcher_class(method)
-            fields = set(cls.Params.__dataclass_fields__)
-            if self.variants == ("all",):
-                variants = list(cls.variants)
-            elif self.variants:
-                bad = [v for v in self.variants if v not in cls.variants]
-                if bad:
-                    raise ValueError(f"method '{method}' has no variant {', '.join(bad)}; it has: "
-                                     f"{', '.join(cls.variants)}.")
-                variants = list(self.variants)
-            else:
-                variants = [None]  # the method's default variant
-            mine = [(k, vals) for k, vals in self.params if k in fields]
-            used.update(k for k, _ in mine)
-            names = [k for k, _ in mine]
-            for variant in variants:
-                for values in itertools.product(*(vals for _, vals in mine)):
-                    for param_set in (self.param_sets if _has_param_sets(method) else (None,)):
-                        configs.append((method, variant, tuple(sorted(zip(names, values, strict=True))),
-                                        param_set))
-        unknown = [k for k, _ in self.params if k not in used]
-        if unknown:
-            raise ValueError(f"parameter(s) {', '.join(unknown)} belong to none of the methods "
-                             f"{', '.join(self.methods)}; see `cvstereo match --list-methods`.")
+        configs = self.configs()
         return [Cell(os.fspath(r), m, v, p, ps) for r in recordings for m, v, p, ps in configs]
+
+    def _fail(self, what: str, check, *args, **kwargs):
+        """``check(*args, **kwargs)``, its ValueError prefixed with the origin and ``what`` was checked."""
+        try:
+            return check(*args, **kwargs)
+        except ValueError as exc:
+            raise ValueError(f"{self.origin}: {what}: {exc}") from None
 
 
 def _has_param_sets(method: str) -> bool:
@@ -115,86 +153,22 @@ def _has_param_sets(method: str) -> bool:
     return method in ADAPTIVE
 
 
-def read_grid_file(path: str | os.PathLike) -> tuple[list[Grid], list[str], dict]:
-    """Read a TOML grid file.
-
-    The file has optional top-level ``recordings`` (list of specs, see :func:`resolve_recordings`) and
-    ``figure``, and one ``[[grid]]`` table per block of methods::
-
-        recordings = ["preset:1arm-100cm:2", "data/*.npz"]
-        figure = "bad2"
-
-        [[grid]]
-        methods = ["event-area", "event-vector"]
-        variants = ["all"]
-        params = { threshold = [1.5, 2.5] }
-
-    Returns
-    -------
-    grids : list of Grid
-    recordings : list of str
-    options : dict
-        The other top-level keys (e.g. ``figure``).
-    """
-    path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{path}: not a valid TOML grid file: {exc}") from None
-    blocks = data.pop("grid", None)
-    if not isinstance(blocks, list) or not blocks:
-        raise ValueError(f"{path}: needs at least one [[grid]] table with `methods = [...]`.")
-    grids = []
-    for i, block in enumerate(blocks):
-        methods = block.get("methods", [block["method"]] if "method" in block else None)
-        if not methods:
-            raise ValueError(f"{path}: [[grid]] number {i + 1} has no `methods`.")
-        params = block.get("params", {})
-        grids.append(Grid(tuple(methods), tuple(block.get("variants", ())),
-                          tuple((k, tuple(v if isinstance(v, list) else [v])) for k, v in params.items()),
-                          tuple(block.get("param_sets", (None,)))))
-    recordings = data.pop("recordings", [])
-    return grids, list(recordings), data
+#: Longest value text a message quotes.
+_SHOWN_CHARS = 60
 
 
-def resolve_recordings(specs: Iterable[str], *, progress: bool = False) -> list[str]:
-    """Turn recording specs into file paths, in the order given (duplicates dropped).
-
-    A spec is a path, a glob (``data/*.npz``), ``preset:NAME`` or ``preset:NAME:SECONDS`` (a simulated
-    preset, generated once and cached, see :func:`cvstereo.simulate.presets.cached_preset`), or
-    ``suite:NAME`` (every recording of a simulated suite, where the simulator has one; ``suite:NAME:tune`` or
-    ``suite:NAME:eval`` one half of a suite that has a tuning and an evaluation half).
-
-    Raises
-    ------
-    FileNotFoundError
-        A path or glob that matches nothing.
-    """
-    out: list[str] = []
-    for spec in specs:
-        if spec.startswith("preset:"):
-            from cvstereo.simulate.presets import cached_preset
-
-            _, name, *rest = spec.split(":")
-            seconds = float(rest[0]) if rest else None
-            out.append(os.fspath(cached_preset(name, seconds=seconds, progress=progress)))
-        elif spec.startswith("suite:"):
-            out.extend(_suite_paths(spec.partition(":")[2], progress=progress))
-        elif any(ch in spec for ch in "*?["):
-            found = sorted(glob.glob(spec))
-            if not found:
-                raise FileNotFoundError(f"recording pattern '{spec}' matches no file.")
-            out.extend(found)
-        else:
-            if not Path(spec).exists():
-                raise FileNotFoundError(f"recording '{spec}' does not exist.")
-            out.append(spec)
-    return list(dict.fromkeys(out))
-
-
-def _suite_paths(spec: str, *, progress: bool) -> list[str]:
-    from cvstereo.simulate import suite_recordings
-
-    name, _, half = spec.partition(":")  # NAME, or NAME:HALF of a suite with a tuning and an evaluation half
-    extra = {"half": half} if half else {}
-    return [os.fspath(path) for _, path in suite_recordings(name, progress=progress, **extra)]
+def toml_text(value) -> str:
+    """A value as a grid file writes it (``true``, ``nan``, ``"frame"``, ``[1, 2]``), shortened for messages."""
+    if isinstance(value, bool):
+        text = "true" if value else "false"
+    elif isinstance(value, float) and not math.isfinite(value):
+        text = str(value)
+    elif isinstance(value, list | tuple):
+        text = "[" + ", ".join(toml_text(v) for v in value) + "]"
+    elif isinstance(value, dict):
+        text = "{ " + ", ".join(f"{k} = {toml_text(v)}" for k, v in value.items()) + " }"
+    elif isinstance(value, str):
+        text = json.dumps(value)
+    else:
+        text = repr(value)
+    return text if len(text) <= _SHOWN_CHARS else text[: _SHOWN_CHARS - 3] + "..."

@@ -8,7 +8,7 @@ import os
 import statistics
 from collections.abc import Sequence
 
-from cvstereo.sweep.engine import FIGURE_COLUMNS
+from cvstereo.sweep.cells import FIGURE_COLUMNS
 
 #: Figures where smaller is better (the others, e.g. coverage, are better larger).
 LOWER_IS_BETTER = frozenset({"bad1", "bad2", "mae", "rmse", "median_ae", "false_rate", "std"})
@@ -42,14 +42,21 @@ def write_table(rows: Sequence[dict], path: str | os.PathLike) -> None:
         pq.write_table(table, tmp)
 
 
+def check_figure(figure: str, *, where: str = "figure") -> str:
+    """``figure`` if the summary can rank by it (one of :data:`FIGURE_COLUMNS`); else a ValueError naming
+    ``where`` and the figures, so that a sweep refuses it before running rather than after."""
+    if figure not in FIGURE_COLUMNS:
+        raise ValueError(f"{where} {figure!r} is not one of {', '.join(FIGURE_COLUMNS)}.")
+    return figure
+
+
 def summary_markdown(rows: Sequence[dict], *, figure: str = "bad2") -> str:
     """Best parameters per method and variant by the median of ``figure`` over the recordings.
 
     A configuration that failed on some recording, or whose figure is undefined there (no matches), is
     ranked after those defined on every recording.
     """
-    if figure not in FIGURE_COLUMNS:
-        raise ValueError(f"figure '{figure}' is not one of {', '.join(FIGURE_COLUMNS)}.")
+    check_figure(figure)
     sign = 1.0 if figure in LOWER_IS_BETTER else -1.0
     groups: dict[tuple[str, str, str], dict[str, list[dict]]] = {}
     for r in rows:
