@@ -9,7 +9,8 @@ With ``--against`` the test files (and ``tests/_*.py``, their helpers) are copie
 of REV and run there with REV's code. Every case counts once: ``clean`` when it passes, else the kind its
 failure message starts with (``tests/_hostile.py``: TRACEBACK, HANG, DATALOSS, SILENT, MESSAGE, LEFTOVER);
 a failure without a kind (an import error of a name REV lacks, an assertion without a kind) counts as
-``other``. A case stopped by pytest-timeout counts as HANG. Prints a Markdown table; ``--json`` writes it too.
+``other``. A case stopped by pytest-timeout counts as HANG.
+Prints a Markdown table and the cases not clean on this tree; ``--json`` writes the table too.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import argparse
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -44,17 +46,28 @@ def kind_of(testcase: ET.Element) -> str:
     return min(found)[1] if found else "other"
 
 
-def run(files: list[str], root: Path, timeout: int) -> Counter:
+def _sigint_as_in_a_terminal() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+def run(files: list[str], root: Path, timeout: int, not_clean: list | None = None) -> Counter:
+    """Run the corpus under ``root`` and tally its cases by kind; append ``(case, kind)`` of every case that
+    is not clean to ``not_clean`` when given (a case that fails only under load shows here by name)."""
     with tempfile.TemporaryDirectory() as tmp:
         xml = Path(tmp) / "junit.xml"
         cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-n", "2", f"--timeout={timeout}",
                f"--junitxml={xml}", "-o", "addopts=", "-W", "error", *files]
+        # SIGINT as a terminal gives it, also when this script runs in a background job (which ignores it,
+        # and every process it starts would inherit that): the signal cases press Ctrl-C.
         subprocess.run(cmd, cwd=root, env={**os.environ, "PYTHONPATH": str(root)}, check=False,
-                       stdout=subprocess.DEVNULL)
+                       stdout=subprocess.DEVNULL, preexec_fn=_sigint_as_in_a_terminal)
         tally = Counter()
         if xml.exists():
             for tc in ET.parse(xml).getroot().iter("testcase"):
-                tally[kind_of(tc)] += 1
+                kind = kind_of(tc)
+                tally[kind] += 1
+                if not_clean is not None and kind not in ("clean", "skipped"):
+                    not_clean.append((f"{tc.get('classname')}::{tc.get('name')}", kind))
         return tally
 
 
@@ -95,8 +108,11 @@ def main() -> int:
     rows = {}
     if args.against:
         rows[args.against] = against(args.against, files, args.timeout)
-    rows["this tree"] = run(files, REPO, args.timeout)
+    not_clean: list[tuple[str, str]] = []
+    rows["this tree"] = run(files, REPO, args.timeout, not_clean)
     print(table(rows))
+    for name, kind in not_clean:
+        print(f"not clean on this tree: {kind} {name}")
     if args.json:
         Path(args.json).write_text(json.dumps({k: dict(v) for k, v in rows.items()}, indent=1) + "\n")
     return 0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,13 @@ settings.register_profile("explore", derandomize=False)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "deterministic"))
 
 REPO = Path(__file__).resolve().parent.parent
+
+# The signal cases stand for a user pressing Ctrl-C in a terminal. A shell that starts a job in the background
+# (`make test &`, a CI runner's non-interactive job) ignores SIGINT for it, every process it starts inherits
+# the ignored disposition, and the commands under test would then rightly go on running. The suite restores
+# Python's own handler so that its child processes start with SIGINT as a terminal gives it.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def shared_dir() -> Path:
