@@ -8,10 +8,12 @@ that nothing here imports them by name.
 
 import importlib
 
-from cvstereo import _numba_cache
+from cvstereo import _compat, _numba_cache
 
 # Before any module with numba kernels is imported: a read-only installation must still compile them.
 _numba_cache.configure()
+# The import paths of 0.2 that name moved modules keep working (CHANGELOG.md lists the moves).
+_compat.install()
 
 __version__ = "0.1.0"
 
