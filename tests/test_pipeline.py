@@ -11,8 +11,8 @@ import cvstereo.io.npz
 import cvstereo.io.stream
 from cvstereo.errors import NoMatchersError
 from cvstereo.io import read_recording, write_recording
-from cvstereo.pipeline import match
-from cvstereo.recording import Recording
+from cvstereo.model.recording import Recording
+from cvstereo.run import match
 
 
 def _recording(seed: int = 0) -> Recording:
@@ -67,7 +67,7 @@ def test_match_from_a_path_with_a_rig_correction(tmp_path, monkeypatch):
 
 
 def test_no_registered_matcher_says_how_to_install(monkeypatch):
-    import cvstereo.registry as registry
+    import cvstereo.matchers.registry as registry
 
     monkeypatch.setattr(registry.importlib.metadata, "entry_points", lambda **kw: [])
     registry._entry_points.cache_clear()
