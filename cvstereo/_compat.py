@@ -85,12 +85,16 @@ class _AliasLoader(importlib.abc.Loader):
         self.target = target
 
     def create_module(self, spec):
-        # The import system keeps the module's own __name__, __spec__ and __file__ (it sets them only where
-        # missing), so the module stays what it is and is merely also known under the old name.
-        return importlib.import_module(self.target)
+        # The import system keeps the module's own __name__, __loader__ and __file__ (it sets them only where
+        # missing) but always sets __spec__ to the old name's; exec_module puts the module's own spec back,
+        # so the module stays what it is and is merely also known under the old name.
+        module = importlib.import_module(self.target)
+        self._own_spec = module.__spec__
+        return module
 
     def exec_module(self, module) -> None:
-        """Nothing to run: the module ran when it was imported under its own name."""
+        """Nothing to run (the module ran when it was imported under its own name): restore its spec."""
+        module.__spec__ = self._own_spec
 
 
 class _AliasFinder(importlib.abc.MetaPathFinder):

@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import json
 import math
+import sys
+import types
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -381,3 +383,19 @@ def markdown_table(rows: Mapping[str, Mapping], *, columns: Sequence[str] = DEFA
                 cells.append("-" if pub is None else f"{pub[0 if col == 'mean' else 1]:.2f}")
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
+
+
+class _CallableModule(types.ModuleType):
+    """This module, callable as :func:`evaluate`.
+
+    ``cvstereo.evaluate`` is two things: the front door's function (``cvs.evaluate(rec, result)``) and the
+    0.2 module path (``from cvstereo.evaluate import evaluate``), which :mod:`cvstereo._compat` answers with
+    this module. Importing a submodule sets it as an attribute of its package, replacing the function; a call
+    of the module runs the function, so ``cvs.evaluate(rec, result)`` works before and after that import.
+    """
+
+    def __call__(self, recording, matches, meta=None) -> dict:
+        return evaluate(recording, matches, meta)
+
+
+sys.modules[__name__].__class__ = _CallableModule

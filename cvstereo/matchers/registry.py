@@ -1,13 +1,14 @@
-"""Matchers by name, found through the entry-point group ``cvstereo.matchers``.
+"""Matchers by name: the built-in table, and the entry-point group ``cvstereo.matchers`` for plugins.
 
-Every distribution can register matchers in its ``pyproject.toml``::
+The matchers of this distribution are listed in :mod:`cvstereo.matchers._registry` as ``"module:Class"``
+strings, so that a plain checkout on ``sys.path`` (no installed metadata) lists every one of them. Other
+distributions add matchers in their ``pyproject.toml``::
 
     [project.entry-points."cvstereo.matchers"]
-    frame = "cvstereo.matchers.frame.matcher:FrameClusterMatcher"
+    my-method = "my_package.matcher:MyMatcher"
 
-cvstereo registers the thesis' five (in :mod:`calibration_free`) and its own OpenCV and dv-processing
-baselines this way, so the CLI, :func:`cvstereo.run.match` and the benchmark find every matcher
-without importing :mod:`calibration_free` by name. A matcher's module is imported only when it is used.
+The CLI, :func:`cvstereo.match` and the benchmark find every matcher through this module, and the core never
+imports a matcher by name. A matcher's module is imported only when it is used.
 """
 
 from __future__ import annotations
@@ -20,51 +21,63 @@ import importlib.util
 import typing
 from collections.abc import Iterator, Mapping
 
-from cvstereo.errors import NoMatchersError
+from cvstereo.matchers._registry import BUILTIN_METHODS
 from cvstereo.matchers.params import aliases_of, canonical_params
 from cvstereo.matchers.protocol import StreamMatcher, check_param_value
 from cvstereo.matchers.sets import resolve
 
-#: The entry-point group that lists the matchers: name (formats.md) -> "module:Class".
+__all__ = ["DEFAULT_METHOD", "ENTRY_POINT_GROUP", "LISTING_ORDER", "METHODS", "available_methods",
+           "check_param_item", "create_matcher", "matcher_class", "matcher_params", "params_from_meta",
+           "parse_param_strings"]
+
+#: The entry-point group in which other distributions register matchers: name (formats.md) -> "module:Class".
 ENTRY_POINT_GROUP = "cvstereo.matchers"
 
-#: The method run when none is named (`cvstereo match`, `cvstereo live`, ``pipeline.match``): the thesis' frame
-#: matcher, the one that answers on the most recordings.
+#: The method run when none is named (`cvstereo match`, `cvstereo live`, :func:`cvstereo.match`): the thesis'
+#: frame matcher, the one that answers on the most recordings.
 DEFAULT_METHOD = "frame"
 
-#: The order in which tables and listings show the methods (the installed metadata sorts entry points by
-#: name); methods not named here follow in name order.
-LISTING_ORDER = ("frame", "frame-area", "event-time", "event-area", "event-vector", "stereobm", "sgbm",
-                 "dv-semidense")
+#: The order in which tables and listings show the methods: the built-in table's, then plugins by name.
+LISTING_ORDER = tuple(BUILTIN_METHODS)
 
 
 @functools.cache
-def _entry_points() -> dict[str, importlib.metadata.EntryPoint]:
-    found = {ep.name: ep for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)}
-    if not found:
-        raise NoMatchersError(f"no matcher is registered in the entry-point group '{ENTRY_POINT_GROUP}': cvstereo "
-                              "is not installed. Install it (from the repository: pip install -e .).")
-    rank = {name: i for i, name in enumerate(LISTING_ORDER)}
-    return {name: found[name] for name in sorted(found, key=lambda n: (rank.get(n, len(rank)), n))}
+def _methods() -> dict[str, str]:
+    """name -> "module:Class": the built-in table, then the plugins' entry points (a plugin cannot replace a
+    built-in name: the name would mean two matchers, and the thesis' names are fixed by formats.md)."""
+    found = dict(BUILTIN_METHODS)
+    plugins = {ep.name: ep.value for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)}
+    for name in sorted(plugins):
+        found.setdefault(name, plugins[name])
+    return found
+
+
+def _load(target: str) -> type[StreamMatcher]:
+    """The object a ``"module:Qualified.name"`` string names (the entry-point syntax)."""
+    module, _, qualname = target.partition(":")
+    obj = importlib.import_module(module)
+    for part in qualname.split("."):
+        obj = getattr(obj, part)
+    return obj
 
 
 class _Methods(Mapping):
-    """The registered methods, read from the entry points on first use: name -> "module:Class"."""
+    """The registered methods, read on first use: name -> "module:Class"."""
 
     def __getitem__(self, name: str) -> str:
-        return _entry_points()[name].value
+        return _methods()[name]
 
     def __iter__(self) -> Iterator[str]:
-        return iter(_entry_points())
+        return iter(_methods())
 
     def __len__(self) -> int:
-        return len(_entry_points())
+        return len(_methods())
 
     def __repr__(self) -> str:
         return f"METHODS({dict(self)!r})"
 
 
-#: method name (formats.md) -> "module:Class" of its StreamMatcher, in registration order.
+#: method name (formats.md) -> "module:Class" of its StreamMatcher, in listing order.
 METHODS: Mapping[str, str] = _Methods()
 
 
@@ -92,7 +105,7 @@ def matcher_class(method: str) -> type[StreamMatcher]:
     """
     if method not in METHODS:
         raise ValueError(f"unknown method '{method}'; choose one of: {', '.join(METHODS)}.")
-    return _entry_points()[method].load()
+    return _load(_methods()[method])
 
 
 def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 128), param_set: str = "adaptive",
