@@ -17,7 +17,7 @@ from cvstereo.model.recording import Recording
 
 __all__ = ["DEFAULT_PACKET_US", "DIAGNOSTICS_WINDOW_US", "match"]
 
-#: Windows of the diagnostics (:func:`cvstereo.matchers._shared.signal_level.silence_warning`): 40 ms on the absolute
+#: Windows of the diagnostics (:func:`cvstereo.evaluation.diagnostics.silence_warning`): 40 ms on the absolute
 # clock.
 DIAGNOSTICS_WINDOW_US = 40_000
 
@@ -121,7 +121,7 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         Time-ordered matches and the meta of formats.md. ``meta["fingerprint"]`` identifies the events as read
         (before rig correction or rectification: :mod:`cvstereo.model.fingerprint`), so that the matches can be told
         from those of another recording; ``elapsed_s`` leaves out the time it took. ``meta["diagnostics"]`` says
-        how much of the recording answered (:func:`cvstereo.matchers._shared.signal_level.silence_warning` turns it
+        how much of the recording answered (:func:`cvstereo.evaluation.diagnostics.silence_warning` turns it
         into one
         line): windows with events and with matches (40 ms, absolute clock), and for the thesis matchers windows
         seen, windows with candidates, the highest value against its threshold and the threshold in force over
@@ -220,7 +220,7 @@ def _time_order(t: np.ndarray) -> np.ndarray | None:
 
 def _diagnostics(matcher, event_windows: set[int], matches, meta: dict) -> dict:
     """How much of the recording answered: windows with events and with matches, and the matcher's own."""
-    from cvstereo.matchers._shared.signal_level import coverage_of_windows
+    from cvstereo.evaluation.diagnostics import coverage_of_windows
 
     with_matches, with_events = coverage_of_windows(event_windows, matches, meta, DIAGNOSTICS_WINDOW_US)
     out = {"window_us": DIAGNOSTICS_WINDOW_US, "windows_with_events": with_events,

@@ -7,7 +7,8 @@ import pytest
 from _event_scenes import feed_cut
 
 from calibration_free import create_matcher
-from cvstereo.matchers._shared.signal_level import SignalLevel, SignalLevelParams, silence_warning
+from cvstereo.evaluation.diagnostics import silence_warning
+from cvstereo.matchers._shared.signal_level import SignalLevel, SignalLevelParams
 from cvstereo.matchers.frame.matcher import FrameClusterMatcher
 from cvstereo.model.matches import concat_matches
 

@@ -30,7 +30,8 @@ a test per pixel mispredicted at every change). The event's own vector comes fro
 it; with ``require_candidate_threshold`` the other row's mask covers the candidate range, and only runs holding a
 candidate are visited (a run's pixels share the ends of their vectors; the least cost of a run's candidates is
 one branch-free loop). Where a run or gap reaches beyond a mask, a walk in the frame goes on, skipping blocks
-(:func:`cvstereo.frames.dynamic.skip_below`). Against the per-pixel walks this replaced (bench_speed --quick,
+(:func:`cvstereo.matchers._shared.frame_bounds.skip_below`). Against the per-pixel walks this replaced (bench_speed
+--quick,
 old and new interleaved, one core, load 0.8): the dense motorcycle scene 1.25x (thesis) and 1.01x (adaptive),
 640x480 with a 128 px range 1.05x / 0.99x; on sparse rows, where a walk met few pixels, the masks cost more than
 they save: the suite's 128x128 base 0.89x / 0.87x (still 4.8 / 3.6 M events/s), 346x260 0.98x / 0.93x.
@@ -57,8 +58,15 @@ import numpy as np
 from numba import njit
 from numba.cpython.unsafe.numbers import leading_zeros, trailing_zeros
 
-from cvstereo.frames.dynamic import BOUND_SHIFT, advance_due_bounded, block_bounds, skip_below, splat_bounded, tick_due
+from cvstereo.frames.dynamic import tick_due
 from cvstereo.matchers._shared.event_common import MergedEventMatcher, emit_match
+from cvstereo.matchers._shared.frame_bounds import (
+    BOUND_SHIFT,
+    advance_due_bounded,
+    block_bounds,
+    skip_below,
+    splat_bounded,
+)
 from cvstereo.matchers._shared.thesis_params import EventVectorParams
 
 __all__ = ["EventVectorMatcher"]
@@ -437,7 +445,7 @@ class EventVectorMatcher(MergedEventMatcher):
 
     def __init__(self, params=None, *, resolution=(128, 128)):
         super().__init__(params, resolution=resolution)
-        self._bound = block_bounds(self._bank.stored)  # kept by the kernel (dynamic_frames.splat_bounded)
+        self._bound = block_bounds(self._bank.stored)  # kept by the kernel (frame_bounds.splat_bounded)
 
     def _run_kernel(self, stream, thresholds, out_cam, out_index, out_disparity, out_values) -> int:
         prm, bank = self.params, self._bank
