@@ -180,8 +180,8 @@ MOMENTS = {
                                             prompt_s=CLUSTER_PROMPT_S),
 }
 #: Stops while cells run (:func:`test_stopped_sweep_keeps_its_finished_cells_and_resumes`).
-CELLS_RUNNING = {"sigterm": moment(SWEEP, "enter:cvstereo.io._atomic:write_text_atomic", TERM),
-                 "ctrl-c": moment(SWEEP, "enter:cvstereo.io._atomic:write_text_atomic", INT)}
+CELLS_RUNNING = {"sigterm": moment(SWEEP, "enter:cvstereo.io.atomic:write_text_atomic", TERM),
+                 "ctrl-c": moment(SWEEP, "enter:cvstereo.io.atomic:write_text_atomic", INT)}
 
 
 @pytest.fixture(scope="module")

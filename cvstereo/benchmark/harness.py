@@ -31,7 +31,7 @@ from cvstereo.evaluation.experiment import Combo, all_combos, run_experiment
 from cvstereo.evaluation.metrics import FIGURES, format_figure, markdown_table, to_json
 from cvstereo.evaluation.thesis import DISPARITY_TABLES, MATLAB_SECONDS, RECORDING_SECONDS, RECORDINGS
 from cvstereo.geometry.depth import fit_depth_model
-from cvstereo.io._atomic import write_text_atomic
+from cvstereo.io.atomic import write_text_atomic
 from cvstereo.matchers.registry import METHODS, available_methods, matcher_class
 from cvstereo.model.matches import MatchResult
 from cvstereo.model.recording import Recording

@@ -16,7 +16,7 @@ from typing import NamedTuple
 import numpy as np
 
 from cvstereo.errors import CorruptFileError, EventFormatError
-from cvstereo.io._source import open_regular, printable
+from cvstereo.io.files import open_regular, printable
 from cvstereo.model.events import DEFAULT_RESOLUTION, check_resolution
 
 __all__ = [
