@@ -197,8 +197,8 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
     if order is not None:
         matches = matches[order]
     arrays = {}
-    if hasattr(matcher, "take_uncertainty"):  # matchers that rate their matches (formats.md: `uncertainty`)
-        uncertainty = matcher.take_uncertainty()
+    uncertainty = matcher.take_uncertainty()  # None: the matcher does not rate its matches
+    if uncertainty is not None:
         if uncertainty.size == matches.size:
             arrays["uncertainty"] = uncertainty if order is None else uncertainty[order]
         else:  # a stage in between (rectification) dropped matches: the values no longer line up
@@ -225,8 +225,7 @@ def _diagnostics(matcher, event_windows: set[int], matches, meta: dict) -> dict:
     with_matches, with_events = coverage_of_windows(event_windows, matches, meta, DIAGNOSTICS_WINDOW_US)
     out = {"window_us": DIAGNOSTICS_WINDOW_US, "windows_with_events": with_events,
            "windows_with_matches": with_matches}
-    if hasattr(matcher, "diagnostics"):
-        out.update(matcher.diagnostics())
+    out.update(matcher.diagnostics())
     return out
 
 
