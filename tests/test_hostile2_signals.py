@@ -145,12 +145,12 @@ MOMENTS = {
     "live-first-import": moment(f"live {SIM}", "import:cvstereo.cli.sweep", TERM),
     "live-heavy-import": moment(f"live {SIM}", "import:cvstereo.sensors.live", INT),
     "live-opening-boards": moment(f"live {SIM}", "call:cvstereo.sensors.stereo:StereoEDVS.__init__", INT),
-    "live-matching": moment(f"live {SIM}", "enter:cvstereo.matchers.protocol:StreamMatcher.feed:3", INT, code=0,
+    "live-matching": moment(f"live {SIM}", "enter:cvstereo.matcher:StreamMatcher.feed:3", INT, code=0,
                             err=("behind real time",)),
     # --- match, video ----------------------------------------------------------------------------------------
     "match-first-import": moment("match src.npz -o m2.npz", "import:cvstereo.cli.info", TERM, absent=("m2.npz",)),
     "match-reading": moment("match src.npz -o m2.npz", "call:numpy:load", INT, absent=("m2.npz",)),
-    "match-matching": moment("match src.npz -o m2.npz", "call:cvstereo.matchers.protocol:StreamMatcher.feed:2", TERM,
+    "match-matching": moment("match src.npz -o m2.npz", "call:cvstereo.matcher:StreamMatcher.feed:2", TERM,
                              absent=("m2.npz",)),
     "match-writing": moment("match src.npz -o m2.npz", "call:numpy:savez_compressed", INT, absent=("m2.npz",)),
     "video-reading": moment("video src.npz m.npz -o v.mp4 --scale 1", "call:numpy:load", TERM, absent=("v.mp4",)),
@@ -163,25 +163,23 @@ MOMENTS = {
                                   "call:cvstereo.simulate.presets:simulate", INT, absent=("sim.npz",)),
     "simulate-writing": moment("simulate --preset 1arm-50cm --seconds 0.3 -o sim.npz", "call:numpy:savez_compressed",
                                TERM, absent=("sim.npz",)),
-    "bench-heavy-import": moment("bench --quick -m frame -o b",
-                                 "import:cvstereo.benchmark.harness", INT, absent=("b",)),
+    "bench-heavy-import": moment("bench --quick -m frame -o b", "import:cvstereo.benchmark", INT, absent=("b",)),
     "bench-simulating": moment("bench --quick -m frame -o b", "call:cvstereo.simulate.presets:simulate", TERM,
                                absent=("b",)),
-    "demo-heavy-import": moment("demo --seconds 0.3 --methods frame -o d",
-                                "import:cvstereo.evaluation.experiment", TERM,
+    "demo-heavy-import": moment("demo --seconds 0.3 --methods frame -o d", "import:cvstereo.experiment", TERM,
                                 absent=("d",)),
     "demo-simulating": moment("demo --seconds 0.3 --methods frame -o d", "call:cvstereo.simulate.presets:simulate", INT,
                               absent=("d",)),
     # --- sweep: the Dask cluster starting, cells running -------------------------------------------------
-    "sweep-checking-grid": moment(SWEEP, "call:cvstereo.matchers.registry:matcher_class", TERM, absent=("sw",)),
+    "sweep-checking-grid": moment(SWEEP, "call:cvstereo.registry:matcher_class", TERM, absent=("sw",)),
     "sweep-cluster-starting-sigterm": moment(SWEEP, "enter:distributed:LocalCluster.__init__", TERM, absent=("sw",),
                                              prompt_s=CLUSTER_PROMPT_S),
     "sweep-cluster-starting-ctrl-c": moment(SWEEP, "enter:distributed:LocalCluster.__init__", INT, absent=("sw",),
                                             prompt_s=CLUSTER_PROMPT_S),
 }
 #: Stops while cells run (:func:`test_stopped_sweep_keeps_its_finished_cells_and_resumes`).
-CELLS_RUNNING = {"sigterm": moment(SWEEP, "enter:cvstereo.io.atomic:write_text_atomic", TERM),
-                 "ctrl-c": moment(SWEEP, "enter:cvstereo.io.atomic:write_text_atomic", INT)}
+CELLS_RUNNING = {"sigterm": moment(SWEEP, "enter:cvstereo.io._atomic:write_text_atomic", TERM),
+                 "ctrl-c": moment(SWEEP, "enter:cvstereo.io._atomic:write_text_atomic", INT)}
 
 
 @pytest.fixture(scope="module")
