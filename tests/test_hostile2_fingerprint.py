@@ -16,11 +16,11 @@ import shutil
 from pathlib import Path
 
 import pytest
+from cvstereo.recording import Recording
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cvstereo.io import read_matches, write_matches, write_recording
-from cvstereo.recording import Recording
 from tests._hostile import Case, case, check_case, run_cli
 from tests._io_helpers import textured_blobs
 
@@ -165,8 +165,9 @@ def test_the_fingerprint_does_not_depend_on_packet_cuts(cuts):
 
 @pytest.mark.parametrize("packet_us", [1, 999, 40_000, 10**9])
 def test_match_stores_the_same_fingerprint_for_any_packet_length(packet_us):
-    from calibration_free import match
     from cvstereo.fingerprint import fingerprint_of
+
+    from calibration_free import match
 
     rec = textured_blobs(0, 4, disparity=13, window_us=W)
     got = match(rec, method="frame", packet_us=packet_us).meta.get("fingerprint")
@@ -176,6 +177,7 @@ def test_match_stores_the_same_fingerprint_for_any_packet_length(packet_us):
 def test_the_fingerprint_tells_every_hostile_recording_apart(base):
     """Independent of the CLI: each hostile recording's fingerprint differs from the real one's."""
     from cvstereo.fingerprint import fingerprint_of
+
     from cvstereo.io import read_recording
 
     real = fingerprint_of(read_recording(base / "rec.npz"))

@@ -17,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from cvstereo.depth import DepthModel
 from cvstereo.depth_file import save_depth_model
+
 from cvstereo.io import read_matches, write_matches, write_recording
 from tests._hostile import Case, case, check_case, leftovers, null_device, run_cli, snapshot
 from tests._io_helpers import textured_blobs

@@ -16,13 +16,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cvstereo.events import EVENT_DTYPE, MAX_RESOLUTION, make_events
+from cvstereo.recording import Recording
+from cvstereo.registry import available_methods, create_matcher, matcher_class, parse_param_strings
 
 from cvstereo.cli import main
 from cvstereo.errors import EventFormatError
-from cvstereo.events import EVENT_DTYPE, MAX_RESOLUTION, make_events
 from cvstereo.io.npz import write_recording_npz
-from cvstereo.recording import Recording
-from cvstereo.registry import available_methods, create_matcher, matcher_class, parse_param_strings
 
 pytestmark = pytest.mark.timeout(120)
 

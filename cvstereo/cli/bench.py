@@ -8,6 +8,8 @@ from pathlib import Path
 
 from cvstereo.cli._common import add_progress_option, progress_wanted
 
+__all__ = ["add_parser", "run"]
+
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p = sub.add_parser(
@@ -35,7 +37,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--workers {args.workers}: give 0 (in this process) or a positive number of workers.")
     import cv2
 
-    from cvstereo.benchmark import RESULT_FILES, BenchConfig, run_bench, write_results
+    from cvstereo.benchmark.harness import RESULT_FILES, BenchConfig, run_bench, write_results
     from cvstereo.cli.demo import shared_folder
     from cvstereo.io.output_plan import ANY_FILE, OutputPlan
 

@@ -7,6 +7,8 @@ import sys
 
 from cvstereo.cli._common import add_recording_arguments, format_options, naming, recording_plan
 
+__all__ = ["add_parser", "run"]
+
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
     from cvstereo.io import FORMATS
@@ -31,7 +33,7 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     from cvstereo.io import open_recording, output_format, write_recording
     from cvstereo.io.output_plan import ANY_FILE
-    from cvstereo.recording import Recording
+    from cvstereo.model.recording import Recording
 
     if len(args.output) > 2:
         return _usage("give at most two outputs (left, right)")

@@ -21,6 +21,9 @@ from cvstereo.cli._common import (
     require_range,
 )
 
+__all__ = ["KINDS", "MAX_DPI", "MAX_TIME_MS", "MAX_WINDOWS", "MAX_WINDOW_MS", "add_parser", "check_window_inside",
+           "check_window_options", "load_picture_inputs", "make_figure", "name_recording", "run"]
+
 #: Largest --dpi: print quality; a figure at 100000 dpi would need gigabytes.
 MAX_DPI = 1200
 #: Largest --windows of a disparity map (one row of pictures each).
@@ -31,7 +34,7 @@ MAX_WINDOW_MS, MAX_TIME_MS = 3_600_000, 1e13
 
 def name_recording(recording, path) -> None:
     """Give a recording without a preset or scene (a real file) its file name, so that titles name it."""
-    from cvstereo.viz._mpl import recording_name
+    from cvstereo.viz.mpl import recording_name
 
     if not recording_name(recording.meta):
         recording.meta["name"] = Path(path).name
@@ -124,7 +127,7 @@ def _ms_to_us(ms: float | None) -> int | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cvstereo.viz._mpl import require_matplotlib
+    from cvstereo.viz.mpl import require_matplotlib
 
     require_matplotlib()  # before reading anything: a missing extra is said at once
     check_window_options(args)

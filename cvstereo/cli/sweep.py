@@ -12,6 +12,8 @@ import sys
 
 from cvstereo.cli._common import add_progress_option, progress_wanted
 
+__all__ = ["GRID_EXAMPLE", "SHOWN_FAILURES", "add_parser", "run"]
+
 GRID_EXAMPLE = """\
 grid file example (TOML):
   recordings = ["preset:1arm-100cm:2", "recordings/*.npz"]
@@ -81,7 +83,7 @@ SHOWN_FAILURES = 3
 
 def _param_values(method_names: list[str], items: list[str]) -> tuple:
     """``["k=v1,v2"]`` -> ``(("k", (v1, v2)),)`` with values typed by the first method that has ``k``."""
-    from cvstereo.registry import matcher_class, parse_param_strings
+    from cvstereo.matchers.registry import matcher_class, parse_param_strings
 
     out = []
     for item in items:
@@ -100,8 +102,8 @@ def _param_values(method_names: list[str], items: list[str]) -> tuple:
 
 def _command_line_grid(args: argparse.Namespace):
     """The grid of ``--method``/``--variant``/``--param``/``--param-set``, or None without ``--method``."""
-    from cvstereo.param_sets import check_param_set
-    from cvstereo.registry import matcher_class
+    from cvstereo.matchers.registry import matcher_class
+    from cvstereo.matchers.sets import check_param_set
     from cvstereo.sweep import Grid
 
     if not args.method:
@@ -139,7 +141,7 @@ def _report_failures(rows: list[dict], table) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from cvstereo.io._atomic import write_text_atomic
+    from cvstereo.io.atomic import write_text_atomic
     from cvstereo.sweep import (
         check_figure,
         check_output_folder,

@@ -11,8 +11,10 @@ import json
 import math
 from dataclasses import dataclass
 
-from cvstereo.recording import Recording
+from cvstereo.model.recording import Recording
 from cvstereo.rigcheck.params import RigCheckParams
+
+__all__ = ["RigReport"]
 
 
 @dataclass(frozen=True)

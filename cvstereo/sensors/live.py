@@ -9,10 +9,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cvstereo.depth import DepthModel
-from cvstereo.matcher import StreamMatcher
+from cvstereo.geometry.depth import DepthModel
+from cvstereo.matchers.protocol import StreamMatcher
 from cvstereo.sensors.edvs import host_us
 from cvstereo.sensors.stereo import StereoEDVS
+
+__all__ = ["UPDATE_S", "LiveStats", "run_live"]
 
 #: Seconds between status lines (10 Hz).
 UPDATE_S = 0.1

@@ -7,10 +7,12 @@ import sys
 import numpy as np
 from tqdm import tqdm
 
-from cvstereo.events import make_events
-from cvstereo.recording import Recording
+from cvstereo.model.events import make_events
+from cvstereo.model.recording import Recording
 from cvstereo.simulate.dvs import PixelArray, background_noise, hot_pixels, jitter, log_intensity
 from cvstereo.simulate.rig import Rig
+
+__all__ = ["DEFAULT_RENDER_HZ", "GENERATOR_VERSION", "MAX_RENDER_HZ", "MAX_SECONDS", "simulate"]
 
 #: Bump whenever a change alters the events a seed produces: cached presets carry it in their key.
 GENERATOR_VERSION = 2

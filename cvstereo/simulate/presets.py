@@ -15,10 +15,12 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from cvstereo.recording import Recording
+from cvstereo.model.recording import Recording
 from cvstereo.simulate.core import GENERATOR_VERSION, simulate
 from cvstereo.simulate.rig import Rig
 from cvstereo.simulate.scenes import ArmsScene
+
+__all__ = ["PRESETS", "Preset", "cache_key", "cached_preset", "default_cache_dir", "get_preset", "simulate_preset"]
 
 
 @dataclass(frozen=True)

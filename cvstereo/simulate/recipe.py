@@ -13,8 +13,10 @@ import hashlib
 import json
 from dataclasses import dataclass
 
-from cvstereo.recording import Recording
+from cvstereo.model.recording import Recording
 from cvstereo.simulate.core import GENERATOR_VERSION, simulate
+
+__all__ = ["Recipe", "Suite"]
 
 
 class Recipe:

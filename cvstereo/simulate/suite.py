@@ -35,6 +35,9 @@ from cvstereo.simulate.rig import SENSORS, Rig
 from cvstereo.simulate.scenes import ArmsScene
 from cvstereo.simulate.textures import SLEEVE_PATTERNS
 
+__all__ = ["FACTORS", "JOINT_FACTORS", "SUITES", "SUITE_SCENES", "Factor", "SuiteRecording", "draw_joint",
+           "load_suite", "parse_suite", "require_tuning", "suite_recordings", "tuning_recordings"]
+
 #: Suite name -> its file in ``cvstereo/simulate/suites``.
 SUITES: dict[str, str] = {"robustness": "robustness_v1.toml", "generalization": "generalization_v2.toml"}
 
@@ -367,7 +370,7 @@ def require_tuning(recording) -> None:
     Parameters
     ----------
     recording : path-like, Recording or suite recording
-        A recording file (``.npz``: only its meta is read), a :class:`~cvstereo.recording.Recording` or an entry
+        A recording file (``.npz``: only its meta is read), a :class:`~cvstereo.model.recording.Recording` or an entry
         of a loaded suite.
 
     Raises

@@ -14,7 +14,10 @@ import os
 import stat
 from pathlib import Path
 
-#: Figures of :func:`cvstereo.evaluate.evaluate` kept per cell.
+__all__ = ["CELLS", "FIGURE_COLUMNS", "MAX_CELL_BYTES", "TIMING_COLUMNS", "cell_path", "empty_row", "error_text",
+           "read_cell", "trusted", "write_cell"]
+
+#: Figures of :func:`cvstereo.evaluation.metrics.evaluate` kept per cell.
 FIGURE_COLUMNS = ("matches", "coverage", "bad1", "bad2", "mae", "rmse", "median_ae", "false_rate", "mean", "std",
                   "truth_mean")
 #: Columns that depend on the machine and the moment, not on the grid.
@@ -44,7 +47,7 @@ def cell_path(out: Path, key: str) -> Path:
 
 def write_cell(out: Path, key: str, row: dict) -> None:
     """Write a finished cell's row, with its key (so that a file copied to another cell's name is told apart)."""
-    from cvstereo.io._atomic import write_text_atomic
+    from cvstereo.io.atomic import write_text_atomic
 
     write_text_atomic(cell_path(out, key), json.dumps({**row, "key": key}, sort_keys=True))
 

@@ -13,6 +13,8 @@ import tomllib
 
 from cvstereo.sweep.grid import Grid, toml_text
 
+__all__ = ["BLOCK_KEYS", "FILE_KEYS", "read_grid_file"]
+
 #: Keys of a grid file's top level, and of each of its ``[[grid]]`` tables.
 FILE_KEYS = ("recordings", "figure", "grid")
 BLOCK_KEYS = ("methods", "method", "variants", "params", "param_sets")
@@ -52,7 +54,7 @@ def read_grid_file(path: str | os.PathLike) -> tuple[list[Grid], list[str], dict
     ValueError
         Not UTF-8 TOML, an unknown key, or a key of the wrong type; the message names the file, table and key.
     """
-    from cvstereo.io._source import require_regular_file
+    from cvstereo.io.files import require_regular_file
     from cvstereo.sweep.report import check_figure
 
     path = require_regular_file(path)

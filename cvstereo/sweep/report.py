@@ -10,6 +10,8 @@ from collections.abc import Sequence
 
 from cvstereo.sweep.cells import FIGURE_COLUMNS
 
+__all__ = ["LOWER_IS_BETTER", "check_figure", "summary_markdown", "write_table"]
+
 #: Figures where smaller is better (the others, e.g. coverage, are better larger).
 LOWER_IS_BETTER = frozenset({"bad1", "bad2", "mae", "rmse", "median_ae", "false_rate", "std"})
 
@@ -25,7 +27,7 @@ def write_table(rows: Sequence[dict], path: str | os.PathLike) -> None:
         import pyarrow.parquet as pq
     except ImportError:
         raise ImportError("writing the sweep table needs pyarrow: pip install 'cvstereo[sweep]'.") from None
-    from cvstereo.io._atomic import atomic_path
+    from cvstereo.io.atomic import atomic_path
 
     names = list(dict.fromkeys(k for r in rows for k in r))
     columns = {}

@@ -15,10 +15,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from cvstereo.depth import DepthModel
-from cvstereo.events import time_slice
-from cvstereo.io._atomic import atomic_path, inspect_target
-from cvstereo.recording import Recording
+from cvstereo.geometry.depth import DepthModel
+from cvstereo.io.atomic import atomic_path, inspect_target
+from cvstereo.model.events import time_slice
+from cvstereo.model.recording import Recording
 from cvstereo.viz._images import (
     CAMERA_NAMES,
     DEFAULT_WINDOW_US,
@@ -33,6 +33,9 @@ from cvstereo.viz._images import (
     match_window_slice,
     window_grid,
 )
+
+__all__ = ["CODECS", "CODEC_NAMES", "COLORBAR_LABEL_PX_PER_FONT", "COLORBAR_PX", "GAP_PX", "GAP_RGB", "HEADER_MIN_PX",
+           "HEADER_PX_PER_SCALE", "video_codec", "write_video"]
 
 #: Codecs tried in order: H.264 (``avc1``: about half the size at the same quality, where the OpenCV build has an
 #: encoder for it; the opencv-python wheels have none), then MPEG-4 part 2 (``mp4v``: every OpenCV build with

@@ -1,0 +1,67 @@
+"""The sorted-runs history's quantiles equal np.quantile of the concatenated values, bit for bit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cvstereo.matchers._shared.sorted_runs import SortedRuns
+
+
+def _values(rng, n, kind):
+    if kind == "float32-like":  # filtered frame values: few distinct values, many ties
+        return np.abs(rng.integers(-6, 7, n) * np.float32(0.40261996)).astype(np.float64)
+    if kind == "zeros":
+        return np.zeros(n)
+    return rng.exponential(1.0, n)
+
+
+@pytest.mark.parametrize("kind", ["continuous", "float32-like", "zeros"])
+@pytest.mark.parametrize("q", [0.9, 0.5, 0.01, 0.999, 1.0, 1, 0.0])
+def test_quantile_equals_numpy_of_the_live_runs(rng, kind, q):
+    runs, live = SortedRuns(), []
+    for step in range(60):
+        v = _values(rng, int(rng.integers(0, 400)), kind)
+        runs.append(v)
+        live.append(v)
+        while len(live) > 1 and rng.random() < 0.4:  # drop the oldest runs now and then
+            runs.popleft()
+            live.pop(0)
+        assert len(runs) == len(live)
+        assert runs.size == sum(x.size for x in live)
+        if runs.size:
+            expected = float(np.quantile(np.concatenate(live), q))
+            got = runs.quantile(q)
+            assert got == expected or (np.isnan(got) and np.isnan(expected)), (step, got, expected)
+            assert np.signbit(got) == np.signbit(expected)
+
+
+def test_runs_sorted_late_give_the_same_quantiles(rng):
+    """Runs are sorted by the first quantile after they arrive: quantiles asked only now and then, after
+    unsorted runs were dropped or moved to a larger buffer, still equal numpy's."""
+    runs, live = SortedRuns(), []
+    for step in range(300):
+        v = _values(rng, int(rng.integers(0, 900)), "continuous")
+        runs.append(v)
+        live.append(v)
+        while len(live) > 1 and rng.random() < 0.45:
+            runs.popleft()
+            live.pop(0)
+        if rng.random() < 0.15 and runs.size:
+            assert runs.quantile(0.9) == float(np.quantile(np.concatenate(live), 0.9)), step
+
+
+def test_small_cases_by_hand():
+    runs = SortedRuns()
+    runs.append(np.array([5.0, 1.0, 3.0]))  # any order: the run is sorted on arrival
+    runs.append(np.array([2.0, 4.0]))
+    assert runs.quantile(0.9) == pytest.approx(4.6)  # 4 + 0.6 * (5 - 4)
+    assert runs.quantile(0.5) == 3.0
+    runs.popleft()
+    assert runs.quantile(0.25) == 2.5  # 2 + 0.25 * (4 - 2)
+    assert runs.first_size() == 2
+
+
+def test_empty_history_says_so():
+    with pytest.raises(ValueError, match="no values"):
+        SortedRuns().quantile(0.9)
