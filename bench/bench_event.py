@@ -37,9 +37,9 @@ HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
 sys.path.insert(0, str(REPO))
 
-from cvstereo.events import make_events  # noqa: E402
-from cvstereo.registry import create_matcher, matcher_class  # noqa: E402
-from cvstereo.timing import Agreement  # noqa: E402
+from cvstereo.benchmark.timing import Agreement  # noqa: E402
+from cvstereo.matchers.registry import create_matcher, matcher_class  # noqa: E402
+from cvstereo.model.events import make_events  # noqa: E402
 
 METHODS = ("event-time", "event-area", "event-vector")
 #: Targets of issue 5, input events per second on one core.
@@ -133,7 +133,8 @@ def variants():
 
 def throughput(method: str, variant: str, packets) -> dict:
     """Input events per second over the packets, after a warm-up that compiles or loads the kernels: runs
-    repeated until two agree within 10 % in CPU time (:mod:`cvstereo.timing`), with the load before and after."""
+    repeated until two agree within 10 % in CPU time (:mod:`cvstereo.benchmark.timing`), with the load before and
+    after."""
     warm = create_matcher(method, variant)
     for left, right, until in packets[:3]:
         warm.feed(left, right, until=until)
@@ -162,7 +163,7 @@ _COMPILE_CHILD = """
 import os, sys, time
 sys.path.insert(0, {repo!r})
 t0 = time.perf_counter()
-from cvstereo.registry import create_matcher
+from cvstereo.matchers.registry import create_matcher
 from bench.bench_event import synthetic_packets
 packets = list(synthetic_packets(0.05))
 t_import = time.perf_counter() - t0
@@ -195,7 +196,7 @@ def compile_times(method: str, variant: str, cache_dir: str) -> dict:
 _MEMORY_CHILD = """
 import resource, sys, time
 sys.path.insert(0, {repo!r})
-from cvstereo.registry import create_matcher
+from cvstereo.matchers.registry import create_matcher
 from bench.bench_event import synthetic_packets
 method = {method!r}
 m = create_matcher(method, {variant!r}) if method else None

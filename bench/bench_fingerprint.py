@@ -1,10 +1,10 @@
 """What the matches' fingerprint of their recording costs beside the fastest matcher (issue 27: under 2 %).
 
-:func:`cvstereo.pipeline.match` takes the fingerprint of the events as read (:mod:`cvstereo.fingerprint`) packet by
+:func:`cvstereo.run.match` takes the fingerprint of the events as read (:mod:`cvstereo.model.fingerprint`) packet by
 packet and leaves its time out of ``elapsed_s``. This script measures both on the same packets: the frame
 matcher's own time (``elapsed_s``, the ``thesis`` set, the fastest matcher at 640x480) and the fingerprint's
 time over the 40 ms packets ``match()`` streams, each repeated until two runs agree within 10 %
-(:mod:`cvstereo.timing`), and prints events per second of each and the fingerprint's share.
+(:mod:`cvstereo.benchmark.timing`), and prints events per second of each and the fingerprint's share.
 
 Run on a quiet machine: ``.venv/bin/python bench/bench_fingerprint.py [--seconds S]`` (writes
 ``bench/results/fingerprint.md``; ``--quick`` for a short smoke run that writes nothing).
@@ -19,7 +19,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from cvstereo.timing import measure  # noqa: E402
+from cvstereo.benchmark.timing import measure  # noqa: E402
 
 #: The issue's budget: the fingerprint's time over the fastest matcher's.
 BUDGET = 0.02
@@ -33,8 +33,8 @@ def main(argv=None) -> int:
     import cv2
 
     from calibration_free import match
-    from cvstereo.fingerprint import EventFingerprint
-    from cvstereo.pipeline import DEFAULT_PACKET_US
+    from cvstereo.model.fingerprint import EventFingerprint
+    from cvstereo.run import DEFAULT_PACKET_US
     from cvstereo.simulate import simulate
     from cvstereo.simulate.presets import get_preset
 

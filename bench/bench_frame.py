@@ -40,9 +40,9 @@ import numpy as np  # noqa: E402
 
 import cvstereo  # noqa: E402
 from calibration_free import match  # noqa: E402
-from cvstereo.events import make_events  # noqa: E402
-from cvstereo.recording import Recording  # noqa: E402
-from cvstereo.timing import Agreement  # noqa: E402
+from cvstereo.benchmark.timing import Agreement  # noqa: E402
+from cvstereo.model.events import make_events  # noqa: E402
+from cvstereo.model.recording import Recording  # noqa: E402
 
 PRESET = "2arms-50cm"
 #: (method, variant, target x real time or None)
@@ -123,7 +123,7 @@ def load_input(*, synthetic: bool, seconds: float) -> tuple[Recording, str]:
 
 
 def bench_case(rec: Recording, method: str, variant: str, repeats: int) -> dict:
-    """Timed runs until two agree within 10 % (at most ``repeats``, :mod:`cvstereo.timing`), after one warm-up
+    """Timed runs until two agree within 10 % (at most ``repeats``, :mod:`cvstereo.benchmark.timing`), after one warm-up
     run on the first second (numba, OpenCV); the faster of the agreeing pair, the median, the load."""
     match(rec.slice_time(None, rec.t_start + 1_000_000), method=method, variant=variant)
     agreement, cpu, n_matches = Agreement(max_runs=repeats), [], 0

@@ -40,13 +40,13 @@ import time  # noqa: E402
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
-from calibration_free.fused import FusedMatcher  # noqa: E402
-from calibration_free.fused_params import FusedParams  # noqa: E402
-from cvstereo.evaluate import evaluate, match_truth  # noqa: E402
-from cvstereo.matches import concat_matches  # noqa: E402
-from cvstereo.pipeline import match  # noqa: E402
-from cvstereo.registry import available_methods, parse_param_strings  # noqa: E402
-from cvstereo.timing import MAX_RUNS, load_average, measure  # noqa: E402
+from cvstereo.benchmark.timing import MAX_RUNS, load_average, measure  # noqa: E402
+from cvstereo.evaluation.metrics import evaluate, match_truth  # noqa: E402
+from cvstereo.matchers.fused.matcher import FusedMatcher  # noqa: E402
+from cvstereo.matchers.fused.params import FusedParams  # noqa: E402
+from cvstereo.matchers.registry import available_methods, parse_param_strings  # noqa: E402
+from cvstereo.model.matches import concat_matches  # noqa: E402
+from cvstereo.run import match  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / "results" / "fused.md"
 SUITE_OUT_NAME = "fused-suite.md"
@@ -335,8 +335,8 @@ def speed_section(quick: bool) -> str:
     from cvstereo.simulate.presets import cached_preset
     from cvstereo.simulate.rig import Rig
 
-    lines = ["## Speed (one core, CPU time: runs until two agree within 10 %, cvstereo.timing; load average of "
-             "the machine's 2 cores before -> after beside; the 346x260 "
+    lines = ["## Speed (one core, CPU time: runs until two agree within 10 %, cvstereo.benchmark.timing; "
+             "load average of the machine's 2 cores before -> after beside; the 346x260 "
              f"recording: two arms at 50 cm, thresholds x {BIG_THRESHOLD_K})", "",
              "| recording | events/s of the recording | x real time on CPU time (wall) | runs, load |",
              "|---|---:|---:|---:|"]

@@ -34,8 +34,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import numpy as np
 from bench_fused import most_certain  # the mechanism of fused's bad2 at a peer's coverage
 
-from cvstereo.evaluate import evaluate, match_truth
-from cvstereo.registry import available_methods
+from cvstereo.evaluation.metrics import evaluate, match_truth
+from cvstereo.matchers.registry import available_methods
 from cvstereo.simulate import FamilyScene, Rig, load_suite, suite_recordings
 from cvstereo.simulate.presets import default_cache_dir
 from cvstereo.simulate.recipe import Recipe
@@ -107,7 +107,7 @@ def edge_figures(cell, recording, result) -> dict:
 def fused_at_peers(cell, recording, result) -> dict:
     """Sweep score of the fused cell run with ``max_uncertainty=1``: for each peer, the peer's coverage (the peer
     run here) and fused's bad2 and coverage when cut to its most certain matches at that coverage."""
-    from cvstereo.pipeline import match
+    from cvstereo.run import match
 
     out = {}
     for peer in (p for p in COVERAGE_PEERS if p in available_methods()):

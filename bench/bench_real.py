@@ -43,7 +43,7 @@ def share_near(disparity: np.ndarray, targets, tol: float = 1.0) -> float:
 def run_one(path: Path, method: str, param_set: str) -> dict:
     """One file x method x set: estimates, share near the known disparity, the rig correction applied."""
     from cvstereo.io import read_recording
-    from cvstereo.pipeline import match
+    from cvstereo.run import match
 
     rec = read_recording(path)
     start = time.perf_counter()

@@ -3,7 +3,7 @@
 1. **Speed**: ``check_rig`` time as a share of each recording's duration, for the code at a base revision
    (``--before REV``, default ``main``; extracted with ``git archive`` and run in its own process) and for
    this tree, alternately in the same run, with the load average before and after each timing. Each is
-   repeated until two runs agree within 10 % (at most ``--repeats``, :mod:`cvstereo.timing`); the faster of
+   repeated until two runs agree within 10 % (at most ``--repeats``, :mod:`cvstereo.benchmark.timing`); the faster of
    the agreeing pair is shown, with its CPU time.
 2. **Accuracy**: share of a matcher's estimates within 1 px of 8 px on Fan_disp8.dat, before and after
    ``--auto``. "Before" is the recording as read with retina 0 as the left camera (wrong for this file,
@@ -33,7 +33,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from cvstereo.timing import Agreement  # noqa: E402
+from cvstereo.benchmark.timing import Agreement  # noqa: E402
 
 SHARED = Path(os.environ.get("CVSTEREO_SHARED", ROOT.parent / "shared"))
 TUM = SHARED / "data" / "tum-stereo"
@@ -162,9 +162,9 @@ def main() -> None:
 def accuracy(speed_lines: list[str], speed_rows: list[dict], out: Path) -> None:
     """The --auto table on Fan_disp8.dat; writes both tables."""
     from cvstereo.io import read_recording
-    from cvstereo.pipeline import match
-    from cvstereo.registry import available_methods
+    from cvstereo.matchers.registry import available_methods
     from cvstereo.rigcheck import check_rig
+    from cvstereo.run import match
 
     methods = [m for m in METHODS if m in available_methods()]
     rows, reports = [], {}

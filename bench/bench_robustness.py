@@ -18,7 +18,7 @@ import statistics
 import time
 from pathlib import Path
 
-from cvstereo.registry import available_methods
+from cvstereo.matchers.registry import available_methods
 from cvstereo.sweep import Grid, resolve_recordings, run_sweep
 
 THESIS_METHODS = ("frame", "frame-area", "event-time", "event-area", "event-vector")

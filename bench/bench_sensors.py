@@ -17,9 +17,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from cvstereo.events import make_events
-from cvstereo.matcher import StreamMatcher
-from cvstereo.matches import make_matches
+from cvstereo.matchers.protocol import StreamMatcher
+from cvstereo.model.events import make_events
+from cvstereo.model.matches import make_matches
 from cvstereo.sensors import StereoEDVS, VirtualEDVS
 from cvstereo.sensors.decoder import StreamDecoder
 from cvstereo.sensors.live import run_live
@@ -102,7 +102,7 @@ def live_latency(seconds: float = 5.0, rate: int = 20_000, method: str | None = 
     matchers = {"trivial": _Trivial}
     if method:
         try:
-            from cvstereo.registry import create_matcher
+            from cvstereo.matchers.registry import create_matcher
 
             create_matcher(method)
             matchers[method] = lambda: create_matcher(method)

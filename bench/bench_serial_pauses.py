@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cvstereo.events import make_events
+from cvstereo.model.events import make_events
 from cvstereo.sensors.decoder import StreamDecoder
 from cvstereo.sensors.protocol import ProtocolSettings, encode_events
 from cvstereo.sensors.virtual import read_back

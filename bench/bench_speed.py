@@ -12,9 +12,9 @@ stereobm, sgbm and dv-semidense (where installed).
 Each measurement runs in a child process pinned to one CPU (``NUMBA_NUM_THREADS=1``,
 ``cv2.setNumThreads(1)``, ``sched_setaffinity``), on the recording already in memory, after a warm-up run
 on its first 0.2 s (compile time is not matching time). A figure is the matcher's own time (``elapsed_s``
-of :func:`cvstereo.pipeline.match`), or with ``--clock cpu`` the child's CPU time around that call, which
+of :func:`cvstereo.run.match`), or with ``--clock cpu`` the child's CPU time around that call, which
 the other processes of a loaded machine inflate far less; repeated until two runs agree within 10 %
-(:mod:`cvstereo.timing`, at most 6 runs), with the 1-minute load average before and after. With
+(:mod:`cvstereo.benchmark.timing`, at most 6 runs), with the 1-minute load average before and after. With
 ``--baseline COMMIT`` a second child runs the same cells on a temporary ``git worktree`` of that commit (on
 ``PYTHONPATH``), one run of old and new in turn per cell, and the table gains the old figure and the ratio
 new/old.
@@ -39,7 +39,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from cvstereo.timing import TOLERANCE, Agreement  # noqa: E402
+from cvstereo.benchmark.timing import TOLERANCE, Agreement  # noqa: E402
 
 #: Matchers (method, parameter set; None: the method has no sets), in table order.
 THESIS_METHODS = ("frame", "frame-area", "event-time", "event-area", "event-vector")
@@ -77,8 +77,8 @@ import cv2
 cv2.setNumThreads(1)
 import cvstereo
 from cvstereo.io import read_recording
-from cvstereo.pipeline import match
-from cvstereo.registry import available_methods, matcher_class
+from cvstereo.run import match
+from cvstereo.matchers.registry import available_methods, matcher_class
 
 recordings, warm = {}, set()
 print(json.dumps({"ready": True, "cvstereo": os.path.dirname(cvstereo.__file__),
@@ -162,7 +162,7 @@ def baseline_tree(commit: str | None):
 
 def case_paths(names: list[str]) -> dict[str, str]:
     """Recording path of each case (the suite's recordings and the bench's motorcycle scene, cached)."""
-    from cvstereo.benchmark import EXTRA_SECONDS, _cached_simulation
+    from cvstereo.benchmark.harness import EXTRA_SECONDS, _cached_simulation
     from cvstereo.simulate import MotorcycleScene, simulate, suite_recordings
 
     wanted = {CASES[n][0].partition(":")[2] for n in names if CASES[n][0].startswith("suite:")}

@@ -29,8 +29,9 @@ class SensorError(OSError):
 
 
 class NoMatchersError(RuntimeError):
-    """No installed distribution registers a matcher (entry-point group ``cvstereo.matchers``): cvstereo is
-    on the path but not installed."""
+    """Raised by cvstereo 0.2 when no installed distribution registered a matcher. Since 0.3 the built-in
+    matchers are listed without installed metadata (:mod:`cvstereo.matchers._registry`), so nothing raises
+    it; the name stays through 0.x for code that catches it."""
 
 
 def require_extra(module: str, extra: str):

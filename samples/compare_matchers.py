@@ -14,7 +14,7 @@ Run:
 import argparse
 
 from calibration_free import available_methods, match, matcher_class
-from cvstereo.evaluate import evaluate, markdown_table
+from cvstereo.evaluation.metrics import evaluate, markdown_table
 from cvstereo.io import read_recording
 
 #: Length of the simulated clip when no file is given: long enough for every matcher to warm up.

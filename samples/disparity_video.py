@@ -12,7 +12,7 @@ Run:
 import argparse
 
 from calibration_free import match
-from cvstereo.depth import DepthModel
+from cvstereo.geometry.depth import DepthModel
 from cvstereo.io import read_recording
 from cvstereo.viz import write_video
 

@@ -18,11 +18,11 @@ from pathlib import Path
 import numpy as np
 
 from calibration_free import match
-from cvstereo.calibration import load_calibration
+from cvstereo.geometry.calibration import load_calibration
+from cvstereo.geometry.pointcloud import Intrinsics, point_cloud, window_point_clouds, write_ply
+from cvstereo.geometry.rectify import Rectification
 from cvstereo.io.hdf5 import dsec_time_range, read_time_slice
-from cvstereo.pointcloud import Intrinsics, point_cloud, window_point_clouds, write_ply
-from cvstereo.recording import Recording
-from cvstereo.rectify import Rectification
+from cvstereo.model.recording import Recording
 
 
 def main(argv=None):

@@ -13,7 +13,7 @@ import argparse
 import contextlib
 
 from calibration_free import create_matcher
-from cvstereo.depth import DepthModel
+from cvstereo.geometry.depth import DepthModel
 
 #: The thesis' rig: 10 cm baseline, about 160 px focal length, 2.5 px from axes not quite parallel.
 RIG = DepthModel.from_rig(focal_px=160.0, baseline_m=0.10, offset_px=2.5)

@@ -12,7 +12,7 @@ Run:
 import argparse
 
 from calibration_free import match
-from cvstereo.evaluate import evaluate, markdown_table
+from cvstereo.evaluation.metrics import evaluate, markdown_table
 from cvstereo.io import read_recording
 
 #: Window of the frame matchers (formats.md), used to pick the window to draw.

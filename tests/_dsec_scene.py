@@ -14,7 +14,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from cvstereo.events import make_events
+from cvstereo.model.events import make_events
 from tests._calibration_fixtures import dsec_cam_to_cam, dump_yaml
 from tests._hdf5_fixtures import write_dsec_events
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from cvstereo.events import make_events
-from cvstereo.matches import concat_matches
+from cvstereo.model.events import make_events
+from cvstereo.model.matches import concat_matches
 
 
 def random_stream(rng: np.random.Generator, n: int, duration_us: int, *, width: int, height: int) -> np.ndarray:

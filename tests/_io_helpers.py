@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 from hypothesis import strategies as st
 
-from cvstereo.events import make_events
-from cvstereo.recording import Recording
+from cvstereo.model.events import make_events
+from cvstereo.model.recording import Recording
 
 
 def random_events(rng: np.random.Generator, n: int, resolution=(128, 128), *, t0: int = 0,

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cvstereo.events import make_events
+from cvstereo.model.events import make_events
 from cvstereo.sensors.decoder import StreamDecoder
 from cvstereo.sensors.protocol import ProtocolSettings, encode_events
 

@@ -1,4 +1,4 @@
-"""OpenCV StereoBM / StereoSGBM on the 40 ms frames (cvstereo.baseline)."""
+"""OpenCV StereoBM / StereoSGBM on the 40 ms frames (cvstereo.matchers.opencv.matcher)."""
 
 from __future__ import annotations
 
@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from calibration_free import create_matcher, match
-from cvstereo.baseline import StereoBMMatcher, StereoBMParams, StereoSGBMMatcher, StereoSGBMParams
-from cvstereo.events import make_events
-from cvstereo.polarity import OFF, ON
-from cvstereo.recording import Recording
+from cvstereo.matchers.opencv.matcher import StereoBMMatcher, StereoBMParams, StereoSGBMMatcher, StereoSGBMParams
+from cvstereo.model.events import make_events
+from cvstereo.model.polarity import OFF, ON
+from cvstereo.model.recording import Recording
 
 W = 40_000
 

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from cvstereo.benchmark import bench_markdown, distance_table, share_within, speed_table
-from cvstereo.experiment import Combo
+from cvstereo.benchmark.harness import bench_markdown, distance_table, share_within, speed_table
+from cvstereo.evaluation.experiment import Combo
 
 
 def test_share_within_any_known_disparity():
@@ -40,9 +40,9 @@ def _tiny_bench(monkeypatch, folder, workers):
     """run_bench on small moving-edge scenes written to ``folder``: (results, recordings by name)."""
     from _event_scenes import moving_edges
 
-    import cvstereo.benchmark as bench
+    import cvstereo.benchmark.harness as bench
     from cvstereo.io import write_recording_npz
-    from cvstereo.recording import Recording
+    from cvstereo.model.recording import Recording
 
     def rec(name, shift):
         left, right = moving_edges(shift=shift, duration_us=50_000, rows=(20, 30))
@@ -64,9 +64,9 @@ def _tiny_bench(monkeypatch, folder, workers):
 def test_bench_runs_every_combo_on_every_recording_through_the_sweep_engine(monkeypatch, tmp_path):
     """run_bench's figures are evaluate() of match() on each recording, plus the bench's own; the distance set
     named like a preset is the recording run under that name."""
-    from cvstereo.evaluate import evaluate
+    from cvstereo.evaluation.metrics import evaluate
     from cvstereo.io import read_recording
-    from cvstereo.pipeline import match
+    from cvstereo.run import match
 
     results, sims, dists = _tiny_bench(monkeypatch, tmp_path, workers=0)
     # The thesis set's variants, then each method's adaptive default beside them.
@@ -124,10 +124,10 @@ def test_bench_score_adds_median_and_known_disparity_share_to_sweep_rows(tmp_pat
     """The bench's figures ride on the sweep engine's score hook, which is part of the cell key."""
     from _event_scenes import moving_edges
 
-    from cvstereo.benchmark import bench_cell_figures
+    from cvstereo.benchmark.harness import bench_cell_figures
     from cvstereo.io import write_recording_npz
-    from cvstereo.pipeline import match
-    from cvstereo.recording import Recording
+    from cvstereo.model.recording import Recording
+    from cvstereo.run import match
     from cvstereo.sweep import Cell, run_sweep
 
     left, right = moving_edges(shift=8, duration_us=50_000, rows=(20, 30))

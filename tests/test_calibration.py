@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from cvstereo import _yaml
-from cvstereo.calibration import StereoCalibration, load_calibration
+from cvstereo.geometry.calibration import StereoCalibration, load_calibration
 from tests._calibration_fixtures import dsec_cam_to_cam, dump_yaml
 
 RES = (640, 480)

@@ -13,9 +13,9 @@ import pytest
 from calibration_free import match
 from cvstereo.cli import COMMANDS, build_parser, main
 from cvstereo.cli._text import plain_text
-from cvstereo.events import make_events
 from cvstereo.io import read_matches, read_recording, write_recording
-from cvstereo.recording import Recording
+from cvstereo.model.events import make_events
+from cvstereo.model.recording import Recording
 
 
 @pytest.fixture(scope="module")
@@ -134,8 +134,8 @@ def test_right_given_twice_is_a_usage_error(argv, pair, monkeypatch, capsys):
 
 
 def test_match_and_live_default_to_the_registrys_method():
-    from cvstereo.pipeline import match as pipeline_match
-    from cvstereo.registry import DEFAULT_METHOD
+    from cvstereo.matchers.registry import DEFAULT_METHOD
+    from cvstereo.run import match as pipeline_match
 
     assert DEFAULT_METHOD == inspect.signature(pipeline_match).parameters["method"].default
     parser = build_parser()
@@ -220,7 +220,7 @@ def test_the_markup_checks_have_something_to_find():
     """The sources of these texts do carry markup (docstrings), so the tests above would fail without cleaning."""
     import cvstereo.cli.live as live
     import cvstereo.cli.record as record
-    from cvstereo.registry import matcher_class
+    from cvstereo.matchers.registry import matcher_class
 
     assert _markup_in(record.__doc__) and _markup_in(live.__doc__)
     assert _markup_in(matcher_class("event-time").__doc__)

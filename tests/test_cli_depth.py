@@ -9,10 +9,10 @@ import sys
 import numpy as np
 import pytest
 
-from cvstereo.events import make_events
 from cvstereo.io import read_matches, write_matches, write_recording_npz
-from cvstereo.matches import make_matches
-from cvstereo.recording import Recording
+from cvstereo.model.events import make_events
+from cvstereo.model.matches import make_matches
+from cvstereo.model.recording import Recording
 
 META = {"method": "frame", "variant": "shared", "params": {}, "anchor": "window", "window_us": 40_000}
 

@@ -10,7 +10,7 @@ import pytest
 
 from cvstereo.cli import main
 from cvstereo.io import read_recording, write_recording
-from cvstereo.recording import Recording
+from cvstereo.model.recording import Recording
 from tests._io_helpers import assert_same_events, random_events
 
 

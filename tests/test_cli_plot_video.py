@@ -15,10 +15,10 @@ import cv2  # noqa: E402
 
 from cvstereo.cli import main  # noqa: E402
 from cvstereo.cli.plot import KINDS  # noqa: E402
-from cvstereo.events import make_events  # noqa: E402
 from cvstereo.io import write_matches, write_recording  # noqa: E402
-from cvstereo.matches import make_matches  # noqa: E402
-from cvstereo.recording import Recording  # noqa: E402
+from cvstereo.model.events import make_events  # noqa: E402
+from cvstereo.model.matches import make_matches  # noqa: E402
+from cvstereo.model.recording import Recording  # noqa: E402
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -131,7 +131,7 @@ def test_depth_from_the_matches_file_wins_over_the_rig(files):
     import argparse
 
     from cvstereo.cli.plot import picture_depth
-    from cvstereo.depth import DepthModel
+    from cvstereo.geometry.depth import DepthModel
     from cvstereo.io import read_matches, read_recording
 
     rec, m = files

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from calibration_free import create_matcher
-from cvstereo.events import make_events
-from cvstereo.registry import available_methods
+from cvstereo.matchers.registry import available_methods
+from cvstereo.model.events import make_events
 
 pytest.importorskip("dv_processing", reason="dv-processing (extra 'compare') is not installed")
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from cvstereo.depth import DepthModel, fit_depth_model
+from cvstereo.geometry.depth import DepthModel, fit_depth_model
 
 
 def test_fit_recovers_a_rig_exactly_from_two_distances():

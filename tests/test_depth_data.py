@@ -7,11 +7,11 @@ import json
 import numpy as np
 import pytest
 
-from cvstereo.depth import DepthModel
-from cvstereo.depth_file import load_depth_model, save_depth_model
-from cvstereo.disparity_maps import window_disparity_images
-from cvstereo.matches import make_matches
-from cvstereo.pointcloud import THESIS_FOCAL_PX, Intrinsics, depth_per_match, point_cloud, write_ply
+from cvstereo.geometry.depth import DepthModel
+from cvstereo.geometry.depth_file import load_depth_model, save_depth_model
+from cvstereo.geometry.disparity_maps import window_disparity_images
+from cvstereo.geometry.pointcloud import THESIS_FOCAL_PX, Intrinsics, depth_per_match, point_cloud, write_ply
+from cvstereo.model.matches import make_matches
 
 MODEL = DepthModel(a=16.5, c=2.0)
 
@@ -47,7 +47,7 @@ def test_intrinsics_say_where_they_came_from():
     default = Intrinsics.from_options((128, 128))
     assert (default.focal_px, default.cx, default.cy) == (165.0, 63.5, 63.5) and "thesis rig" in default.source
     assert "--focal-px" in Intrinsics.from_options((346, 260), focal_px=200).source
-    from cvstereo.calibration import StereoCalibration
+    from cvstereo.geometry.calibration import StereoCalibration
 
     K = [[200, 0, 170], [0, 200, 130], [0, 0, 1]]
     cal = StereoCalibration.from_opencv(K, None, K, None, np.eye(3), [-0.1, 0, 0], (346, 260), source="c.json")
@@ -104,7 +104,7 @@ def test_window_disparity_images_for_window_anchors():
 
 def test_matches_file_carries_depth_m_beside_the_unchanged_matches(tmp_path):
     from cvstereo.io import read_matches, write_matches
-    from cvstereo.matches import MATCH_DTYPE
+    from cvstereo.model.matches import MATCH_DTYPE
 
     m = _matches()
     meta = {"method": "x", "variant": "y", "params": {}, "anchor": "event", "window_us": 0}
@@ -120,7 +120,7 @@ def test_matches_file_carries_depth_m_beside_the_unchanged_matches(tmp_path):
 
 
 def test_window_point_clouds_split_the_recording_cloud():
-    from cvstereo.pointcloud import window_point_clouds
+    from cvstereo.geometry.pointcloud import window_point_clouds
 
     m = make_matches([10, 39_999, 40_000, 95_000], [80, 50, 60, 70], [70, 30, 64, 64], 1, 0, [14.5, 3.5, 14.5, 3.5])
     intr = Intrinsics(100.0, 60.0, 50.0, "test")

@@ -16,10 +16,10 @@ import pytest
 pytest.importorskip("h5py")
 pytest.importorskip("hdf5plugin")
 
-from cvstereo.evaluate import evaluate
+from cvstereo.evaluation.metrics import evaluate
 from cvstereo.io import read_matches, read_recording
-from cvstereo.pipeline import match
-from cvstereo.recording import Recording
+from cvstereo.model.recording import Recording
+from cvstereo.run import match
 from tests._hdf5_fixtures import write_dsec_pair
 
 #: DSEC's t_offset is microseconds of the day; a multiple of the 40 ms window and of the 250 us decay step, so

@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from cvstereo.evaluate import evaluate, markdown_table, match_truth, to_json
-from cvstereo.events import make_events
-from cvstereo.matches import MatchResult, make_matches
-from cvstereo.recording import Recording
+from cvstereo.evaluation.metrics import evaluate, markdown_table, match_truth, to_json
+from cvstereo.model.events import make_events
+from cvstereo.model.matches import MatchResult, make_matches
+from cvstereo.model.recording import Recording
 
 NAN = float("nan")
 EVENT_META = {"anchor": "event", "window_us": 0}

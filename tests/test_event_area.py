@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 from _event_scenes import feed_cut, moving_edges, simulated_clip
 
-from calibration_free.event_area import EventAreaMatcher, EventAreaParams
-from calibration_free.reference.event_area import event_area_reference
-from cvstereo.events import make_events
-from cvstereo.matches import concat_matches
-from cvstereo.registry import create_matcher
+from cvstereo.matchers.event_area.matcher import EventAreaMatcher, EventAreaParams
+from cvstereo.matchers.event_area.reference import event_area_reference
+from cvstereo.matchers.registry import create_matcher
+from cvstereo.model.events import make_events
+from cvstereo.model.matches import concat_matches
 
 
 @pytest.mark.parametrize("variant", ["gaussian", "no-gaussian"])
@@ -135,7 +135,7 @@ def test_uniqueness_drops_ambiguous_matches(second, uniqueness, expected):
 def test_adaptive_checks_together_fast_equals_reference():
     # The adaptive set's combination (separate frames, SAD over both, own_ratio, uniqueness, cost bound) on a
     # simulated clip, with short level windows so that the thresholds change often, cut into packets.
-    from cvstereo.param_sets import resolve
+    from cvstereo.matchers.sets import resolve
 
     _, values = resolve("event-area", None, "adaptive")
     assert values["sad_frames"] == "all" and values["own_ratio"] > 0 and values["uniqueness"] > 0
@@ -154,7 +154,7 @@ def test_fast_equals_reference_across_renormalisations_and_a_reset(sad_frames):
     # the column sums that the kernel's lower bound reads; the matches must stay the reference's.
     from _event_scenes import random_pair
 
-    from cvstereo.dynamic_frames import FORGET_TICKS
+    from cvstereo.frames.dynamic import FORGET_TICKS
 
     left, right, resolution = random_pair(11, n=6000, duration_us=2_400_000)
     for ev in (left, right):
@@ -173,8 +173,8 @@ def test_a_reset_before_any_decay_tick_rebuilds_the_column_sums(param_set):
     # clears the frames, then the same burst again: the reset leaves the scale unchanged, and the column sums of
     # the cleared frames must still be rebuilt, or the SAD's lower bound prunes real winners (the fast path gave
     # 146 of the reference's 292 matches before).
-    from cvstereo.dynamic_frames import FORGET_TICKS
-    from cvstereo.param_sets import resolve
+    from cvstereo.frames.dynamic import FORGET_TICKS
+    from cvstereo.matchers.sets import resolve
 
     rng = np.random.default_rng(0)
     shift, gap = 12, (FORGET_TICKS + 5) * 250

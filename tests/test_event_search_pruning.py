@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 from _event_scenes import feed_cut
 
-from calibration_free.reference.event_area import event_area_reference
-from calibration_free.reference.event_vector import event_vector_reference
-from cvstereo.dynamic_frames import BOUND_SHIFT, FORGET_TICKS, skip_below
-from cvstereo.events import make_events
-from cvstereo.registry import matcher_class
+from cvstereo.frames.dynamic import BOUND_SHIFT, FORGET_TICKS, skip_below
+from cvstereo.matchers.event_area.reference import event_area_reference
+from cvstereo.matchers.event_vector.reference import event_vector_reference
+from cvstereo.matchers.registry import matcher_class
+from cvstereo.model.events import make_events
 
 WIDTH, HEIGHT = 200, 8
 

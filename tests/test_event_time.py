@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from _event_scenes import feed_cut, moving_edges
 
-from calibration_free.event_time import EventTimeMatcher, EventTimeParams
-from cvstereo.events import make_events
-from cvstereo.matches import concat_matches, validate_matches
-from cvstereo.registry import create_matcher
+from cvstereo.matchers.event_time.matcher import EventTimeMatcher, EventTimeParams
+from cvstereo.matchers.registry import create_matcher
+from cvstereo.model.events import make_events
+from cvstereo.model.matches import concat_matches, validate_matches
 
 
 @pytest.mark.parametrize("variant", ["shared", "separate", "on", "off"])
@@ -86,8 +86,8 @@ def test_describe_and_anchor_camera():
 
 def test_neighbour_intervals_by_hand():
     """Time back to the last earlier same-polarity event in the 3x3 neighbourhood, fast kernel and reference."""
-    from calibration_free.event_time import NO_TIME, _neighbour_intervals
-    from calibration_free.reference.event_time import _neighbour_intervals as reference_intervals
+    from cvstereo.matchers.event_time.matcher import NO_TIME, _neighbour_intervals
+    from cvstereo.matchers.event_time.reference import _neighbour_intervals as reference_intervals
 
     # Times 1 ms earlier than the comment says: time stamps may be negative, and "no event yet" is not -1.
     events = make_events(np.array([0, 100, 100, 250, 400, 700, 50_000]) - 1000, [5, 6, 6, 20, 5, 7, 6],
@@ -128,7 +128,7 @@ def _paced_pair(offset_us: int, period_us: int = 2000, until_us: int = 100_000):
 @pytest.mark.parametrize(("scale", "found"), [(0.0, False), (0.5, True)])
 def test_the_time_window_follows_the_pace(scale, found):
     """Partners 900 us apart: outside the fixed 300 us; inside 0.5 x the 2 ms pace once it is known."""
-    from calibration_free.reference.event_time import event_time_reference
+    from cvstereo.matchers.event_time.reference import event_time_reference
 
     left, right = _paced_pair(900)
     prm = EventTimeParams(threshold_mode="relative", level_window_us=5_000, level_warmup=20, level_windows=3,
@@ -150,8 +150,8 @@ def test_windows_that_shrink_and_grow_keep_fast_equal_to_reference():
     pending event just before it in its row (A, 100 us earlier, no partner): each row's scan start must move
     back. fast == reference at any packet cut (and with the partners at negative times at the start, which the
     fast path's intervals once took for "no event yet")."""
-    from calibration_free.reference.dynamic_frames import DynamicFrames
-    from calibration_free.reference.event_time import _in_force_by_window, event_time_reference
+    from cvstereo.matchers._shared.reference_frames import DynamicFrames
+    from cvstereo.matchers.event_time.reference import _in_force_by_window, event_time_reference
 
     left, right = [], []
     for i, (period, lag) in enumerate(((2000, 800), (500, 100), (3000, 1200), (500, 100))):
@@ -200,7 +200,7 @@ def _veto_scene(probe_partners, neighbour_disparities=(5, 5)):
 def test_the_neighbours_consensus_vetoes_a_look_alike(partners, neighbours, overrides, expected):
     """By hand: the neighbour matches (d = 5 each unless said otherwise) and the probe's candidates; fast at
     every packet cut and reference give the expected disparity of the probe (None: not matched)."""
-    from calibration_free.reference.event_time import event_time_reference
+    from cvstereo.matchers.event_time.reference import event_time_reference
 
     left, right = _veto_scene(partners, neighbours)
     prm = EventTimeParams(threshold=0.0, value_tolerance=10.0, **{"consensus_radius": 1, **overrides})

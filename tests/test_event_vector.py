@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 from _event_scenes import feed_cut, moving_edges
 
-from calibration_free.event_vector import EventVectorMatcher, EventVectorParams
-from calibration_free.reference.dynamic_frames import DynamicFrames
-from calibration_free.reference.event_vector import accumulation_vector, choose, event_vector_reference, run_sides
-from cvstereo.dynamic_frames import DynamicFrameParams
-from cvstereo.events import make_events
-from cvstereo.registry import create_matcher
+from cvstereo.frames.dynamic import DynamicFrameParams
+from cvstereo.matchers._shared.reference_frames import DynamicFrames
+from cvstereo.matchers.event_vector.matcher import EventVectorMatcher, EventVectorParams
+from cvstereo.matchers.event_vector.reference import accumulation_vector, choose, event_vector_reference, run_sides
+from cvstereo.matchers.registry import create_matcher
+from cvstereo.model.events import make_events
 
 
 def test_accumulation_vector_by_hand():

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cvstereo.errors import EventFormatError
-from cvstereo.events import EVENT_DTYPE, as_events, iter_stereo_packets, make_events, time_slice, validate_events
+from cvstereo.model.events import EVENT_DTYPE, as_events, iter_stereo_packets, make_events, time_slice, validate_events
 from tests._io_helpers import random_events
 
 
@@ -110,7 +110,7 @@ def test_packets_skip_empty_windows_and_reject_bad_length():
 @pytest.mark.parametrize("packet_us", [1, 7, 1000, 40_000])
 def test_recording_packets_equal_iter_stereo_packets(packet_us):
     # The in-memory fast path must cut exactly the packets of the streaming iterator, truth included.
-    from cvstereo.recording import Recording
+    from cvstereo.model.recording import Recording
 
     rng = np.random.default_rng(packet_us)
     cams = []

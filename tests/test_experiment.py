@@ -1,4 +1,4 @@
-"""cvstereo.experiment: the demo's and bench's runs are sweep-engine cells, equal to match + evaluate."""
+"""cvstereo.evaluation.experiment: the demo's and bench's runs are sweep-engine cells, equal to match + evaluate."""
 
 from __future__ import annotations
 
@@ -7,10 +7,10 @@ import math
 import pytest
 from _event_scenes import moving_edges
 
-from cvstereo.evaluate import FIGURES, evaluate
-from cvstereo.experiment import Combo, run_experiment
-from cvstereo.pipeline import match
-from cvstereo.recording import Recording
+from cvstereo.evaluation.experiment import Combo, run_experiment
+from cvstereo.evaluation.metrics import FIGURES, evaluate
+from cvstereo.model.recording import Recording
+from cvstereo.run import match
 from cvstereo.sweep import Cell, run_sweep
 
 

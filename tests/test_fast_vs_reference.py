@@ -4,7 +4,8 @@ Each fast matcher (numba kernels, stacked frames) must give exactly the matches 
 :mod:`calibration_free.reference`, bit for bit and in the same order, however the stream is cut into packets.
 Beside the variant, the parameters that change the code path (anchor or reference camera, side restriction,
 polarity mode, candidate test, Gaussian) are drawn too, and both threshold modes: ``absolute`` (the thesis'
-constants) and ``relative`` (thresholds that follow the signal level, :mod:`cvstereo.signal_level`, with short
+constants) and ``relative`` (thresholds that follow the signal level, :mod:`cvstereo.matchers._shared.signal_level`,
+with short
 level windows and a small warm-up so that the thresholds change often within a short stream).
 """
 
@@ -16,14 +17,14 @@ from _event_scenes import feed_cut, random_pair, simulated_clip
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from calibration_free.reference.event_area import event_area_reference
-from calibration_free.reference.event_time import event_time_reference
-from calibration_free.reference.event_vector import event_vector_reference
-from calibration_free.reference.frame_area import frame_area_reference
-from calibration_free.reference.frame_clusters import frame_clusters_reference
-from cvstereo.events import make_events
-from cvstereo.matches import validate_matches
-from cvstereo.registry import matcher_class
+from cvstereo.matchers.event_area.reference import event_area_reference
+from cvstereo.matchers.event_time.reference import event_time_reference
+from cvstereo.matchers.event_vector.reference import event_vector_reference
+from cvstereo.matchers.frame.reference import frame_clusters_reference
+from cvstereo.matchers.frame_area.reference import frame_area_reference
+from cvstereo.matchers.registry import matcher_class
+from cvstereo.model.events import make_events
+from cvstereo.model.matches import validate_matches
 
 #: method -> its reference, the parameters drawn beside the variant (a dict value sets several at once), and
 #: overrides that make random streams reach the thresholds (per variant).

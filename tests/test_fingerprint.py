@@ -1,13 +1,13 @@
-"""The fingerprint's checksum (cvstereo.fingerprint) by hand; its independence of packet cuts and what it tells
+"""The fingerprint's checksum (cvstereo.model.fingerprint) by hand; its independence of packet cuts and what it tells
 apart are in test_hostile2_fingerprint."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from cvstereo.events import make_events
-from cvstereo.fingerprint import difference, fingerprint_of, stream_sum
-from cvstereo.recording import Recording
+from cvstereo.model.events import make_events
+from cvstereo.model.fingerprint import difference, fingerprint_of, stream_sum
+from cvstereo.model.recording import Recording
 
 
 def test_the_checksum_of_one_event_by_hand():

@@ -9,10 +9,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from calibration_free import match
-from calibration_free.frame_area import FrameAreaMatcher, FrameAreaParams, scan_sad
-from calibration_free.reference.frame_area import sad_volume, scan_disparity_map
-from cvstereo.events import make_events
-from cvstereo.recording import Recording
+from cvstereo.matchers.frame_area.matcher import FrameAreaMatcher, FrameAreaParams, scan_sad
+from cvstereo.matchers.frame_area.reference import sad_volume, scan_disparity_map
+from cvstereo.model.events import make_events
+from cvstereo.model.recording import Recording
 
 W = 40_000
 

@@ -9,12 +9,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from calibration_free import match
-from calibration_free.frame_clusters import FrameClusterMatcher, FrameClusterParams
-from calibration_free.reference.frame_clusters import match_frame_pair, row_runs
-from cvstereo.events import make_events
-from cvstereo.frames import gaussian_filter
-from cvstereo.matches import MATCH_DTYPE
-from cvstereo.recording import Recording
+from cvstereo.frames.accumulate import gaussian_filter
+from cvstereo.matchers.frame.matcher import FrameClusterMatcher, FrameClusterParams
+from cvstereo.matchers.frame.reference import match_frame_pair, row_runs
+from cvstereo.model.events import make_events
+from cvstereo.model.matches import MATCH_DTYPE
+from cvstereo.model.recording import Recording
 
 W = 40_000
 

@@ -1,4 +1,4 @@
-"""cvstereo.frames: accumulation, polarity handling, the thesis' Gaussian, window streaming."""
+"""cvstereo.frames.accumulate: accumulation, polarity handling, the thesis' Gaussian, window streaming."""
 
 from __future__ import annotations
 
@@ -8,8 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cvstereo.errors import EventFormatError
-from cvstereo.events import make_events
-from cvstereo.frames import (
+from cvstereo.frames.accumulate import (
     event_mask,
     gaussian_filter,
     polarity_counts,
@@ -17,8 +16,9 @@ from cvstereo.frames import (
     signed_frame,
     stacked_frames,
 )
-from cvstereo.polarity import OFF, ON
-from cvstereo.windows import WindowAccumulator
+from cvstereo.frames.windows import WindowAccumulator
+from cvstereo.model.events import make_events
+from cvstereo.model.polarity import OFF, ON
 
 W = 40_000
 
@@ -116,7 +116,7 @@ def test_gaussian_is_the_thesis_kernel_with_zero_border():
 
 @pytest.mark.parametrize(("kernel_size", "sigma"), [(4, 1.0), (0, 1.0), (5, 0.0)])
 def test_bad_filter_or_window_parameters(kernel_size, sigma):  # sigma: the old name of kernel_sigma
-    from calibration_free.frame_clusters import FrameClusterParams
+    from cvstereo.matchers.frame.matcher import FrameClusterParams
 
     with pytest.raises(ValueError, match="FrameClusterParams"):
         FrameClusterParams(kernel_size=kernel_size, sigma=sigma)

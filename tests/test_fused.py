@@ -8,13 +8,13 @@ from _event_scenes import feed_cut, moving_edges
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from calibration_free._fused_kernel import median_of
-from calibration_free.fused import FusedMatcher
-from calibration_free.fused_params import FusedParams
-from calibration_free.reference.fused import fused_reference
-from cvstereo.events import make_events
-from cvstereo.matches import validate_matches
-from cvstereo.registry import create_matcher
+from cvstereo.matchers.fused._kernels import median_of
+from cvstereo.matchers.fused.matcher import FusedMatcher
+from cvstereo.matchers.fused.params import FusedParams
+from cvstereo.matchers.fused.reference import fused_reference
+from cvstereo.matchers.registry import create_matcher
+from cvstereo.model.events import make_events
+from cvstereo.model.matches import validate_matches
 
 
 def _events_of(parts) -> np.ndarray:
@@ -297,7 +297,7 @@ def test_bad_parameters_say_which(field, value, words):
        rounded=st.booleans(), small=st.booleans())
 def test_kernel_percentile_is_numpys(values, q, rounded, small):
     """Bit for bit; ``small``: values up to 10, spread over the counting bins (else most share the last one)."""
-    from calibration_free._fused_features import percentile
+    from cvstereo.matchers.fused._features import percentile
 
     v = np.round(np.array(values), 0 if rounded else 12)  # rounding makes ties, the partial sort's hard case
     if small:
@@ -307,8 +307,8 @@ def test_kernel_percentile_is_numpys(values, q, rounded, small):
 
 @pytest.mark.parametrize(("rows", "time_us"), [(3, 0), (-4, 1500)])
 def test_match_applies_the_rig_correction(rows, time_us):
-    from cvstereo.pipeline import match
-    from cvstereo.recording import Recording
+    from cvstereo.model.recording import Recording
+    from cvstereo.run import match
 
     left, right, resolution = textured_pair(5, windows=6, noise=0, jagged=True)
     # The rig's error: the right camera's rows shifted by `rows`, its clock late by `time_us` (events shifted

@@ -1,15 +1,15 @@
-"""The geometry's precedence rule (cvstereo.geometry_source), from the library side."""
+"""The geometry's precedence rule (cvstereo.geometry.source), from the library side."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from cvstereo.calibration import StereoCalibration
-from cvstereo.depth import DepthModel
-from cvstereo.events import make_events
-from cvstereo.geometry_source import GeometryConflict, GeometryOptions, as_matched, depth_for_matches
-from cvstereo.recording import Recording
+from cvstereo.geometry.calibration import StereoCalibration
+from cvstereo.geometry.depth import DepthModel
+from cvstereo.geometry.source import GeometryConflict, GeometryOptions, as_matched, depth_for_matches
+from cvstereo.model.events import make_events
+from cvstereo.model.recording import Recording
 
 RIG = {"rig": {"focal_px": 165.0, "baseline_m": 0.1, "axis_offset_px": 3.0, "vertical_offset_px": 1.0,
                "resolution": [128, 128]}}

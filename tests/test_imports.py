@@ -93,7 +93,7 @@ def test_the_walk_sees_imports_inside_functions_and_relative_ones(tmp_path):
 
 def test_no_import_cycle():
     graph = import_graph()
-    assert len(graph) > 50 and graph["cvstereo.pipeline"] >= {"cvstereo.registry"}
+    assert len(graph) > 50 and graph["cvstereo.run"] >= {"cvstereo.matchers.registry"}
     assert find_cycle(graph) is None, " -> ".join(find_cycle(graph))
 
 
@@ -105,8 +105,11 @@ def test_cvstereo_never_imports_calibration_free():
 
 def test_references_import_no_kernel():
     # References are the independent twin of the fast kernels: they may share parameters, not code paths.
-    fast = {f"calibration_free.{m}" for m in ("frame_clusters", "frame_area", "event_time", "event_area",
-                                              "event_vector", "_event_common")}
-    for name, deps in import_graph().items():
-        if name.startswith("calibration_free.reference"):
+    graph = import_graph()
+    fast = {f"cvstereo.matchers.{m}.matcher" for m in ("frame", "frame_area", "event_time", "event_area",
+                                                       "event_vector", "fused")}
+    fast |= {"cvstereo.matchers._shared.event_common", "cvstereo.matchers.fused._kernels"}
+    assert fast <= set(graph)
+    for name, deps in graph.items():
+        if name.endswith(".reference") or name.startswith("cvstereo.matchers._shared.reference"):
             assert not deps & fast, f"{name} imports {sorted(deps & fast)}"

@@ -9,7 +9,6 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 
 from cvstereo.errors import CorruptFileError, EventFormatError
-from cvstereo.events import make_events
 from cvstereo.io import detect_format, open_recording, read_recording, write_recording
 from cvstereo.io.aedat2 import (
     decode_addresses,
@@ -20,7 +19,8 @@ from cvstereo.io.aedat2 import (
     read_aedat2_header,
     write_aedat2_events,
 )
-from cvstereo.recording import Recording
+from cvstereo.model.events import make_events
+from cvstereo.model.recording import Recording
 from tests._io_helpers import assert_same_events, random_events, random_recording, recordings
 
 _TMP = settings(deadline=None, max_examples=15, suppress_health_check=[HealthCheck.function_scoped_fixture])

@@ -8,7 +8,6 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from cvstereo.errors import CorruptFileError, EventFormatError
-from cvstereo.events import make_events
 from cvstereo.io import detect_format, open_recording, read_recording, write_recording
 from cvstereo.io.edvs_text import (
     iter_text_chunks,
@@ -18,7 +17,8 @@ from cvstereo.io.edvs_text import (
     scan_text,
     write_edvs_text,
 )
-from cvstereo.recording import Recording
+from cvstereo.model.events import make_events
+from cvstereo.model.recording import Recording
 from tests._io_helpers import assert_same_events, random_events, random_recording, recordings
 
 _TMP = settings(deadline=None, max_examples=15, suppress_health_check=[HealthCheck.function_scoped_fixture])

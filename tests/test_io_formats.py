@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import cvstereo.io as cio
-from cvstereo.events import make_events
 from cvstereo.io.stream import open_npz
-from cvstereo.recording import Recording
+from cvstereo.model.events import make_events
+from cvstereo.model.recording import Recording
 
 
 def test_formats_are_the_table():

@@ -107,8 +107,8 @@ def test_read_recording_detects_both_layouts(dsec_pair, tmp_path, rng):
 
 
 def test_dsec_time_range(dsec_pair, tmp_path):
-    from cvstereo.events import empty_events
     from cvstereo.io.hdf5 import dsec_time_range
+    from cvstereo.model.events import empty_events
 
     (lpath, _), left, _ = dsec_pair
     assert dsec_time_range(lpath) == (int(left["t"][0]), int(left["t"][-1]))

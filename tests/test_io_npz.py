@@ -7,9 +7,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 
 from cvstereo.errors import CorruptFileError, EventFormatError
-from cvstereo.events import make_events
 from cvstereo.io import open_recording, read_recording, write_recording
 from cvstereo.io.stream import open_npz
+from cvstereo.model.events import make_events
 from tests._io_helpers import assert_same_events, random_recording, recordings
 
 _TMP = settings(deadline=None, max_examples=15, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -101,9 +101,9 @@ def test_written_files_get_the_usual_permissions(tmp_path):
     import os
     import stat
 
-    from cvstereo.events import make_events
     from cvstereo.io import write_recording_npz
-    from cvstereo.recording import Recording
+    from cvstereo.model.events import make_events
+    from cvstereo.model.recording import Recording
 
     ev = make_events([1], [2], [3], [1])
     out = tmp_path / "r.npz"

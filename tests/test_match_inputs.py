@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cvstereo.arrays import events_from
 from cvstereo.errors import EventFormatError
-from cvstereo.events import make_events
 from cvstereo.io import write_recording
-from cvstereo.pipeline import match
-from cvstereo.recording import Recording
+from cvstereo.model.arrays import events_from
+from cvstereo.model.events import make_events
+from cvstereo.model.recording import Recording
+from cvstereo.run import match
 
 
 @pytest.fixture(scope="module")

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from cvstereo.errors import EventFormatError
-from cvstereo.events import make_events
-from cvstereo.matcher import StreamMatcher
-from cvstereo.matches import make_matches
-from cvstereo.registry import METHODS, matcher_class, parse_param_strings
+from cvstereo.matchers.protocol import StreamMatcher
+from cvstereo.matchers.registry import METHODS, matcher_class, parse_param_strings
+from cvstereo.model.events import make_events
+from cvstereo.model.matches import make_matches
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cvstereo.matches import MATCH_DTYPE, concat_matches, empty_matches, make_matches
+from cvstereo.model.matches import MATCH_DTYPE, concat_matches, empty_matches, make_matches
 
 
 def _random_matches(rng, n):

@@ -6,10 +6,15 @@ import dataclasses
 
 import pytest
 
-from calibration_free.params import EventAreaParams, EventVectorParams, FrameAreaParams, FrameClusterParams
-from cvstereo.baseline import StereoBMParams, StereoSGBMParams
-from cvstereo.dynamic_frames import DynamicFrameParams
-from cvstereo.registry import create_matcher, matcher_class, params_from_meta, parse_param_strings
+from cvstereo.frames.dynamic import DynamicFrameParams
+from cvstereo.matchers._shared.thesis_params import (
+    EventAreaParams,
+    EventVectorParams,
+    FrameAreaParams,
+    FrameClusterParams,
+)
+from cvstereo.matchers.opencv.matcher import StereoBMParams, StereoSGBMParams
+from cvstereo.matchers.registry import create_matcher, matcher_class, params_from_meta, parse_param_strings
 
 #: (method, old name, old value, new name, new value)
 RENAMES = [

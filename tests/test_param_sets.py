@@ -57,9 +57,9 @@ def test_match_meta_records_the_set_and_the_diagnostics(clip):
 
 def test_cli_param_set_variant_and_warning(tmp_path, capsys):
     from cvstereo.cli import main
-    from cvstereo.events import make_events
     from cvstereo.io import read_matches, write_recording
-    from cvstereo.recording import Recording
+    from cvstereo.model.events import make_events
+    from cvstereo.model.recording import Recording
 
     # Sparse edges: two events per pixel on a vertical line each window, 5 px apart; the thesis threshold (1.2
     # on the filtered sum, about 3 events a pixel along a line) is never reached.

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calibration_free.params import EventAreaParams, FrameAreaParams, FrameClusterParams
-from cvstereo.matches import make_matches
-from cvstereo.support import lr_consistent, support_counts, supported
+from cvstereo.matchers._shared.support import lr_consistent, support_counts, supported
+from cvstereo.matchers._shared.thesis_params import EventAreaParams, FrameAreaParams, FrameClusterParams
+from cvstereo.model.matches import make_matches
 
 
 def _brute_support(x, y, d, radius=2, tolerance=1.0):

@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 
 from cvstereo.cli import main
-from cvstereo.events import make_events
 from cvstereo.io.npz import read_recording_npz, write_recording_npz
-from cvstereo.recording import Recording
+from cvstereo.model.events import make_events
+from cvstereo.model.recording import Recording
 from cvstereo.sensors import EDVS, StereoEDVS, VirtualEDVS
 from cvstereo.sensors.detect import ProtocolMismatchError
 from cvstereo.sensors.journal import read_journal

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from calibration_free import match
-from cvstereo.calibration import StereoCalibration
-from cvstereo.events import StereoPacket, make_events
-from cvstereo.matches import make_matches
-from cvstereo.recording import Recording
-from cvstereo.rectify import NONE, Rectification
+from cvstereo.geometry.calibration import StereoCalibration
+from cvstereo.geometry.rectify import NONE, Rectification
+from cvstereo.model.events import StereoPacket, make_events
+from cvstereo.model.matches import make_matches
+from cvstereo.model.recording import Recording
 from tests._io_helpers import random_events
 
 RES = (128, 128)

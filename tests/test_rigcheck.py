@@ -1,4 +1,4 @@
-"""Rig self-check (cvstereo.rigcheck) and the row/time correction stage (cvstereo.rigcorrect).
+"""Rig self-check (cvstereo.rigcheck) and the row/time correction stage (cvstereo.geometry.rigcorrect).
 
 Recordings with known swaps and offsets are made from a clean one by shifting the right camera's rows and
 times (and exchanging the cameras); the check must recover each within one row and 0.5 ms.
@@ -13,11 +13,11 @@ import sys
 import numpy as np
 import pytest
 
-from cvstereo.events import make_events
-from cvstereo.matches import MATCH_DTYPE, make_matches
-from cvstereo.recording import Recording
+from cvstereo.geometry.rigcorrect import RigCorrection
+from cvstereo.model.events import make_events
+from cvstereo.model.matches import MATCH_DTYPE, make_matches
+from cvstereo.model.recording import Recording
 from cvstereo.rigcheck import RigReport, check_rig
-from cvstereo.rigcorrect import RigCorrection
 
 ROW_TOLERANCE = 1.0
 TIME_TOLERANCE_US = 500.0
@@ -215,8 +215,8 @@ def test_restore_maps_right_anchored_matches_back():
 
 
 def test_match_with_offsets_points_at_real_events(patches):
-    pytest.importorskip("calibration_free.event_time")
-    from cvstereo.pipeline import match
+    pytest.importorskip("cvstereo.matchers.event_time.matcher")
+    from cvstereo.run import match
 
     base = patches.slice_time(0, 400_000)
     shifted = with_rig_errors(base, rows=2, time_us=3000)
@@ -301,7 +301,7 @@ def test_cli_rigcheck_json_and_match_auto(patches, tmp_path):
 
 
 def _available_methods():
-    from cvstereo.registry import available_methods
+    from cvstereo.matchers.registry import available_methods
 
     return available_methods()
 

@@ -10,8 +10,8 @@ import math
 import numpy as np
 import pytest
 
-from cvstereo.overlay import overlay_scores, overlay_shift, row_correlation, side_of_profile
-from cvstereo.recording import Recording
+from cvstereo.geometry.overlay import overlay_scores, overlay_shift, row_correlation, side_of_profile
+from cvstereo.model.recording import Recording
 from cvstereo.rigcheck import RigCheckParams, RigReport, check_rig
 from tests.test_rigcheck import textured_patches
 
@@ -85,7 +85,7 @@ def test_summary_says_n_a_and_json_has_null_for_nan(patches):
 
 def test_no_local_overlay_reports_nan_percentiles_as_n_a():
     # No local overlay can reach an NCC above 1, so none is kept: the percentiles cannot be estimated.
-    from cvstereo.events import make_events
+    from cvstereo.model.events import make_events
 
     rng = np.random.default_rng(3)
     cams = []
@@ -100,7 +100,7 @@ def test_no_local_overlay_reports_nan_percentiles_as_n_a():
 
 
 # ---------------------------------------------------------------------------------------------------------------
-# The overlay primitive (cvstereo.overlay)
+# The overlay primitive (cvstereo.geometry.overlay)
 
 
 def _ncc_brute(a, b, s):
@@ -139,7 +139,7 @@ def test_row_correlation_and_side_follow_the_left_is_larger_x_convention(rng):
 
 # ---------------------------------------------------------------------------------------------------------------
 # The eDVS merged reader's left/right detection on the real files (shift = the file's nominal disparity;
-# left retina as the data's README says). Scores measured from the code before it moved to cvstereo.overlay.
+# left retina as the data's README says). Scores measured from the code before it moved to cvstereo.geometry.overlay.
 
 
 @pytest.mark.shared_data

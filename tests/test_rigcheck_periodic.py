@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from cvstereo.events import make_events
-from cvstereo.recording import Recording
+from cvstereo.model.events import make_events
+from cvstereo.model.recording import Recording
 from cvstereo.rigcheck import check_rig
 from cvstereo.rigcheck.time_offset import equal_peaks
 from tests.test_rigcheck import TIME_TOLERANCE_US, textured_patches, with_rig_errors

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from cvstereo.registry import available_methods, create_matcher
+from cvstereo.matchers.registry import available_methods, create_matcher
 
 THESIS = ("frame", "frame-area", "event-time", "event-area", "event-vector")
 
@@ -43,8 +43,8 @@ def davis346():
 def test_every_matcher_answers_at_346x260(davis346, method):
     if method not in available_methods():
         pytest.skip(f"{method} is not installed here")
-    from cvstereo.evaluate import evaluate
-    from cvstereo.pipeline import match
+    from cvstereo.evaluation.metrics import evaluate
+    from cvstereo.run import match
 
     figures = evaluate(davis346, match(davis346, method=method))
     assert figures["coverage"] > 0.1, figures

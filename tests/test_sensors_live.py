@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from cvstereo.errors import SensorError
-from cvstereo.events import make_events
 from cvstereo.io.npz import read_recording_npz, write_recording_npz
-from cvstereo.matcher import StreamMatcher
-from cvstereo.matches import make_matches
-from cvstereo.recording import Recording
+from cvstereo.matchers.protocol import StreamMatcher
+from cvstereo.model.events import make_events
+from cvstereo.model.matches import make_matches
+from cvstereo.model.recording import Recording
 from cvstereo.sensors import EDVS, Journal, StereoEDVS, VirtualClock, VirtualEDVS, read_journal
 from cvstereo.sensors.live import run_live
 from tests._wrap_checks import assert_times_exact_or_flagged

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cvstereo.events import make_events
+from cvstereo.model.events import make_events
 from cvstereo.sensors.decoder import StreamDecoder
 from cvstereo.sensors.protocol import ProtocolSettings, encode_events
 

@@ -7,9 +7,9 @@ import pytest
 from _event_scenes import feed_cut
 
 from calibration_free import create_matcher
-from calibration_free.frame_clusters import FrameClusterMatcher
-from cvstereo.matches import concat_matches
-from cvstereo.signal_level import SignalLevel, SignalLevelParams, silence_warning
+from cvstereo.matchers._shared.signal_level import SignalLevel, SignalLevelParams, silence_warning
+from cvstereo.matchers.frame.matcher import FrameClusterMatcher
+from cvstereo.model.matches import concat_matches
 
 REL = {"threshold_mode": "relative"}
 
@@ -141,7 +141,7 @@ def test_duplicated_or_thinned_events_give_the_same_disparities(clip, method, st
     if (method, stream) in _SHORT:
         request.applymarker(pytest.mark.xfail(strict=True, reason="below the 95 % / 20 % bar on this clip"))
     from calibration_free import match
-    from cvstereo.recording import Recording
+    from cvstereo.model.recording import Recording
 
     rec = clip.slice_time(0, 500_000)
     change = (lambda e: np.repeat(e, 2)) if stream == "twice" else (lambda e: e[::2])

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cvstereo.sorted_runs import SortedRuns
+from cvstereo.matchers._shared.sorted_runs import SortedRuns
 
 
 def _values(rng, n, kind):

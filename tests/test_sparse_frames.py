@@ -1,4 +1,5 @@
-"""Sparse frames (cvstereo.sparse_frames): the Gaussian on the support equals cv2's dense filter bit for bit,
+"""Sparse frames (cvstereo.matchers._shared.sparse_frames): the Gaussian on the support equals cv2's dense filter bit
+for bit,
 and the frame matchers' sparse path gives the matches of their dense path."""
 
 from __future__ import annotations
@@ -8,11 +9,11 @@ import pytest
 from _event_scenes import feed_cut, random_pair
 
 from cvstereo.errors import EventFormatError
-from cvstereo.events import make_events
-from cvstereo.frames import gaussian_filter, signed_frame, stacked_frames
-from cvstereo.polarity import slot_of_p
-from cvstereo.registry import matcher_class
-from cvstereo.sparse_frames import SparseFrames, cv2_layout
+from cvstereo.frames.accumulate import gaussian_filter, signed_frame, stacked_frames
+from cvstereo.matchers._shared.sparse_frames import SparseFrames, cv2_layout
+from cvstereo.matchers.registry import matcher_class
+from cvstereo.model.events import make_events
+from cvstereo.model.polarity import slot_of_p
 
 
 def _sparse_or_skip(n_planes, resolution, **kw):
@@ -152,7 +153,7 @@ def test_the_left_right_check_on_the_sparse_path_drops_unconfirmed_disparities()
     """lr_check keeps a subset of the one-direction matches, drops some on this scene (noise pixels whose
     back scan disagrees), and what it keeps agrees with the other camera's scan within 1 px (checked with the
     reference's cost volume scan, not the fast kernels)."""
-    from calibration_free.reference.frame_area import sad_volume, scan_disparity_map
+    from cvstereo.matchers.frame_area.reference import sad_volume, scan_disparity_map
     left, right, resolution = _shifted_patches(11, width=90, height=30, windows=1)
     cls = matcher_class("frame-area")
     runs = {}
@@ -178,7 +179,7 @@ def test_a_threshold_of_zero_gives_the_references_result():
     """A relative threshold may reach 0 (floor 0, a level of 0: ON and OFF cancel at every pixel of window 0);
     frame-area then searches pixels without events too, which only its dense path does: the matches still
     equal the reference's. (The cluster matcher keeps no zero pixel at a threshold of 0: v >= 0 and v <= -0.)"""
-    from calibration_free.reference.frame_area import frame_area_reference
+    from cvstereo.matchers.frame_area.reference import frame_area_reference
     method = "frame-area"
     width, height = 40, 20
     yy, xx = np.mgrid[0:height, 0:width]

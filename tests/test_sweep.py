@@ -98,9 +98,9 @@ def test_local_cluster_equals_serial_and_isolates_failures(clips, tmp_path):
     ok = [r for r in serial.rows if r["error"] is None]
     assert len(ok) == 10 and all(r["matches"] > 0 for r in ok)
     # Each row is what match + evaluate give for that cell on its own.
-    from cvstereo.evaluate import evaluate
+    from cvstereo.evaluation.metrics import evaluate
     from cvstereo.io import read_recording
-    from cvstereo.pipeline import match
+    from cvstereo.run import match
 
     r = ok[1]
     res = match(r["recording"], method=r["method"], variant=r["variant"], **json.loads(r["params"]))

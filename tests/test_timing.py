@@ -1,4 +1,5 @@
-"""cvstereo.timing: repeat until two runs agree within 10 %, with a fake clock and a fake load (no real timing)."""
+"""cvstereo.benchmark.timing: repeat until two runs agree within 10 %, with a fake clock and a fake load (no real
+timing)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ import math
 
 import pytest
 
-from cvstereo.timing import Agreement, measure
+from cvstereo.benchmark.timing import Agreement, measure
 
 
 class FakeClock:

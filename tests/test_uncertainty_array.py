@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from cvstereo.io import read_matches, write_matches
-from cvstereo.pipeline import match
-from cvstereo.registry import create_matcher
+from cvstereo.matchers.registry import create_matcher
+from cvstereo.run import match
 from cvstereo.simulate import simulate_preset
 
 

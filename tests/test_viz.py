@@ -14,11 +14,11 @@ import cv2  # noqa: E402
 from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
 
 from cvstereo import viz  # noqa: E402
-from cvstereo.depth import DepthModel  # noqa: E402
 from cvstereo.errors import MissingExtraError  # noqa: E402
-from cvstereo.events import make_events  # noqa: E402
-from cvstereo.matches import MatchResult, make_matches  # noqa: E402
-from cvstereo.recording import Recording  # noqa: E402
+from cvstereo.geometry.depth import DepthModel  # noqa: E402
+from cvstereo.model.events import make_events  # noqa: E402
+from cvstereo.model.matches import MatchResult, make_matches  # noqa: E402
+from cvstereo.model.recording import Recording  # noqa: E402
 from cvstereo.viz._images import CONTEXT_RGB, match_window_slice, pixel_mean  # noqa: E402
 
 #: A small sensor, so that each sensor pixel covers many screen pixels and colours can be read back exactly.
@@ -96,7 +96,7 @@ def test_event_frames_default_is_busiest_window(rec):
 
 
 def test_filtered_frames_data_and_threshold(rng):
-    from cvstereo.frames import gaussian_filter, signed_frame
+    from cvstereo.frames.accumulate import gaussian_filter, signed_frame
 
     # Ten ON events at one pixel: filtered centre 10 * 0.1621 > 1.2; a lone OFF event stays below.
     left = make_events(np.arange(11) * 10, [6] * 10 + [12], [5] * 10 + [2], [1] * 10 + [0])
@@ -112,7 +112,7 @@ def test_filtered_frames_data_and_threshold(rng):
 
 
 def test_dynamic_frames_agree_with_reference():
-    from calibration_free.reference.dynamic_frames import DynamicFrames
+    from cvstereo.matchers._shared.reference_frames import DynamicFrames
 
     left = make_events([0, 1000, 2000, 700_000], [4, 4, 8, 2], [5, 5, 6, 2], [1, 1, 0, 1])
     right = make_events([500], [3], [5], [1])
@@ -129,7 +129,7 @@ def test_dynamic_frames_agree_with_reference():
 
 
 def test_dynamic_frames_separate_polarity_rows(rec):
-    from cvstereo.dynamic_frames import DynamicFrameParams
+    from cvstereo.frames.dynamic import DynamicFrameParams
 
     fig = viz.plot_dynamic_frames(rec, 1000, params=DynamicFrameParams(polarity="separate"))
     titles = [ax.get_title() for ax in fig.axes[:4]]

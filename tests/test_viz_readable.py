@@ -13,10 +13,10 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
 
 from cvstereo import viz  # noqa: E402
 from cvstereo.cli import main  # noqa: E402
-from cvstereo.events import make_events  # noqa: E402
 from cvstereo.io import write_matches, write_recording  # noqa: E402
-from cvstereo.matches import MatchResult, make_matches  # noqa: E402
-from cvstereo.recording import Recording  # noqa: E402
+from cvstereo.model.events import make_events  # noqa: E402
+from cvstereo.model.matches import MatchResult, make_matches  # noqa: E402
+from cvstereo.model.recording import Recording  # noqa: E402
 from cvstereo.viz._images import disparity_range  # noqa: E402
 from cvstereo.viz._mpl import SIGNED_CMAP, cmap_with_background, figure_title, set_paper_width  # noqa: E402
 

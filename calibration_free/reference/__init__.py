@@ -1,20 +1,15 @@
-"""Reference implementations of every matcher: readable code that follows ``algorithms.md`` step by step.
+"""Compatibility: the reference implementations moved beside their matchers (``cvstereo.matchers.<name>.reference``).
 
-One module per matcher (:mod:`.frame_clusters`, :mod:`.frame_area`, :mod:`.event_time`, :mod:`.event_area`,
-:mod:`.event_vector`), and the reference dynamic frames (:mod:`.dynamic_frames`). Each matcher's function
-``<name>_reference(left, right, params, *, resolution)`` takes the whole stream at once and returns a
-time-ordered matches array. They are slow (use them on short inputs) and exist so that tests can hold the fast
-matchers to them: same anchors, same disparities, bit for bit. They share the parameter classes
-(:mod:`calibration_free.params`) and the merge order of the two cameras (:mod:`calibration_free.merge_order`)
-with the fast matchers, and import none of their kernels. In relative threshold mode they feed the same
-signal-level estimator (:class:`cvstereo.signal_level.SignalLevel`) with the values they compute, window by
-window (the event references one event at a time, through
-:class:`~calibration_free.reference.dynamic_frames.LevelByWindow`).
+``from calibration_free.reference import frame_clusters_reference`` keeps working through 0.x; the module names
+of 0.2 (``calibration_free.reference.frame_clusters``, ...) are answered by :mod:`cvstereo._compat`.
 """
 
-from __future__ import annotations
+from cvstereo.matchers.event_area.reference import event_area_reference
+from cvstereo.matchers.event_time.reference import event_time_reference
+from cvstereo.matchers.event_vector.reference import event_vector_reference
+from cvstereo.matchers.frame.reference import frame_clusters_reference
+from cvstereo.matchers.frame_area.reference import frame_area_reference
+from cvstereo.matchers.fused.reference import fused_reference
 
-
-def sign(value: float) -> int:
-    """-1, 0 or +1."""
-    return 1 if value > 0 else (-1 if value < 0 else 0)
+__all__ = ["event_area_reference", "event_time_reference", "event_vector_reference", "frame_area_reference",
+           "frame_clusters_reference", "fused_reference"]

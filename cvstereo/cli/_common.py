@@ -86,8 +86,8 @@ def is_matches_file(path, file_format: str | None = None) -> bool:
 def add_matcher_options(parser: argparse.ArgumentParser, *, what: str = "matcher") -> None:
     """``-m/--method``, ``-v/--variant``, ``-p/--param`` and ``--param-set``: one matcher, as `match` and `live`
     take it (default: the registry's default method and the parameter set's default variant)."""
-    from cvstereo.param_sets import DEFAULT_PARAM_SET, PARAM_SETS
-    from cvstereo.registry import DEFAULT_METHOD
+    from cvstereo.matchers.registry import DEFAULT_METHOD
+    from cvstereo.matchers.sets import DEFAULT_PARAM_SET, PARAM_SETS
 
     g = parser.add_argument_group(what)
     g.add_argument("-m", "--method", default=DEFAULT_METHOD,
@@ -111,8 +111,8 @@ def matcher_overrides(args: argparse.Namespace) -> dict:
         An unknown method (the known ones listed), a method not installed here, an unknown variant, or a
         parameter name or value the method does not take (the allowed ones named).
     """
-    from cvstereo.param_sets import resolve
-    from cvstereo.registry import available_methods, matcher_class, parse_param_strings
+    from cvstereo.matchers.registry import available_methods, matcher_class, parse_param_strings
+    from cvstereo.matchers.sets import resolve
 
     try:
         cls = matcher_class(args.method)  # ValueError listing the known methods
@@ -140,7 +140,7 @@ def add_format_options(parser: argparse.ArgumentParser) -> None:
 
 
 def _resolution(text: str) -> tuple[int, int]:
-    from cvstereo.events import check_resolution
+    from cvstereo.model.events import check_resolution
 
     try:
         w, h = (int(v) for v in text.lower().split("x"))
@@ -168,7 +168,7 @@ def recording_plan(args: argparse.Namespace):
     recording, the right camera's file, the matches file and a ``--depth MODEL.json`` declared as its inputs; the
     command adds its outputs and checks the plan (:class:`~cvstereo.io.output_plan.OutputPlan`) before reading
     anything."""
-    from cvstereo.depth_file import WHAT
+    from cvstereo.geometry.depth_file import WHAT
     from cvstereo.io.output_plan import OutputPlan
 
     settle_recording_inputs(args)
@@ -201,9 +201,9 @@ def load_matches_for(args: argparse.Namespace, recording):
     """The matches file ``args.matches`` and the recording as the matches used it.
 
     Unless ``--force``, the matches must come from this recording
-    (:func:`cvstereo.evaluate.check_same_recording`: one line saying what differs); a file too old to tell is
+    (:func:`cvstereo.evaluation.metrics.check_same_recording`: one line saying what differs); a file too old to tell is
     read with a note on stderr. The recording comes back with its cameras in the matches' order
-    (:func:`cvstereo.geometry_source.as_matched`).
+    (:func:`cvstereo.geometry.source.as_matched`).
 
     Returns
     -------
@@ -211,8 +211,8 @@ def load_matches_for(args: argparse.Namespace, recording):
     """
     import sys
 
-    from cvstereo.evaluate import check_same_recording
-    from cvstereo.geometry_source import as_matched
+    from cvstereo.evaluation.metrics import check_same_recording
+    from cvstereo.geometry.source import as_matched
 
     result = load_matches(args.matches)
     if not args.force:
@@ -294,9 +294,9 @@ def depth_file(args: argparse.Namespace) -> str | None:
 
 @contextlib.contextmanager
 def conflicts_as_usage_errors(args: argparse.Namespace) -> Iterator[None]:
-    """Report options that exclude each other (:class:`~cvstereo.geometry_source.GeometryConflict`) as usage
+    """Report options that exclude each other (:class:`~cvstereo.geometry.source.GeometryConflict`) as usage
     errors (exit 2), as argparse does for its own."""
-    from cvstereo.geometry_source import GeometryConflict
+    from cvstereo.geometry.source import GeometryConflict
 
     try:
         yield
@@ -305,9 +305,9 @@ def conflicts_as_usage_errors(args: argparse.Namespace) -> Iterator[None]:
 
 
 def picture_depth(args: argparse.Namespace, recording, result):
-    """The depth model of pictures (:func:`cvstereo.geometry_source.depth_for_matches`): from ``--depth``, the
+    """The depth model of pictures (:func:`cvstereo.geometry.source.depth_for_matches`): from ``--depth``, the
     matches file, the recording's rig; None with ``--no-metres``."""
-    from cvstereo.geometry_source import depth_for_matches
+    from cvstereo.geometry.source import depth_for_matches
 
     explicit = parse_depth_option(args.depth) if args.depth is not None and args.metres else None
     names = (getattr(args, "matches", None) or "the matches file", getattr(args, "recording", None) or "the recording")
@@ -317,10 +317,10 @@ def picture_depth(args: argparse.Namespace, recording, result):
 
 def parse_depth_option(values: list[str]):
     """``--depth A C`` (two numbers) or ``--depth MODEL.json`` (a depth-model file) as a DepthModel."""
-    from cvstereo.depth import DepthModel
+    from cvstereo.geometry.depth import DepthModel
 
     if len(values) == 1:
-        from cvstereo.depth_file import load_depth_model
+        from cvstereo.geometry.depth_file import load_depth_model
 
         return load_depth_model(values[0])
     try:

@@ -35,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--workers {args.workers}: give 0 (in this process) or a positive number of workers.")
     import cv2
 
-    from cvstereo.benchmark import RESULT_FILES, BenchConfig, run_bench, write_results
+    from cvstereo.benchmark.harness import RESULT_FILES, BenchConfig, run_bench, write_results
     from cvstereo.cli.demo import shared_folder
     from cvstereo.io.output_plan import ANY_FILE, OutputPlan
 

@@ -31,7 +31,7 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     from cvstereo.io import open_recording, output_format, write_recording
     from cvstereo.io.output_plan import ANY_FILE
-    from cvstereo.recording import Recording
+    from cvstereo.model.recording import Recording
 
     if len(args.output) > 2:
         return _usage("give at most two outputs (left, right)")

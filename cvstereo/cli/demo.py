@@ -76,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
         _real_recordings(shared_folder(args.shared))
         print("\nThe simulator has not landed yet: no simulated recordings to run the matchers on.")
         return 0
-    from cvstereo.registry import available_methods
+    from cvstereo.matchers.registry import available_methods
 
     methods = args.methods or [m for m in available_methods() if m in DEMO_METHODS]
     if not methods:
@@ -101,12 +101,12 @@ def run(args: argparse.Namespace) -> int:
 def _experiment(args: argparse.Namespace, methods: list[str], out: Path, combos) -> None:
     """Simulate the six presets (cached), run every variant of ``methods`` and write the tables; the figures of
     ``combos`` too (None: none)."""
-    from cvstereo.evaluate import to_json
-    from cvstereo.experiment import all_combos, experiment_markdown, run_experiment
+    from cvstereo.evaluation.experiment import all_combos, experiment_markdown, run_experiment
+    from cvstereo.evaluation.metrics import to_json
+    from cvstereo.evaluation.thesis import RECORDINGS
     from cvstereo.io import read_recording
     from cvstereo.io._atomic import write_text_atomic
     from cvstereo.simulate import cached_preset
-    from cvstereo.thesis import RECORDINGS
 
     print("Simulating the thesis' six recordings (cached after the first run) ...", file=sys.stderr)
     progress = progress_wanted(args)
@@ -133,7 +133,7 @@ def _figure_names(combos) -> list[str]:
 def _figures(recording, combos, folder: Path) -> None:
     """The thesis' figures for one preset and a few matchers (:func:`_figure_names`; needs the viz extra)."""
     from cvstereo import viz
-    from cvstereo.pipeline import match
+    from cvstereo.run import match
 
     t0 = viz.busiest_window(recording, FIGURE_WINDOW_US)
     pictures = {

@@ -39,7 +39,7 @@ def _point(text: str) -> tuple[str, float]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cvstereo.depth import fit_depth_model
+    from cvstereo.geometry.depth import fit_depth_model
     from cvstereo.io.output_plan import DEPTH_MODEL_FILE, OutputPlan
 
     points = [_point(p) for p in args.points]
@@ -57,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
             medians = ", ".join(f"{p}: {d:.2f} px at {z:g} m" for p, z, d, _ in rows)
             raise ValueError(f"no depth model fits the files' median disparities ({medians}): {exc}") from None
         if args.output:
-            from cvstereo.depth_file import save_depth_model
+            from cvstereo.geometry.depth_file import save_depth_model
 
             save_depth_model(args.output, model, points=[{"file": p, "distance_m": z, "median_disparity_px": d,
                                                           "matches": n} for p, z, d, n in rows])
@@ -82,7 +82,7 @@ def _median_disparity(path: str, z: float, args: argparse.Namespace, overrides: 
         if path.endswith(".npz") and "matches" in npz_keys(path):
             disparity = read_matches(path).disparity
         else:
-            from cvstereo.pipeline import match
+            from cvstereo.run import match
 
             disparity = match(read_recording(path), method=args.method, variant=args.variant,
                               param_set=args.param_set, **overrides).disparity

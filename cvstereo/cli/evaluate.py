@@ -31,8 +31,8 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cvstereo.evaluate import FIGURES, evaluate, markdown_table, to_json
-    from cvstereo.thesis import thesis_disparity
+    from cvstereo.evaluation.metrics import FIGURES, evaluate, markdown_table, to_json
+    from cvstereo.evaluation.thesis import thesis_disparity
 
     recording_plan(args).check()  # reads only: its inputs are regular files
     recording, result = load_matches_for(args, load_recording(args))

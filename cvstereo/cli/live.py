@@ -31,8 +31,8 @@ def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     from cvstereo.cli._common import parse_depth_option
-    from cvstereo.depth import DepthModel
-    from cvstereo.registry import create_matcher
+    from cvstereo.geometry.depth import DepthModel
+    from cvstereo.matchers.registry import create_matcher
     from cvstereo.sensors.live import run_live
 
     params = matcher_overrides(args)

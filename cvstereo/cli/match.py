@@ -1,11 +1,11 @@
 """``cvstereo match RECORDING [RIGHT] --method M [--variant V] [--param key=value ...] -o MATCHES.npz``.
 
-Runs one matcher over a recording (through :func:`cvstereo.pipeline.match`, so the file holds exactly what
+Runs one matcher over a recording (through :func:`cvstereo.run.match`, so the file holds exactly what
 ``match()`` returns) and writes the matches file of formats.md. ``--list-methods`` prints every registered
 method with its variants and parameters. ``--param-set thesis|adaptive`` picks the parameter set
-(:mod:`cvstereo.param_sets`). A run that answers in less than 1 % of the 40 ms windows with events says why on
+(:mod:`cvstereo.matchers.sets`). A run that answers in less than 1 % of the 40 ms windows with events says why on
 one ``warning:`` line on stderr (and still exits 0). Where the geometry comes from (calibration, options, the
-recording's rig, the rig check: :mod:`cvstereo.geometry_source`) is said on one ``geometry:`` line and stored in the
+recording's rig, the rig check: :mod:`cvstereo.geometry.source`) is said on one ``geometry:`` line and stored in the
 file; the matches file and a ``--point-cloud`` appear together, once both are written (an output plan:
 :mod:`cvstereo.io.output_plan`).
 """
@@ -34,8 +34,8 @@ from cvstereo.cli._common import (
     require_range,
 )
 from cvstereo.cli._text import number, plain_text
-from cvstereo.param_sets import ADAPTIVE
-from cvstereo.signal_level import silence_warning
+from cvstereo.matchers._shared.signal_level import silence_warning
+from cvstereo.matchers.sets import ADAPTIVE
 
 #: Largest --time-offset-us either way: a day (real rigs are off by milliseconds).
 MAX_TIME_OFFSET_US = 86_400_000_000
@@ -94,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
                          f"{args.time_offset_us:,}.")
     from cvstereo.io import write_matches
     from cvstereo.io.output_plan import MATCHES_FILE, POINT_CLOUD
-    from cvstereo.pipeline import DEFAULT_PACKET_US, match
+    from cvstereo.run import DEFAULT_PACKET_US, match
 
     plan = recording_plan(args)
     plan.read(args.calibration, what="calibration file")
@@ -138,13 +138,13 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _geometry_options(args: argparse.Namespace):
-    """What the command line gives towards the geometry (:class:`cvstereo.geometry_source.GeometryOptions`);
+    """What the command line gives towards the geometry (:class:`cvstereo.geometry.source.GeometryOptions`);
     options that exclude each other are usage errors."""
-    from cvstereo.geometry_source import GeometryOptions
+    from cvstereo.geometry.source import GeometryOptions
 
     calibration = None
     if args.calibration is not None:
-        from cvstereo.calibration import load_calibration
+        from cvstereo.geometry.calibration import load_calibration
 
         calibration = load_calibration(args.calibration)
     with conflicts_as_usage_errors(args):
@@ -168,7 +168,7 @@ def _rig_check(recording):
 def _record_geometry(args: argparse.Namespace, result, geometry) -> None:
     """Store in the matches' meta what they were computed on and with: the inputs, the geometry and where it came
     from, the depth of every match (formats.md: the match dtype is a contract, distances go beside it)."""
-    from cvstereo.fingerprint import swap_cameras
+    from cvstereo.model.fingerprint import swap_cameras
 
     meta = result.meta
     meta["geometry"] = geometry.describe()
@@ -179,7 +179,7 @@ def _record_geometry(args: argparse.Namespace, result, geometry) -> None:
     meta["input"] = [args.recording] + ([args.right] if args.right else [])
     meta["format_options"] = {k: list(v) if isinstance(v, tuple) else v for k, v in format_options(args).items()}
     if geometry.depth is not None:
-        from cvstereo.pointcloud import depth_per_match
+        from cvstereo.geometry.pointcloud import depth_per_match
 
         meta["depth"] = geometry.depth.to_dict()
         result.arrays["depth_m"] = depth_per_match(result.matches, geometry.depth)
@@ -187,7 +187,7 @@ def _record_geometry(args: argparse.Namespace, result, geometry) -> None:
 
 def _write_point_cloud(args: argparse.Namespace, result, geometry) -> str:
     """Write ``--point-cloud`` (into the plan); return the line that says so."""
-    from cvstereo.pointcloud import point_cloud, write_ply
+    from cvstereo.geometry.pointcloud import point_cloud, write_ply
 
     points = point_cloud(result.matches, geometry.depth, geometry.intrinsics)
     write_ply(args.point_cloud, points, model=geometry.depth, intrinsics=geometry.intrinsics,
@@ -202,7 +202,7 @@ def list_methods() -> str:
     defaults listed are the ``thesis`` set's; the ``adaptive`` line gives what that set changes, and why its
     default variant.
     """
-    from cvstereo.registry import METHODS, matcher_class
+    from cvstereo.matchers.registry import METHODS, matcher_class
 
     lines = []
     for name in METHODS:

@@ -81,7 +81,7 @@ SHOWN_FAILURES = 3
 
 def _param_values(method_names: list[str], items: list[str]) -> tuple:
     """``["k=v1,v2"]`` -> ``(("k", (v1, v2)),)`` with values typed by the first method that has ``k``."""
-    from cvstereo.registry import matcher_class, parse_param_strings
+    from cvstereo.matchers.registry import matcher_class, parse_param_strings
 
     out = []
     for item in items:
@@ -100,8 +100,8 @@ def _param_values(method_names: list[str], items: list[str]) -> tuple:
 
 def _command_line_grid(args: argparse.Namespace):
     """The grid of ``--method``/``--variant``/``--param``/``--param-set``, or None without ``--method``."""
-    from cvstereo.param_sets import check_param_set
-    from cvstereo.registry import matcher_class
+    from cvstereo.matchers.registry import matcher_class
+    from cvstereo.matchers.sets import check_param_set
     from cvstereo.sweep import Grid
 
     if not args.method:

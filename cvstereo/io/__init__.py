@@ -19,7 +19,7 @@ from cvstereo.io.aedat2 import open_aedat2, write_aedat2
 from cvstereo.io.edvs_text import open_edvs_merged, open_edvs_text, read_text_header, write_edvs_merged, write_edvs_pair
 from cvstereo.io.npz import read_matches, read_recording_npz, write_matches, write_recording_npz
 from cvstereo.io.stream import RecordingStream, open_npz
-from cvstereo.recording import Recording
+from cvstereo.model.recording import Recording
 
 #: File extensions of the text formats (which of the two is told by the column count).
 TEXT_SUFFIXES = (".txt", ".dat", ".csv")

@@ -1,6 +1,6 @@
 """Validation of one camera's stream chunk by chunk, naming the file position of the first bad event.
 
-Every reader converts its raw columns to :data:`~cvstereo.events.EVENT_DTYPE` through one
+Every reader converts its raw columns to :data:`~cvstereo.model.events.EVENT_DTYPE` through one
 :class:`ChunkChecker` per camera, so that the contract of formats.md (integer fields, polarity, range,
 time order across chunk boundaries) is enforced in one place and errors name where in the *file* the
 offending event is (a text line, a byte offset), not only its index in the camera's stream.
@@ -12,9 +12,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-from cvstereo.columns import check_polarity, labelled
 from cvstereo.errors import EventFormatError
-from cvstereo.events import as_events, events_from_columns, validate_events
+from cvstereo.model.columns import check_polarity, labelled
+from cvstereo.model.events import as_events, events_from_columns, validate_events
 
 
 class ChunkChecker:
@@ -27,13 +27,14 @@ class ChunkChecker:
     source : str, keyword-only
         Named in error messages, e.g. ``"rec.dat [retina 1]"``.
     labels : dict, optional, keyword-only
-        How the file names each field, e.g. ``{"t": "/events/t"}`` (see :func:`cvstereo.events.events_from_columns`).
+        How the file names each field, e.g. ``{"t": "/events/t"}`` (see
+        :func:`cvstereo.model.events.events_from_columns`).
     start : int, keyword-only
         Stream index of the first event checked (a reader that starts mid-file names file positions).
 
     Examples
     --------
-    >>> from cvstereo.events import make_events
+    >>> from cvstereo.model.events import make_events
     >>> check = ChunkChecker(resolution=(128, 128), source="demo")
     >>> check(make_events([0, 5], [1, 2], [3, 4], [1, -1]))["p"].tolist()
     [1, 0]
@@ -86,7 +87,7 @@ class ChunkChecker:
     def columns(self, t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray, *, t_offset: int = 0) -> np.ndarray:
         """Validate the next chunk given as four raw columns (as a file stores them) and return it as EVENT_DTYPE.
 
-        Every value is checked in its stored dtype before the cast (:func:`cvstereo.events.events_from_columns`);
+        Every value is checked in its stored dtype before the cast (:func:`cvstereo.model.events.events_from_columns`);
         ``t_offset`` is added to the times.
         """
         floor = None if self._t_last is None else self._t_last - t_offset
@@ -98,7 +99,8 @@ class ChunkChecker:
         """Validate the next chunk, an array of EVENT_DTYPE that the caller owns, in place, and return it.
 
         For readers whose decoder already wrote the event dtype's layout (a buffer of its own): the values are
-        checked as :func:`cvstereo.events.events_from_columns` checks them, without a copy; polarities -1 become 0.
+        checked as :func:`cvstereo.model.events.events_from_columns` checks them, without a copy; polarities -1 become
+        0.
         """
         check_polarity(events["p"], source=self.source, label=labelled(self.labels)["p"], index_offset=self.count)
         validate_events(events, resolution=self.resolution, source=self.source, index_offset=self.count,

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from cvstereo.columns import INT64_MAX, first_bad
 from cvstereo.errors import CorruptFileError
+from cvstereo.model.columns import INT64_MAX, first_bad
 
 
 def h5py_module():

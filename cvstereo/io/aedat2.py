@@ -32,12 +32,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from cvstereo.errors import CorruptFileError
-from cvstereo.events import EVENT_DTYPE, empty_events, validate_events
 from cvstereo.io._atomic import atomic_path
 from cvstereo.io._checked import ChunkChecker
 from cvstereo.io._source import open_regular, printable
 from cvstereo.io.stream import MONO, Chunk, RecordingStream
-from cvstereo.recording import CAMERAS, Recording
+from cvstereo.model.events import EVENT_DTYPE, empty_events, validate_events
+from cvstereo.model.recording import CAMERAS, Recording
 
 MAGIC = b"#!AER-DAT2.0"
 #: The DVS128 sensor size, fixed by the 7-bit address fields.

@@ -32,12 +32,12 @@ from collections.abc import Iterator
 import numpy as np
 
 from cvstereo.errors import CorruptFileError
-from cvstereo.events import EVENT_DTYPE, check_resolution
 from cvstereo.io._checked import ChunkChecker
 from cvstereo.io._source import open_regular
 from cvstereo.io._watchdog import worker_frames
 from cvstereo.io.stream import MONO, Chunk, RecordingStream
-from cvstereo.recording import CAMERAS
+from cvstereo.model.events import EVENT_DTYPE, check_resolution
+from cvstereo.model.recording import CAMERAS
 
 MAGIC = b"#!AER-DAT4.0"
 #: How much of the file's start is searched for the XML header (it is a few KB).

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cvstereo.errors import EventFormatError
+from cvstereo.geometry.overlay import overlay_shift
 from cvstereo.io._checked import ChunkChecker
 from cvstereo.io.edvs_text_parse import (
     CHUNK_LINES,
@@ -50,8 +51,7 @@ from cvstereo.io.edvs_text_parse import (
 )
 from cvstereo.io.edvs_text_write import write_edvs_merged, write_edvs_pair, write_edvs_text
 from cvstereo.io.stream import MONO, Chunk, RecordingStream
-from cvstereo.overlay import overlay_shift
-from cvstereo.recording import CAMERAS, Recording
+from cvstereo.model.recording import CAMERAS, Recording
 
 
 @dataclass(frozen=True, eq=False)
@@ -156,7 +156,7 @@ def detect_left_retina(scan: TextScan) -> tuple[int, int, float]:
             f"{scan.path}: cannot tell which retina is the left camera without events from both; "
             "give left_retina (--left-retina 0 or 1)."
         )
-    # cvstereo.overlay's convention: x_0 = x_1 + shift, positive when retina 0 is the left camera.
+    # cvstereo.geometry.overlay's convention: x_0 = x_1 + shift, positive when retina 0 is the left camera.
     shift, score = overlay_shift(scan.images[0], scan.images[1], max_shift=scan.resolution[0] // 3)
     if shift == 0:
         raise ValueError(

@@ -16,8 +16,8 @@ from typing import NamedTuple
 import numpy as np
 
 from cvstereo.errors import CorruptFileError, EventFormatError
-from cvstereo.events import DEFAULT_RESOLUTION, check_resolution
 from cvstereo.io._source import open_regular, printable
+from cvstereo.model.events import DEFAULT_RESOLUTION, check_resolution
 
 CHUNK_LINES = 1 << 16
 

@@ -9,10 +9,10 @@ import os
 
 import numpy as np
 
-from cvstereo.events import DEFAULT_RESOLUTION, validate_events
 from cvstereo.io._atomic import atomic_path
 from cvstereo.io.edvs_text_parse import CHUNK_LINES
-from cvstereo.recording import Recording
+from cvstereo.model.events import DEFAULT_RESOLUTION, validate_events
+from cvstereo.model.recording import Recording
 
 
 def write_edvs_text(path: str | os.PathLike, events: np.ndarray, *,

@@ -14,7 +14,7 @@ Both are streamed: DSEC by time slices of ``chunk_ms`` milliseconds cut with ``m
 gigabytes), never more than :data:`CHUNK_ROWS` events at once; MVSEC by blocks of rows.
 :func:`read_time_slice` reads only the events of one time window.
 
-Values are checked as stored, chunk by chunk, before any cast (:mod:`cvstereo.columns`): a float ``t`` (whose
+Values are checked as stored, chunk by chunk, before any cast (:mod:`cvstereo.model.columns`): a float ``t`` (whose
 unit cannot be told), coordinates beyond the sensor or int16 (65541 is not read as 5, 65535 not as -1),
 polarities other than 0/1 or -1/+1 (256 is not read as OFF), times beyond int64 (a uint64 2**63, MVSEC's 1e300 s)
 and an index table that decreases or points outside the data are refused with the file, the dataset and the
@@ -29,12 +29,12 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from cvstereo.columns import check_times, times_to_us, whole_numbers
 from cvstereo.errors import CorruptFileError
 from cvstereo.io._checked import ChunkChecker
 from cvstereo.io._hdf5_datasets import check_index_block, h5py_module, integer_scalar, numeric_dataset, read_rows
 from cvstereo.io.stream import MONO, Chunk, RecordingStream
-from cvstereo.recording import CAMERAS
+from cvstereo.model.columns import check_times, times_to_us, whole_numbers
+from cvstereo.model.recording import CAMERAS
 
 DSEC_RESOLUTION = (640, 480)
 MVSEC_RESOLUTION = (346, 260)

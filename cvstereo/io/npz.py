@@ -16,12 +16,12 @@ from collections.abc import Iterator
 import numpy as np
 
 from cvstereo.errors import CorruptFileError, EventFormatError
-from cvstereo.events import DEFAULT_RESOLUTION, as_events, check_resolution
 from cvstereo.io._atomic import atomic_path
 from cvstereo.io._source import require_regular_file
-from cvstereo.matcher import MAX_PARAM_INT
-from cvstereo.matches import REQUIRED_META, MatchResult, validate_matches
-from cvstereo.recording import Recording
+from cvstereo.matchers.protocol import MAX_PARAM_INT
+from cvstereo.model.events import DEFAULT_RESOLUTION, as_events, check_resolution
+from cvstereo.model.matches import REQUIRED_META, MatchResult, validate_matches
+from cvstereo.model.recording import Recording
 
 
 def _meta_array(meta: dict) -> np.ndarray:
@@ -195,7 +195,7 @@ def _require_recording_keys(npz, path) -> None:
 
 
 def write_recording_npz(path: str | os.PathLike, recording: Recording) -> None:
-    """Write a :class:`~cvstereo.recording.Recording` as a stereo recording ``.npz`` (atomically).
+    """Write a :class:`~cvstereo.model.recording.Recording` as a stereo recording ``.npz`` (atomically).
 
     Parameters
     ----------

@@ -14,10 +14,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cvstereo.errors import CorruptFileError
-from cvstereo.events import StereoPacket, empty_events, iter_stereo_packets
 from cvstereo.io._checked import ChunkChecker
 from cvstereo.io.npz import iter_npz_chunks, read_npz_header
-from cvstereo.recording import CAMERAS, Recording
+from cvstereo.model.events import StereoPacket, empty_events, iter_stereo_packets
+from cvstereo.model.recording import CAMERAS, Recording
 
 #: Camera name of a stream read from a file that holds a single camera.
 MONO = "mono"
@@ -72,7 +72,7 @@ class RecordingStream:
         return self.open_chunks(camera)
 
     def packets(self, packet_us: int = 10_000) -> Iterator[StereoPacket]:
-        """Time-aligned packets of both cameras (see :func:`cvstereo.events.iter_stereo_packets`).
+        """Time-aligned packets of both cameras (see :func:`cvstereo.model.events.iter_stereo_packets`).
 
         Parameters
         ----------

@@ -43,13 +43,14 @@ One module per job:
 - :mod:`~cvstereo.rigcheck.report`: :class:`RigReport`, its summary and JSON;
 - :mod:`~cvstereo.rigcheck.rows`: the row offset;
 - :mod:`~cvstereo.rigcheck.time_offset`: the time offset (both estimators);
-- :mod:`~cvstereo.rigcheck.disparity`: swap and disparities (on :mod:`cvstereo.overlay`, shared with the readers);
+- :mod:`~cvstereo.rigcheck.disparity`: swap and disparities (on :mod:`cvstereo.geometry.overlay`, shared with the
+readers);
 - :mod:`~cvstereo.rigcheck.stats`: counts, rate imbalance and noise;
 - :mod:`~cvstereo.rigcheck.windows` and :mod:`~cvstereo.rigcheck.peaks`: frames of busy windows, peak helpers.
 
 >>> import numpy as np
->>> from cvstereo.recording import Recording
->>> from cvstereo.events import make_events
+>>> from cvstereo.model.recording import Recording
+>>> from cvstereo.model.events import make_events
 >>> rng = np.random.default_rng(0)
 >>> t = np.sort(rng.integers(0, 1_000_000, 4000)); x = rng.integers(20, 100, 4000); y = rng.integers(0, 128, 4000)
 >>> ev = make_events(t, x, y, rng.integers(0, 2, 4000))

@@ -7,14 +7,14 @@ from collections.abc import Callable
 
 import numpy as np
 
-from cvstereo.recording import Recording
+from cvstereo.geometry.rigcorrect import RigCorrection
+from cvstereo.model.recording import Recording
 from cvstereo.rigcheck.disparity import disparity_overlays, side_and_disparity
 from cvstereo.rigcheck.params import RigCheckParams
 from cvstereo.rigcheck.report import RigReport
 from cvstereo.rigcheck.rows import row_offsets
 from cvstereo.rigcheck.stats import count_statistics
 from cvstereo.rigcheck.time_offset import time_offset
-from cvstereo.rigcorrect import RigCorrection
 
 #: The stages :func:`check_rig` reports to its ``progress`` callback, in order (the two repeats may be skipped).
 STAGES = ("row offset", "time offset", "row offset again", "time offset again", "side and disparity", "counts")

@@ -2,7 +2,7 @@
 
 Both come from overlaying short accumulated signed frames of the two cameras (rows and time already lined
 up): the global profile over horizontal shifts says on which side the cameras overlay (the left camera sees
-a scene point at the larger x, :func:`cvstereo.overlay.side_of_profile`), and block-wise normalised
+a scene point at the larger x, :func:`cvstereo.geometry.overlay.side_of_profile`), and block-wise normalised
 cross-correlation at the left camera's event pixels gives the local disparities.
 """
 
@@ -12,7 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from cvstereo.overlay import row_correlation, side_of_profile
+from cvstereo.geometry.overlay import row_correlation, side_of_profile
 from cvstereo.rigcheck.peaks import fft_len, subsample_peak
 from cvstereo.rigcheck.windows import window_frames
 

@@ -11,7 +11,7 @@ import json
 import math
 from dataclasses import dataclass
 
-from cvstereo.recording import Recording
+from cvstereo.model.recording import Recording
 from cvstereo.rigcheck.params import RigCheckParams
 
 

@@ -1,7 +1,7 @@
 """A streaming decoder of eDVS128 event bytes: one mechanism, parameterised by the event format.
 
 Bytes arrive in arbitrary pieces; :meth:`StreamDecoder.decode` keeps the bytes of incomplete events
-between calls and returns time-ordered events of :data:`~cvstereo.events.EVENT_DTYPE`.
+between calls and returns time-ordered events of :data:`~cvstereo.model.events.EVENT_DTYPE`.
 
 Corrupt bytes and pauses (:mod:`cvstereo.sensors.resync`): events are cut at the current alignment until an
 event's sync bit is wrong or its timestamp steps further than ``max_gap_us``; from there the decoder finds
@@ -28,7 +28,7 @@ Streams that must stay exact under load should use a 24- or 32-bit format (``E3`
 
 Examples
 --------
->>> from cvstereo.events import make_events
+>>> from cvstereo.model.events import make_events
 >>> from cvstereo.sensors.protocol import ProtocolSettings, encode_events
 >>> s = ProtocolSettings(event_format="E2")
 >>> ev = make_events([10, 20, 60_000], [1, 2, 3], [4, 5, 6], [1, 0, 1])
@@ -44,7 +44,7 @@ import functools
 
 import numpy as np
 
-from cvstereo.events import EVENT_DTYPE, empty_events
+from cvstereo.model.events import EVENT_DTYPE, empty_events
 from cvstereo.sensors import _scan
 from cvstereo.sensors._scan import Scan
 from cvstereo.sensors.arrival import Pieces, WrapClock, Wraps

@@ -5,7 +5,7 @@ wrong ones lose most bytes to resynchronisation. Where several explain the sampl
 no timestamp to check, so the bytes of a timestamped format often pass as E0 for a while), the one with
 the most structure per event wins.
 
->>> from cvstereo.events import make_events
+>>> from cvstereo.model.events import make_events
 >>> from cvstereo.sensors.protocol import ProtocolSettings, encode_events
 >>> ev = make_events(range(0, 40_000, 100), [3] * 400, [5] * 400, [1, 0] * 200)
 >>> detect_protocol(encode_events(ev, ProtocolSettings(event_format="E3"))).describe()

@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from cvstereo.errors import CorruptFileError
-from cvstereo.events import EVENT_DTYPE
-from cvstereo.recording import Recording
+from cvstereo.model.events import EVENT_DTYPE
+from cvstereo.model.recording import Recording
 
 MAGIC = b"CVSJOURNAL1\n"
 _HEAD = struct.Struct("<BI")

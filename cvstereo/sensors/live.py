@@ -9,8 +9,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cvstereo.depth import DepthModel
-from cvstereo.matcher import StreamMatcher
+from cvstereo.geometry.depth import DepthModel
+from cvstereo.matchers.protocol import StreamMatcher
 from cvstereo.sensors.edvs import host_us
 from cvstereo.sensors.stereo import StereoEDVS
 

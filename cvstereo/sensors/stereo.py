@@ -17,7 +17,7 @@ from typing import Literal
 
 import numpy as np
 
-from cvstereo.events import EVENT_DTYPE, StereoPacket, count_before
+from cvstereo.model.events import EVENT_DTYPE, StereoPacket, count_before
 from cvstereo.sensors.edvs import EDVS, Chunk, host_us
 from cvstereo.sensors.protocol import DEFAULT_BAUD, ProtocolSettings
 

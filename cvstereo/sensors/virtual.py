@@ -4,7 +4,7 @@ It answers the commands of :mod:`cvstereo.sensors.protocol`, streams a recording
 format, paced by their timestamps (times a speed factor) and by the baud rate (10 bit times per byte),
 and on request injects garbage bytes, stalls, or disconnects. It runs in its own thread.
 
->>> from cvstereo.events import make_events
+>>> from cvstereo.model.events import make_events
 >>> ev = make_events([0, 1000, 2000], [1, 2, 3], [4, 5, 6], [1, 0, 1])
 >>> with VirtualEDVS(ev) as port:  # doctest: +SKIP
 ...     cam = EDVS(port).open()

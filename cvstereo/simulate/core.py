@@ -7,8 +7,8 @@ import sys
 import numpy as np
 from tqdm import tqdm
 
-from cvstereo.events import make_events
-from cvstereo.recording import Recording
+from cvstereo.model.events import make_events
+from cvstereo.model.recording import Recording
 from cvstereo.simulate.dvs import PixelArray, background_noise, hot_pixels, jitter, log_intensity
 from cvstereo.simulate.rig import Rig
 

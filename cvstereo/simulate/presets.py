@@ -15,7 +15,7 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from cvstereo.recording import Recording
+from cvstereo.model.recording import Recording
 from cvstereo.simulate.core import GENERATOR_VERSION, simulate
 from cvstereo.simulate.rig import Rig
 from cvstereo.simulate.scenes import ArmsScene

@@ -13,7 +13,7 @@ import hashlib
 import json
 from dataclasses import dataclass
 
-from cvstereo.recording import Recording
+from cvstereo.model.recording import Recording
 from cvstereo.simulate.core import GENERATOR_VERSION, simulate
 
 

@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cvstereo.events import DEFAULT_RESOLUTION
+from cvstereo.model.events import DEFAULT_RESOLUTION
 
 #: Fixed-point iterations that invert the radial distortion; 12 reach 1e-9 for |k1 * r^2| < 0.2.
 _UNDISTORT_ITERATIONS = 12

@@ -367,7 +367,7 @@ def require_tuning(recording) -> None:
     Parameters
     ----------
     recording : path-like, Recording or suite recording
-        A recording file (``.npz``: only its meta is read), a :class:`~cvstereo.recording.Recording` or an entry
+        A recording file (``.npz``: only its meta is read), a :class:`~cvstereo.model.recording.Recording` or an entry
         of a loaded suite.
 
     Raises

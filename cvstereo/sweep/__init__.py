@@ -1,7 +1,7 @@
 """Parameter sweeps over many recordings on Dask distributed: what ``cvstereo sweep`` runs.
 
 A sweep is a grid of *cells*, one per recording x method x variant x combination of parameter values; a
-cell is one :func:`match` plus :func:`cvstereo.evaluate.evaluate`. Cells run on a Dask cluster: a
+cell is one :func:`match` plus :func:`cvstereo.evaluation.metrics.evaluate`. Cells run on a Dask cluster: a
 ``LocalCluster`` with one single-threaded worker process per core by default (nothing to set up), or an
 existing cluster given by its scheduler address. Workers get the recording's *path*, never its events, and
 stream it themselves, so nothing large travels through the scheduler.

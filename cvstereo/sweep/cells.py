@@ -14,7 +14,7 @@ import os
 import stat
 from pathlib import Path
 
-#: Figures of :func:`cvstereo.evaluate.evaluate` kept per cell.
+#: Figures of :func:`cvstereo.evaluation.metrics.evaluate` kept per cell.
 FIGURE_COLUMNS = ("matches", "coverage", "bad1", "bad2", "mae", "rmse", "median_ae", "false_rate", "mean", "std",
                   "truth_mean")
 #: Columns that depend on the machine and the moment, not on the grid.

@@ -15,13 +15,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from cvstereo._signals import held_stop_signals
-from cvstereo.registry import ENTRY_POINT_GROUP
+from cvstereo.matchers.registry import ENTRY_POINT_GROUP
 from cvstereo.sweep.cells import CELLS, FIGURE_COLUMNS, TIMING_COLUMNS, empty_row, error_text, read_cell, write_cell
 from cvstereo.sweep.grid import Cell
 
 if TYPE_CHECKING:
-    from cvstereo.matches import MatchResult
-    from cvstereo.recording import Recording
+    from cvstereo.model.matches import MatchResult
+    from cvstereo.model.recording import Recording
 
 #: Bytes read per block when hashing a recording.
 _DIGEST_BLOCK = 1 << 20
@@ -122,9 +122,9 @@ def run_cell(cell: Cell, score: Score | None = None, recording: Recording | None
     row = empty_row(worker=f"{os.uname().nodename}:{os.getpid()}")
     start = time.perf_counter()
     try:
-        from cvstereo.evaluate import evaluate
+        from cvstereo.evaluation.metrics import evaluate
         from cvstereo.io import read_recording
-        from cvstereo.pipeline import match
+        from cvstereo.run import match
 
         extra = {"param_set": cell.param_set} if cell.param_set else {}
         result = match(cell.recording if recording is None else recording, method=cell.method,

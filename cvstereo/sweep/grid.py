@@ -82,8 +82,8 @@ class Grid:
             of the wrong type or range for its field, or a combination the matcher refuses; the message
             starts with :attr:`origin` and names the key and value.
         """
-        from cvstereo.param_sets import DEFAULT_PARAM_SET, check_param_set
-        from cvstereo.registry import check_param_item, matcher_class, matcher_params
+        from cvstereo.matchers.registry import check_param_item, matcher_class, matcher_params
+        from cvstereo.matchers.sets import DEFAULT_PARAM_SET, check_param_set
 
         for ps in self.param_sets:
             if ps is not None:
@@ -146,9 +146,9 @@ class Grid:
 
 
 def _has_param_sets(method: str) -> bool:
-    """Whether the parameter sets differ for a method: those :data:`cvstereo.param_sets.ADAPTIVE` lists (the
+    """Whether the parameter sets differ for a method: those :data:`cvstereo.matchers.sets.ADAPTIVE` lists (the
     thesis' five); the others run the same under both, so once."""
-    from cvstereo.param_sets import ADAPTIVE
+    from cvstereo.matchers.sets import ADAPTIVE
 
     return method in ADAPTIVE
 

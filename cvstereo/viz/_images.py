@@ -11,14 +11,14 @@ import math
 import cv2
 import numpy as np
 
-from cvstereo.depth import depth_from_meta  # noqa: F401  (re-exported by cvstereo.viz)
+from cvstereo.frames.accumulate import frame_shape
+from cvstereo.geometry.depth import depth_from_meta  # noqa: F401  (re-exported by cvstereo.viz)
 
-# The data of the disparity pictures is public in cvstereo.disparity_maps; re-exported for the plots and video.
-from cvstereo.disparity_maps import disparity_image, match_window_slice, pixel_mean  # noqa: F401
-from cvstereo.events import time_slice
-from cvstereo.frames import frame_shape
-from cvstereo.matches import MatchResult
-from cvstereo.recording import Recording
+# The data of the disparity pictures is public in cvstereo.geometry.disparity_maps; re-exported for the plots and video.
+from cvstereo.geometry.disparity_maps import disparity_image, match_window_slice, pixel_mean  # noqa: F401
+from cvstereo.model.events import time_slice
+from cvstereo.model.matches import MatchResult
+from cvstereo.model.recording import Recording
 
 #: Window length of the thesis' frames (40 ms), us.
 DEFAULT_WINDOW_US = 40_000
@@ -61,7 +61,7 @@ def event_frame_rgb(events: np.ndarray, *, resolution: tuple[int, int]) -> np.nd
 
     Examples
     --------
-    >>> from cvstereo.events import make_events
+    >>> from cvstereo.model.events import make_events
     >>> img = event_frame_rgb(make_events([0, 1], [0, 1], [0, 0], [1, 0]), resolution=(2, 1))
     >>> img[0].tolist()
     [[86, 180, 233], [230, 159, 0]]

@@ -11,8 +11,8 @@ import os
 
 import numpy as np
 
-from cvstereo.depth import DepthModel
 from cvstereo.errors import require_extra
+from cvstereo.geometry.depth import DepthModel
 from cvstereo.io._atomic import atomic_path
 
 #: Colormap of disparities, the same map as the video's (OpenCV's COLORMAP_TURBO): a rainbow that, unlike the

@@ -1,8 +1,8 @@
 """Pictures of a matcher's output: disparity over time (thesis figs. 4.4, 4.5), colour-coded disparity per window
 (figs. 4.3, 4.6), and the error against ground truth.
 
-Each function takes the :class:`~cvstereo.recording.Recording` the matches were computed on and the
-:class:`~cvstereo.matches.MatchResult` (or a bare matches array), and returns a :class:`matplotlib.figure.Figure`.
+Each function takes the :class:`~cvstereo.model.recording.Recording` the matches were computed on and the
+:class:`~cvstereo.model.matches.MatchResult` (or a bare matches array), and returns a :class:`matplotlib.figure.Figure`.
 """
 
 from __future__ import annotations
@@ -12,11 +12,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from cvstereo.depth import DepthModel
-from cvstereo.evaluate import evaluate, match_truth
-from cvstereo.events import time_slice
-from cvstereo.matches import MatchResult
-from cvstereo.recording import Recording
+from cvstereo.evaluation.metrics import evaluate, match_truth
+from cvstereo.geometry.depth import DepthModel
+from cvstereo.model.events import time_slice
+from cvstereo.model.matches import MatchResult
+from cvstereo.model.recording import Recording
 from cvstereo.viz._images import (
     CAMERA_NAMES,
     DEFAULT_WINDOW_US,

@@ -1,7 +1,7 @@
 """Pictures of the cameras' input: event frames (thesis fig. 3.2), Gaussian-filtered frames (fig. 3.3), dynamic
 frames (fig. 3.5).
 
-Each function takes a :class:`~cvstereo.recording.Recording` and returns a :class:`matplotlib.figure.Figure` with
+Each function takes a :class:`~cvstereo.model.recording.Recording` and returns a :class:`matplotlib.figure.Figure` with
 the left camera on the left and the right camera on the right.
 """
 
@@ -11,8 +11,8 @@ import math
 
 import numpy as np
 
-from cvstereo.events import time_slice
-from cvstereo.recording import Recording
+from cvstereo.model.events import time_slice
+from cvstereo.model.recording import Recording
 from cvstereo.viz._images import (
     BOTH_RGB,
     CAMERA_NAMES,
@@ -159,7 +159,7 @@ def plot_filtered_frames(recording: Recording, t_start_us: int | None = None, *,
     matplotlib.figure.Figure
         2 x 2 axes: filtered frames (top), thresholded (bottom); blue = ON, orange = OFF (as the event frames).
     """
-    from cvstereo.frames import gaussian_filter, signed_frame
+    from cvstereo.frames.accumulate import gaussian_filter, signed_frame
 
     window_us = _check_window(window_us)
     t0 = _window_start(recording, t_start_us, window_us)
@@ -184,7 +184,7 @@ def dynamic_frame_values(recording: Recording, t_us: int, *, params=None) -> lis
     ----------
     recording : Recording
     t_us : int
-    params : cvstereo.dynamic_frames.DynamicFrameParams, optional, keyword-only
+    params : cvstereo.frames.dynamic.DynamicFrameParams, optional, keyword-only
         Default: the thesis' (3x3 Gaussian of gain 2, x0.99 every 250 us, ON and OFF shared).
 
     Returns
@@ -192,7 +192,7 @@ def dynamic_frame_values(recording: Recording, t_us: int, *, params=None) -> lis
     list of two (n_frames, H, W) float64 ndarrays
         Left and right camera; ``n_frames`` is 2 (OFF, ON) for ``polarity="separate"``, else 1.
     """
-    from cvstereo.dynamic_frames import DynamicFrameParams, FrameBank
+    from cvstereo.frames.dynamic import DynamicFrameParams, FrameBank
 
     params = params if params is not None else DynamicFrameParams()
     # Older events have decayed below what a picture can show; leave them out rather than replay the recording.
@@ -219,7 +219,7 @@ def plot_dynamic_frames(recording: Recording, t_us: int | None = None, *, params
     recording : Recording
     t_us : int, optional
         The instant, us; default: the end of the 40 ms window with the most events.
-    params : cvstereo.dynamic_frames.DynamicFrameParams, optional, keyword-only
+    params : cvstereo.frames.dynamic.DynamicFrameParams, optional, keyword-only
         Default: the thesis'. With ``polarity="separate"`` the ON and OFF frames are shown in two rows.
     threshold : float, keyword-only
         Contour at ``±threshold``: the event-time matcher only matches where the frame exceeds it (thesis: 1.2).
@@ -229,7 +229,7 @@ def plot_dynamic_frames(recording: Recording, t_us: int | None = None, *, params
     -------
     matplotlib.figure.Figure
     """
-    from cvstereo.dynamic_frames import DynamicFrameParams
+    from cvstereo.frames.dynamic import DynamicFrameParams
 
     params = params if params is not None else DynamicFrameParams()
     t = busiest_window(recording, DEFAULT_WINDOW_US) + DEFAULT_WINDOW_US if t_us is None else int(t_us)

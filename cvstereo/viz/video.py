@@ -15,10 +15,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from cvstereo.depth import DepthModel
-from cvstereo.events import time_slice
+from cvstereo.geometry.depth import DepthModel
 from cvstereo.io._atomic import atomic_path, inspect_target
-from cvstereo.recording import Recording
+from cvstereo.model.events import time_slice
+from cvstereo.model.recording import Recording
 from cvstereo.viz._images import (
     CAMERA_NAMES,
     DEFAULT_WINDOW_US,

@@ -1,0 +1,507 @@
+"""Dynamic frames: rolling, decaying per-pixel memories of recent events (thesis 3.4, eq. 3.8-3.9 and 4.1).
+
+Every event matcher (event-time, event-area, event-vector) keeps one dynamic frame per camera (or one per
+camera and polarity) that changes with every event:
+
+* an event at (x, y) with sign s (+1 ON, -1 OFF) adds ``gain * s * G`` centred on (x, y), where G is the
+  ``kernel_size`` x ``kernel_size`` Gaussian of ``kernel_sigma`` from :func:`cv2.getGaussianKernel` (the
+  thesis' 3x3, sigma 1: corner 0.0751, edge 0.1238, centre 0.2042, gain 2), clipped at the sensor border;
+  with ``gaussian=False`` it adds s at (x, y) only (eq. 4.1);
+* on the absolute clock, at every t = k * ``decay_period_us`` (k = 1, 2, ...), all values are multiplied
+  by ``decay`` (0.99 every 250 us). A tick at exactly the time of an event is applied *before* that event;
+* ON and OFF events share one frame, or use one each, or only one polarity is kept (``polarity``; the frame
+  slot of each polarity is that of :mod:`cvstereo.model.polarity`: with separate frames, slot = p).
+
+Decay is lazy: a frame is stored as ``S`` with one scale factor ``c`` per camera, the value being ``S * c``.
+A tick multiplies ``c`` only; an update adds ``w / c``; when ``c`` falls below :data:`RENORM` the frames are
+renormalised (``S *= c; c = 1``). A gap of more than :data:`FORGET_TICKS` ticks (250 s) clears the frames:
+their values would be below 1e-4000 of what they were, i.e. zero in float64. A frame that never received an
+event skips its ticks (it is zero anyway), so that a stream starting at t = 10^12 us costs nothing.
+
+This module is the fast path: :class:`FrameBank` with numba kernels (:func:`advance_due` behind the cheap test
+of :func:`advance`, :func:`splat`, :func:`process_events`) that the fast matchers call from their own kernels,
+and their variants that keep derived state with the frames: block bounds of |stored| (:func:`splat_bounded`,
+event-vector) and column sums of a patch's rows (:func:`splat_summed`, event-area). Its reference twin, which
+does exactly the same float64 operations in the same order so that both agree bit for bit, is plain Python:
+:class:`cvstereo.matchers._shared.reference_frames.DynamicFrames`.
+
+>>> bank = FrameBank(1, DynamicFrameParams())
+>>> from cvstereo.model.events import make_events
+>>> _ = bank.process(0, make_events([0], [5], [5], [1]))
+>>> round(float(bank.values(0)[0, 5, 5]), 4), round(float(bank.values(0)[0, 4, 4]), 4)
+(0.4084, 0.1502)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Literal
+
+import cv2
+import numpy as np
+from numba import njit
+
+from cvstereo.frames.accumulate import check_filter_params
+from cvstereo.matchers.params import AliasedParams
+from cvstereo.model.events import DEFAULT_RESOLUTION
+from cvstereo.model.polarity import Polarity, check_polarity, slot_of_p
+
+#: Renormalise the stored frames when the lazy decay factor falls below this (0.99^22900, about 5.7 s).
+RENORM = 1e-100
+
+#: A gap of more than this many decay ticks clears the frames (0.99^1e6 underflows to zero).
+FORGET_TICKS = 1_000_000
+
+@dataclass(frozen=True, kw_only=True)
+class DynamicFrameParams(metaclass=AliasedParams):
+    """Parameters of the dynamic frames, shared by the parameter classes of all event matchers.
+
+    Attributes
+    ----------
+    polarity : {"shared", "separate", "on", "off"}
+        ON and OFF in one frame (thesis default), one frame each, ON events only, OFF events only.
+    gaussian : bool
+        Add ``gaussian_gain * s * G`` (eq. 3.9); False adds s at the event's pixel only (eq. 4.1).
+    kernel_size : int
+        Odd side of the Gaussian G (thesis: 3).
+    kernel_sigma : float
+        Its standard deviation in pixels (thesis: 1).
+    gaussian_gain : float
+        The factor 2 of eq. 3.9.
+    decay : float
+        Factor applied to all values at every tick (thesis: 0.99).
+    decay_period_us : int
+        Tick period on the absolute clock (thesis: 250 us).
+    """
+
+    polarity: Polarity = "shared"
+    gaussian: bool = True
+    kernel_size: int = 3
+    kernel_sigma: float = 1.0
+    gaussian_gain: float = 2.0
+    decay: float = 0.99
+    decay_period_us: int = 250
+
+    def __post_init__(self):
+        check_polarity(self.polarity, type(self).__name__)
+        check_filter_params(self.kernel_sigma, self.kernel_size, type(self).__name__)
+        if not 0 < self.decay <= 1:
+            raise ValueError(f"decay must lie in (0, 1], got {self.decay}.")
+        if self.decay_period_us <= 0:
+            raise ValueError(f"decay_period_us must be positive, got {self.decay_period_us}.")
+
+    def frame_params(self) -> DynamicFrameParams:
+        """The dynamic-frame part of a (derived) parameter object."""
+        return DynamicFrameParams(**{f.name: getattr(self, f.name) for f in dataclasses.fields(DynamicFrameParams)})
+
+
+def update_kernel(params: DynamicFrameParams) -> np.ndarray:
+    """The weights an ON event adds around its pixel.
+
+    Returns
+    -------
+    (k, k) float64 ndarray
+        ``gaussian_gain * G`` (G the outer product of :func:`cv2.getGaussianKernel`), or ``[[1.0]]``.
+
+    Examples
+    --------
+    >>> np.round(update_kernel(DynamicFrameParams()) / 2, 4)[1].tolist()
+    [0.1238, 0.2042, 0.1238]
+    """
+    if not params.gaussian:
+        return np.ones((1, 1))
+    g = cv2.getGaussianKernel(params.kernel_size, params.kernel_sigma, ktype=cv2.CV_64F)
+    return np.ascontiguousarray(params.gaussian_gain * (g @ g.T))
+
+
+def dynamic_unit(params) -> float:
+    """|D| at the pixel of one isolated event just after it: the update kernel's centre weight.
+
+    The unit of a relative threshold's floor (:mod:`cvstereo.matchers._shared.signal_level`), the same for the fast
+    matchers and
+    their references.
+    """
+    kernel = update_kernel(params.frame_params())
+    return float(kernel[kernel.shape[0] // 2, kernel.shape[1] // 2])
+
+
+# ----------------------------------------------------------------------------------------------------------
+# The same operations as the reference DynamicFrames, on state arrays of several cameras, in numba.
+# State of camera ``cam``: stored[cam] (n_frames, H, W), scale[cam], clock[cam] = (next_tick, touched).
+# The per-event helpers are inlined into their callers: a numba call with array arguments costs atomic
+# reference counting on every array, which made a 9-pixel splat ten times slower. Inlining does not always
+# remove it either: numba binds the arrays to new variables and relies on an LLVM pass to drop the
+# increments and decrements around them, which gives up when the inlined code holds nested loops or two
+# loops in a row (about 20 atomic operations an event in event-vector, ~100 ns at 640x480). Hence the shape
+# of the helpers below: the rare work of a decay tick in a function of its own behind a cheap test, and
+# :func:`splat_bounded` as one loop.
+
+
+@njit(cache=True)
+def advance_due(stored, scale, clock, cam, t, decay, period):
+    """Apply the due decay ticks of camera ``cam`` up to time ``t`` (reference: ``DynamicFrames.advance``).
+
+    Returns whether the stored values were rewritten (a reset after a long gap, or a renormalisation), after
+    which whatever a caller keeps derived from them (block bounds, column sums) must be rebuilt. The scale alone
+    does not tell: a reset while the scale is still 1.0 (no tick since the last one) leaves it unchanged.
+    """
+    rewritten = False
+    if clock[cam, 1] != 0 and t // period + 1 - clock[cam, 0] > FORGET_TICKS:
+        stored[cam] = 0.0
+        scale[cam] = 1.0
+        clock[cam, 1] = 0
+        rewritten = True
+    if clock[cam, 1] == 0:
+        clock[cam, 0] = t // period + 1
+        return rewritten
+    k = clock[cam, 0]
+    while k * period <= t:
+        scale[cam] = scale[cam] * decay
+        if scale[cam] < RENORM:
+            frames = stored[cam]
+            c = scale[cam]
+            for f in range(frames.shape[0]):
+                for yy in range(frames.shape[1]):
+                    for xx in range(frames.shape[2]):
+                        frames[f, yy, xx] *= c
+            scale[cam] = 1.0
+            rewritten = True
+        k += 1
+    clock[cam, 0] = k
+    return rewritten
+
+
+@njit(cache=True, inline="always")
+def tick_due(next_tick, touched, t, period):
+    """Whether :func:`advance_due` has anything to do at time ``t``: a decay tick at or before ``t``, or frames
+    never touched (``next_tick``, ``touched``: a camera's row of the clock).
+
+    Scalars only: a kernel calls it with ``clock[cam, 0], clock[cam, 1]``, so that inlining it binds no array
+    (an inlined helper taking the arrays kept numba's atomic reference counting around every event).
+    """
+    return touched == 0 or next_tick * period <= t
+
+
+@njit(cache=True, inline="always")
+def advance(stored, scale, clock, cam, t, decay, period):
+    """:func:`advance_due` when it has anything to do: a tick at or before ``t``, or frames never touched.
+
+    Otherwise (most events: a tick every 250 us) the next tick lies after ``t``, so neither a tick nor the
+    forgetting of a long gap applies. The work stays in a function of its own, not inlined (see above).
+    """
+    if tick_due(clock[cam, 0], clock[cam, 1], t, period):
+        advance_due(stored, scale, clock, cam, t, decay, period)
+
+
+@njit(cache=True, inline="always")
+def splat(stored, scale, clock, cam, slot, x, y, sign, kernel):
+    """Add ``sign * kernel`` centred on (x, y) to frame ``slot`` of camera ``cam`` (reference: DynamicFrames.add)."""
+    k = kernel.shape[0]
+    r = k // 2
+    height = stored.shape[2]
+    width = stored.shape[3]
+    c = scale[cam]
+    for j in range(k):
+        yy = y + j - r
+        if yy < 0 or yy >= height:
+            continue
+        for i in range(k):
+            xx = x + i - r
+            if xx < 0 or xx >= width:
+                continue
+            stored[cam, slot, yy, xx] += sign * kernel[j, i] / c
+    clock[cam, 1] = 1
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Block bounds: for each row of a frame and each block of BOUND_BLOCK columns, a number >= |stored| of all its
+# pixels (in stored units, so that decay ticks leave it valid). A block whose bound * scale is below a threshold
+# holds no pixel at or above it: multiplying by the positive scale rounds monotonically, so
+# |stored| <= bound implies |stored * scale| <= bound * scale in float64 too. The matchers that search a row
+# for above-threshold pixels (event-vector) or for patches with content skip such blocks without reading
+# them, and the result stays the same bit for bit. Bounds only grow between rebuilds, so they may be loose
+# where opposite events cancelled, never too small.
+
+#: log2 of the columns per block of :func:`block_bounds` (16 columns: two cache lines of float64).
+BOUND_SHIFT = 4
+
+
+def block_bounds(stored: np.ndarray) -> np.ndarray:
+    """Zero block bounds for frames ``stored`` (n_cameras, n_frames, H, W) that are all zero.
+
+    Returns
+    -------
+    (n_cameras, n_frames, H, ceil(W / 2**BOUND_SHIFT)) float64 ndarray
+    """
+    n_cameras, n_frames, height, width = stored.shape
+    return np.zeros((n_cameras, n_frames, height, (width + (1 << BOUND_SHIFT) - 1) >> BOUND_SHIFT))
+
+
+@njit(cache=True)
+def rebuild_bounds(bound, stored, cam):
+    """Set camera ``cam``'s block bounds to the exact maxima of |stored| (after its values were rescaled)."""
+    frames = stored[cam]
+    for f in range(frames.shape[0]):
+        for yy in range(frames.shape[1]):
+            for b in range(bound.shape[3]):
+                m = 0.0
+                for xx in range(b << BOUND_SHIFT, min(frames.shape[2], (b + 1) << BOUND_SHIFT)):
+                    m = max(m, abs(frames[f, yy, xx]))
+                bound[cam, f, yy, b] = m
+
+
+@njit(cache=True)
+def advance_due_bounded(stored, scale, clock, bound, cam, t, decay, period):
+    """:func:`advance_due`, keeping camera ``cam``'s block bounds valid: they are rebuilt after a renormalisation
+    or a reset rewrote the stored values."""
+    if advance_due(stored, scale, clock, cam, t, decay, period):
+        rebuild_bounds(bound, stored, cam)
+
+
+@njit(cache=True, inline="always")
+def splat_bounded(stored, scale, clock, bound, cam, slot, x, y, sign, kernel):
+    """:func:`splat`, raising the block bounds of the pixels it changes to their new |stored|.
+
+    The same float64 operations as :func:`splat`, in one loop over the kernel's window on the sensor rather than
+    :func:`splat` followed by a second loop: in that form numba kept atomic reference counting of the arrays
+    around every call (~30 ns an event). A block's bound is read and written once per row of the window (raised
+    to the largest new |stored| of the row's pixels in it) rather than compared per pixel: the same bounds,
+    ~10 % less time an event with the 5x5 splat. (Caching ``kernel / c`` between decay ticks instead of
+    dividing per pixel measured slower, not faster.)
+    """
+    r = kernel.shape[0] // 2
+    c = scale[cam]
+    x0, x1 = max(0, x - r), min(stored.shape[3], x + r + 1)
+    for yy in range(max(0, y - r), min(stored.shape[2], y + r + 1)):
+        b = x0 >> BOUND_SHIFT
+        m = bound[cam, slot, yy, b]
+        for xx in range(x0, x1):
+            v = stored[cam, slot, yy, xx] + sign * kernel[yy - y + r, xx - x + r] / c
+            stored[cam, slot, yy, xx] = v
+            if xx >> BOUND_SHIFT != b:  # the window's row crosses into the next block
+                bound[cam, slot, yy, b] = m
+                b = xx >> BOUND_SHIFT
+                m = bound[cam, slot, yy, b]
+            m = max(m, abs(v))
+        bound[cam, slot, yy, b] = m
+    clock[cam, 1] = 1
+
+
+@njit(cache=True, inline="always")
+def skip_below(stored, bound, cam, slot, y, k, step, end, c, threshold):
+    """From column ``k`` (included) in direction ``step`` (+1 or -1) of row ``y`` of frame ``slot``, the first
+    column whose value ``|stored * c|`` is >= ``threshold``, or ``end`` (-1 or the width) if none; blocks whose
+    bound says that they hold none are skipped whole, the others are read without testing their bound again
+    at every pixel."""
+    while k != end:
+        b = k >> BOUND_SHIFT
+        beyond = max(end, (b << BOUND_SHIFT) - 1) if step < 0 else min(end, (b + 1) << BOUND_SHIFT)
+        if bound[cam, slot, y, b] * c >= threshold:
+            while k != beyond:
+                if abs(stored[cam, slot, y, k] * c) >= threshold:
+                    return k
+                k += step
+        k = beyond
+    return end
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Column sums: for each camera, frame, row y and column x, ``sums[y, x]`` = the sum of stored[y - h .. y + h, x]
+# (rows clipped to the sensor), kept up to date by every splat, so that a search comparing (2h + 1)-row patches
+# reads one row of sums rather than 2h + 1 rows of values (event-area's lower bound of the SAD). In stored
+# units, so that decay ticks leave them valid. They are not bit-exact: a splat adds its increments to the sums
+# as well, so the sums drift from the column sums of ``stored`` by float rounding. :func:`sum_drift` bounds that
+# drift; a search using them widens its margin by it. To keep the bound small the sums are rebuilt from the
+# frames every :data:`SUM_REBUILD` splats of a camera, and after every rescale of its frames (renormalisation
+# or reset), when ``mass`` is also reset.
+#
+# ``mass[cam]`` (stored units) bounds |stored| of every pixel and |sums| of every entry of camera ``cam`` since
+# the last rebuild: at a rebuild it is set to the sum of |stored| over all of its frames, and every splat adds
+# the sum of its increments' magnitudes. ``pending[cam]`` counts the splats since the last rebuild.
+
+#: Splats of a camera after which its column sums are rebuilt (~3 a second at 640x480, ~1 ms each).
+SUM_REBUILD = 1 << 18
+
+
+def column_sums(stored: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Zero column sums for frames ``stored`` (n_cameras, n_frames, H, W) that are all zero.
+
+    Returns
+    -------
+    sums : (n_cameras, n_frames, H, W) float64 ndarray
+    mass : (n_cameras,) float64 ndarray
+    pending : (n_cameras,) int64 ndarray
+    """
+    return np.zeros(stored.shape), np.zeros(stored.shape[0]), np.zeros(stored.shape[0], dtype=np.int64)
+
+
+def sum_drift(mass: float, rows: int) -> float:
+    """An upper bound of ``|sums - column sums of stored|`` of an entry summing ``rows`` rows, in stored units.
+
+    Each splat since the last rebuild changes an entry by at most ``rows`` additions into the sum and rounds at
+    most ``rows`` of the pixels it sums (one per row of its kernel that overlaps them); each rounding
+    errs by at most the float64 unit roundoff times a magnitude bounded by ``mass``; the rebuild itself adds
+    ``rows`` roundings. At most :data:`SUM_REBUILD` splats lie between rebuilds.
+    """
+    return (2 * rows * SUM_REBUILD + rows) * np.finfo(np.float64).eps * mass
+
+
+@njit(cache=True)
+def rebuild_sums(sums, mass, pending, stored, cam, half):
+    """Recompute camera ``cam``'s column sums of ``2 * half + 1`` rows from its frames; reset its mass and count."""
+    frames = stored[cam]
+    height = frames.shape[1]
+    total = 0.0
+    for f in range(frames.shape[0]):
+        for yy in range(height):
+            row = sums[cam, f, yy]
+            row[:] = 0.0
+            for r in range(max(0, yy - half), min(height, yy + half + 1)):
+                for xx in range(frames.shape[2]):
+                    row[xx] += frames[f, r, xx]
+            for xx in range(frames.shape[2]):
+                total += abs(frames[f, yy, xx])
+    mass[cam] = total
+    pending[cam] = 0
+
+
+@njit(cache=True)
+def advance_due_summed(stored, scale, clock, sums, mass, pending, cam, t, decay, period, half):
+    """:func:`advance_due`, then a rebuild of camera ``cam``'s column sums if its stored values were rewritten (a
+    renormalisation or a reset) or :data:`SUM_REBUILD` splats have passed since the last rebuild.
+
+    A caller tests first whether there is anything to do (as :func:`advance` does, or a rebuild due), in its own
+    code: an inlined helper holding the test kept reference counting of the six arrays around every event.
+    """
+    # advance_due first, always: the test after ``or`` must not skip it.
+    if advance_due(stored, scale, clock, cam, t, decay, period) or pending[cam] >= SUM_REBUILD:
+        rebuild_sums(sums, mass, pending, stored, cam, half)
+
+
+@njit(cache=True, inline="always")
+def splat_summed(stored, scale, clock, sums, mass, pending, half, cam, slot, x, y, sign, kernel):
+    """:func:`splat`, adding each increment to the column sums of the ``2 * half + 1`` rows around it too.
+
+    The same float64 operations on ``stored`` as :func:`splat`, in one loop nest over the kernel's window on the
+    sensor (see :func:`splat_bounded` on why one).
+    """
+    r = kernel.shape[0] // 2
+    height = stored.shape[2]
+    c = scale[cam]
+    added = 0.0
+    for yy in range(max(0, y - r), min(height, y + r + 1)):
+        for xx in range(max(0, x - r), min(stored.shape[3], x + r + 1)):
+            v = sign * kernel[yy - y + r, xx - x + r] / c
+            stored[cam, slot, yy, xx] += v
+            added += abs(v)
+            for rr in range(max(0, yy - half), min(height, yy + half + 1)):
+                sums[cam, slot, rr, xx] += v
+    mass[cam] += added
+    pending[cam] += 1
+    clock[cam, 1] = 1
+
+
+@njit(cache=True)
+def process_events(stored, scale, clock, cam, t, x, y, p, slot_of_p, kernel, decay, period, read_after, out):
+    """Feed one camera's events through its frames, recording the value at each event's pixel.
+
+    ``out[i]`` is the value of the event's own frame at its pixel before (``read_after`` False) or just after
+    its update; NaN for events whose polarity is dropped.
+    """
+    for i in range(t.shape[0]):
+        slot = slot_of_p[1 if p[i] > 0 else 0]
+        if slot < 0:
+            out[i] = np.nan
+            continue
+        if tick_due(clock[cam, 0], clock[cam, 1], t[i], period):
+            advance_due(stored, scale, clock, cam, t[i], decay, period)
+        if not read_after:
+            out[i] = stored[cam, slot, y[i], x[i]] * scale[cam]
+        splat(stored, scale, clock, cam, slot, x[i], y[i], 1.0 if p[i] > 0 else -1.0, kernel)
+        if read_after:
+            out[i] = stored[cam, slot, y[i], x[i]] * scale[cam]
+
+
+def event_matrix(events: np.ndarray) -> np.ndarray:
+    """The columns t, x, y, p of an event array as the rows of one ``(4, N)`` int64 array.
+
+    Each row is contiguous, as the numba kernels take them.
+    """
+    out = np.empty((4, events.size), dtype=np.int64)
+    for row, name in enumerate(("t", "x", "y", "p")):
+        out[row] = events[name]
+    return out
+
+
+def event_columns(events: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Contiguous int64 columns t, x, y, p of an event array, as the numba kernels take them."""
+    m = event_matrix(events)
+    return m[0], m[1], m[2], m[3]
+
+
+class FrameBank:
+    """Fast dynamic frames of ``n_cameras`` cameras: state arrays for the numba kernels.
+
+    Parameters
+    ----------
+    n_cameras : int
+    params : DynamicFrameParams
+    resolution : (width, height), keyword-only
+
+    Attributes
+    ----------
+    stored : (n_cameras, n_frames, H, W) float64 ndarray
+    scale : (n_cameras,) float64 ndarray
+    clock : (n_cameras, 2) int64 ndarray
+        Per camera: index of the next decay tick, and 1 once touched.
+    kernel : (k, k) float64 ndarray
+    slot_of_p : (2,) int64 ndarray
+    """
+
+    def __init__(self, n_cameras: int, params: DynamicFrameParams, *,
+                 resolution: tuple[int, int] = DEFAULT_RESOLUTION):
+        self.params = params
+        self.n_frames, self.slot_of_p = slot_of_p(params.polarity)
+        self.kernel = update_kernel(params)
+        width, height = resolution
+        self.stored = np.zeros((n_cameras, self.n_frames, height, width))
+        self.scale = np.ones(n_cameras)
+        self.clock = np.zeros((n_cameras, 2), dtype=np.int64)
+
+    @property
+    def decay_args(self) -> tuple[float, int]:
+        """(decay, period) as the kernels take them."""
+        return float(self.params.decay), int(self.params.decay_period_us)
+
+    def process(self, cam: int, events: np.ndarray, *, read: Literal["before", "after"] = "before") -> np.ndarray:
+        """Feed camera ``cam``'s events (time-ordered, after all earlier ones) through its frames.
+
+        Returns
+        -------
+        (N,) float64 ndarray
+            The value of each event's own frame at its pixel, before or just after its own update; NaN for
+            dropped polarities.
+        """
+        return self.process_columns(cam, event_matrix(events), read=read)
+
+    def process_columns(self, cam: int, columns: np.ndarray, *, read: Literal["before", "after"] = "before"
+                        ) -> np.ndarray:
+        """:meth:`process` on the ``(4, N)`` int64 rows t, x, y, p of :func:`event_matrix`."""
+        if read not in ("before", "after"):
+            raise ValueError(f"read must be 'before' or 'after', got {read!r}.")
+        out = np.empty(columns.shape[1])
+        process_events(self.stored, self.scale, self.clock, cam, columns[0], columns[1], columns[2], columns[3],
+                       self.slot_of_p, self.kernel, *self.decay_args, read == "after", out)
+        return out
+
+    def values(self, cam: int, t: int | None = None) -> np.ndarray:
+        """The frame values of camera ``cam`` (decayed to time ``t`` if given), ``(n_frames, H, W)``.
+
+        Reads a copy: the state itself is not advanced.
+        """
+        stored, scale, clock = self.stored[cam:cam + 1].copy(), self.scale[cam:cam + 1].copy(), \
+            self.clock[cam:cam + 1].copy()
+        if t is not None:
+            advance(stored, scale, clock, 0, int(t), *self.decay_args)
+        return stored[0] * scale[0]

@@ -1,0 +1,104 @@
+"""The one order in which the event matchers see both cameras' events, used by the kernels and the references.
+
+Event-area and event-vector compare an event's own dynamic frame with the other camera's frame as it stands
+at the event's time, so both cameras' events are processed in one merged order: by time, and at equal times
+the left camera's events first, each camera's events in their array order **[choice]**.
+:func:`left_is_next` is that rule; the numba kernels walk :func:`merged_stream` (built by
+:func:`left_is_next_jit`, the same function compiled), and the references walk :func:`merged_events`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+from numba import njit
+
+
+def left_is_next(il: int, nl: int, ir: int, nr: int, tl, tr) -> bool:
+    """Whether the next event in the merged order is the left camera's ``il``-th (else the right's ``ir``-th).
+
+    Parameters
+    ----------
+    il, nl : int
+        Index of the next unprocessed left event, and the number of left events.
+    ir, nr : int
+        The same for the right camera.
+    tl, tr : (nl,), (nr,) int ndarray
+        Time stamps of the left and right events.
+
+    Examples
+    --------
+    >>> tl, tr = np.array([5, 7]), np.array([5])
+    >>> [bool(left_is_next(il, 2, ir, 1, tl, tr)) for il, ir in ((0, 0), (1, 0), (1, 1))]   # 5 left, 5 right, 7
+    [True, False, True]
+    """
+    return ir >= nr or (il < nl and tl[il] <= tr[ir])
+
+
+#: :func:`left_is_next` compiled for the kernels (inlined into each, so that it costs no call).
+left_is_next_jit = njit(cache=True, inline="always")(left_is_next)
+
+
+def merged_events(left: np.ndarray, right: np.ndarray) -> Iterator[tuple[int, int, np.void]]:
+    """Both cameras' events in the merged order.
+
+    Yields
+    ------
+    (camera, index, event)
+        camera 0 = left, 1 = right; index into that camera's array.
+    """
+    i = j = 0
+    tl, tr = left["t"], right["t"]
+    while i < left.size or j < right.size:
+        if left_is_next(i, left.size, j, right.size, tl, tr):
+            yield 0, i, left[i]
+            i += 1
+        else:
+            yield 1, j, right[j]
+            j += 1
+
+
+def merged_stream(tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p, buffer=None):
+    """Both cameras' events as one stream in the merged order, the kernels' input.
+
+    Parameters
+    ----------
+    tl, xl, yl, pl, tr, xr, yr, pr : int ndarray
+        Columns of the left and the right camera's events (:func:`cvstereo.frames.dynamic.event_columns`, or
+        the fields of the event arrays themselves).
+    slot_of_p : (2,) int64 ndarray
+        Frame slot of p = 0 (OFF) and p = 1 (ON); -1 where the polarity mode drops it.
+    buffer : 1-D int64 ndarray, optional
+        Memory to build the stream in, at least ``7 * (len(tl) + len(tr))`` long (a caller that merges once per
+        window reuses one instead of allocating one per window); a fresh array by default.
+
+    Returns
+    -------
+    (7, M) int64 ndarray
+        Rows camera, index into that camera's array, t, x, y, p, slot, for the M events whose polarity is kept
+        (a view of ``buffer`` when one is given).
+    """
+    n = tl.shape[0] + tr.shape[0]
+    out = np.empty((7, n), np.int64) if buffer is None else buffer[: 7 * n].reshape(7, n)
+    return out[:, : _merge_into(out, tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p)]
+
+
+@njit(cache=True)
+def _merge_into(out, tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p):  # pragma: no cover - compiled
+    """Write :func:`merged_stream`'s rows into the columns of ``out`` (7, >= M); return M."""
+    nl, nr = tl.shape[0], tr.shape[0]
+    il = ir = m = 0
+    while il < nl or ir < nr:
+        if left_is_next_jit(il, nl, ir, nr, tl, tr):
+            cam, i, t, x, y, p = 0, il, tl[il], xl[il], yl[il], pl[il]
+            il += 1
+        else:
+            cam, i, t, x, y, p = 1, ir, tr[ir], xr[ir], yr[ir], pr[ir]
+            ir += 1
+        slot = slot_of_p[1 if p > 0 else 0]
+        if slot >= 0:
+            out[0, m], out[1, m], out[2, m], out[3, m], out[4, m], out[5, m], out[6, m] = cam, i, t, x, y, p, slot
+            m += 1
+    return m
+

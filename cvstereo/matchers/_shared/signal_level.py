@@ -1,0 +1,347 @@
+"""The recording's own signal level, estimated online: what relative decision thresholds are relative to.
+
+Every thesis matcher decides with thresholds on values that grow with the number of events per edge: the
+filtered frame value (frame, frame-area) or the dynamic-frame value |D| (event-time, event-area,
+event-vector). The thesis' constants (1.2, 2, 0.8 ...) fit the event density of its two sensors; on a recording
+with fewer events per edge the matchers fall silent, with more they pass noise. In ``relative`` mode a matcher
+sets such a threshold to ``scale * level``, where ``level`` is this module's estimate of the typical size of
+the very values the threshold tests.
+
+The estimator (:class:`SignalLevel`), one for all matchers:
+
+* **What it sees.** Per camera, the values the matcher's threshold tests, where there is signal: the
+  |filtered value| at each pixel with events in the window (frame matchers), the |D| each event reads at its
+  own pixel (event matchers). Values are grouped by absolute window ``k = t // level_window_us``
+  (40 ms windows ``[k*W, (k+1)*W)``, as the frame matchers cut time).
+* **The statistic.** ``level`` = the ``level_quantile`` quantile (default 0.9) of the values of the last
+  ``level_windows`` windows (default 25, one second) that held values of that camera, reaching further back
+  (up to :data:`MAX_HISTORY_FACTOR` times as many windows) while they hold fewer than ``level_warmup``
+  values, so that a sparse recording gets a level from enough values: a high quantile
+  follows the edges, not the isolated noise events, which make up much of the active pixels on a sparse
+  recording; a second of history is long against a 40 ms window and short against a change of scene.
+  Per camera, because sensors differ in gain (the thesis' eDVS1 gives 7-28 % more events).
+* **Causal.** The threshold in force for window k is computed from windows < k only, so every decision uses
+  data the matcher has already seen, whatever the packets; and since the values are grouped by absolute
+  window, the result does not depend on where packets are cut. Fast paths and references feed the same
+  values (bit for bit), so they get the same thresholds.
+* **Warm-up and floor.** Until a camera's history holds ``level_warmup`` values, its threshold is the
+  absolute one (``threshold``, the thesis' value). A relative threshold never falls below
+  ``level_floor`` times the value of one isolated event (the matcher's ``unit``: the kernel's centre weight),
+  so a recording of noise alone cannot lower it to where single events pass.
+
+The estimator also keeps the diagnostics that :func:`silence_warning` turns into a one-line explanation when a
+run yields (almost) nothing: windows seen, windows in which any value reached the threshold in force, the
+highest value against its threshold, and the threshold over time.
+
+>>> import numpy as np
+>>> p = SignalLevelParams(threshold_mode="relative", threshold_scale=0.5, level_warmup=4)
+>>> level = SignalLevel(p, absolute=1.2, unit=0.1)
+>>> level.thresholds(0).tolist()                        # nothing seen yet: the absolute threshold
+[1.2, 1.2]
+>>> level.add(0, 0, np.array([1.0, 2.0, 3.0, 4.0, 5.0]))
+>>> level.thresholds(1).tolist()                        # camera 0: 0.5 x the 0.9 quantile (4.6) of window 0
+[2.3, 1.2]
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from cvstereo.matchers._shared.sorted_runs import SortedRuns
+from cvstereo.model.events import is_time_ordered, window_segments
+
+#: Threshold modes: the thesis' absolute numbers, or a multiple of the recording's signal level.
+THRESHOLD_MODES = ("absolute", "relative")
+
+#: A camera's history reaches back at most this many times ``level_windows`` windows to gather
+#: ``level_warmup`` values.
+MAX_HISTORY_FACTOR = 10
+
+#: Report the threshold in force once every this many windows of values (1 s of 40 ms windows).
+_TRACE_EVERY = 25
+
+
+@dataclass(frozen=True, kw_only=True)
+class SignalLevelParams:
+    """The relative-threshold fields every thesis matcher's parameter class has (besides ``threshold``).
+
+    Attributes
+    ----------
+    threshold_mode : {"absolute", "relative"}
+        ``absolute``: the matcher's ``threshold`` (and its other value constants) are used as they are, the
+        thesis' behaviour. ``relative``: they become ``scale * level`` (see the module docstring).
+    threshold_scale : float
+        The decision threshold in relative mode, as a multiple of the signal level.
+    level_quantile : float
+        Quantile of the values that defines the level, in (0, 1].
+    level_windows : int
+        History: the last this many windows that held values of a camera.
+    level_window_us : int
+        Length of the estimator's windows on the absolute clock, us.
+    level_warmup : int
+        Values a camera's history needs before relative thresholds apply (the absolute one until then).
+    level_floor : float
+        A relative threshold is at least this many times the value of one isolated event.
+    """
+
+    threshold_mode: Literal["absolute", "relative"] = "absolute"
+    threshold_scale: float = 1.0
+    level_quantile: float = 0.9
+    level_windows: int = 25
+    level_window_us: int = 40_000
+    level_warmup: int = 200
+    level_floor: float = 1.0
+
+    def __post_init__(self):
+        where = type(self).__name__
+        if self.threshold_mode not in THRESHOLD_MODES:
+            raise ValueError(f"{where}: threshold_mode must be 'absolute' or 'relative', got {self.threshold_mode!r}.")
+        if not self.threshold_scale > 0:
+            raise ValueError(f"{where}: threshold_scale must be > 0, got {self.threshold_scale}.")
+        if not 0 < self.level_quantile <= 1:
+            raise ValueError(f"{where}: level_quantile must lie in (0, 1] (e.g. 0.9), got {self.level_quantile}.")
+        for name in ("level_windows", "level_window_us"):
+            value = getattr(self, name)
+            if int(value) != value or value < 1:
+                raise ValueError(f"{where}: {name} must be a whole number >= 1, got {value}.")
+        if int(self.level_warmup) != self.level_warmup or self.level_warmup < 1:
+            raise ValueError(f"{where}: level_warmup must be a whole number >= 1 (e.g. 200), got {self.level_warmup}.")
+        if not self.level_floor >= 0:
+            raise ValueError(f"{where}: level_floor must be >= 0, got {self.level_floor}.")
+        parent = super()
+        if hasattr(parent, "__post_init__"):
+            parent.__post_init__()
+
+    @property
+    def relative(self) -> bool:
+        """Whether the thresholds follow the signal level."""
+        return self.threshold_mode == "relative"
+
+
+def level_params(params) -> SignalLevelParams:
+    """The :class:`SignalLevelParams` part of a matcher's parameter object."""
+    return SignalLevelParams(**{f.name: getattr(params, f.name) for f in dataclasses.fields(SignalLevelParams)})
+
+
+class SignalLevel:
+    """Online, causal estimate of a recording's signal level per camera, and the thresholds it implies.
+
+    Parameters
+    ----------
+    params : SignalLevelParams (or a matcher's parameters that extend it)
+    absolute : float
+        The absolute threshold (the matcher's ``threshold``): in force in absolute mode and during warm-up.
+    unit : float
+        The value of one isolated event (the floor is ``level_floor * unit``).
+    value_name : str
+        What the values are, for messages ("filtered value", "dynamic-frame value").
+    n_cameras : int
+    """
+
+    def __init__(self, params, *, absolute: float, unit: float, value_name: str = "value", n_cameras: int = 2):
+        self.params = level_params(params)
+        self.absolute = float(absolute)
+        self.unit = float(unit)
+        self.value_name = value_name
+        self.n_cameras = n_cameras
+        # Each camera's history: one sorted run of values per window, oldest first (quantiles without a
+        # partition of the whole history per window: see cvstereo.matchers._shared.sorted_runs).
+        self._history = [SortedRuns() for _ in range(n_cameras)]
+        self._open: dict[int, list[list[np.ndarray]]] = {}  # window -> per camera chunks of values
+        self._levels: dict[int, np.ndarray] = {}  # window -> level in force (NaN: warming up)
+        self._seen = 0
+        self._with_candidates = 0
+        self._best_ratio = -1.0
+        self._best = (math.nan, math.nan)  # (value, threshold in force) of the best ratio
+        self._trace: list[tuple[int, list[float]]] = []
+        self._warm = (False,) * n_cameras  # which cameras had a level at the last trace entry
+
+    # -- the level ---------------------------------------------------------------------------------------
+
+    def levels(self, k: int) -> np.ndarray:
+        """The level of each camera in force for window ``k`` (from windows < k); NaN while warming up.
+
+        Every window < k must be complete: values of earlier windows may not be added afterwards.
+        """
+        k = int(k)
+        if k not in self._levels:
+            self._close_before(k)
+            self._levels[k] = self._current_levels()
+        return self._levels[k]
+
+    def relative(self, k: int, *, absolute: float, scale: float, floor: float = 0.0) -> np.ndarray:
+        """``max(scale * level, floor)`` per camera for window ``k``; ``absolute`` in absolute mode or warm-up."""
+        if not self.params.relative:
+            return np.full(self.n_cameras, float(absolute))
+        return _scaled(self.levels(k), absolute, scale, floor)
+
+    def thresholds(self, k: int) -> np.ndarray:
+        """The decision threshold of each camera in force for window ``k``, as float64."""
+        p = self.params
+        return self.relative(k, absolute=self.absolute, scale=p.threshold_scale, floor=p.level_floor * self.unit)
+
+    def add(self, k: int, cam: int, values: np.ndarray) -> None:
+        """Add values of camera ``cam`` seen in window ``k`` (|value| is taken; NaN values are left out)."""
+        k = int(k)
+        v = np.abs(np.asarray(values, dtype=np.float64))
+        v = v[~np.isnan(v)]
+        if v.size == 0:
+            return
+        if self._levels and k < max(self._levels):
+            raise ValueError(f"SignalLevel: values of window {k} come after window {max(self._levels)} was used.")
+        self._open.setdefault(k, [[] for _ in range(self.n_cameras)])[cam].append(v)
+
+    def _close_before(self, k: int) -> None:
+        """Move the complete windows < k into the history (in window order), with their diagnostics."""
+        p = self.params
+        for j in sorted(w for w in self._open if w < k):
+            chunks = self._open.pop(j)
+            # The history holds exactly the windows < j now: the level that was (or would have been) in force.
+            lv = self._levels.pop(j, None)
+            if lv is None:
+                # Absolute mode needs only which cameras are warm (the trace), not the level itself.
+                lv = self._current_levels() if p.relative else self._warm_levels()
+            thr = _scaled(lv, self.absolute, p.threshold_scale, p.level_floor * self.unit) if p.relative else \
+                np.full(self.n_cameras, self.absolute)
+            reached = False
+            for cam, parts in enumerate(chunks):
+                if not parts:
+                    continue
+                v = parts[0] if len(parts) == 1 else np.concatenate(parts)  # add() copied them: no need to again
+                self._remember(cam, v)
+                top = float(v.max())
+                reached |= bool(top >= thr[cam])
+                ratio = top / thr[cam] if thr[cam] > 0 else math.inf
+                if ratio > self._best_ratio:
+                    self._best_ratio, self._best = ratio, (top, float(thr[cam]))
+            warm = tuple(bool(x) for x in ~np.isnan(lv))
+            if self._seen % _TRACE_EVERY == 0 or warm != self._warm:
+                self._trace.append((j, [round(float(x), 6) for x in thr]))
+                self._warm = warm
+            self._seen += 1
+            self._with_candidates += reached
+        for j in [w for w in self._levels if w < k]:
+            del self._levels[j]
+
+    def _remember(self, cam: int, values: np.ndarray) -> None:
+        """Append a window's values; forget the oldest windows beyond ``level_windows`` that are not needed to
+        hold ``level_warmup`` values (and any beyond ``MAX_HISTORY_FACTOR * level_windows``)."""
+        p = self.params
+        hist = self._history[cam]
+        hist.append(values)
+        while len(hist) > p.level_windows and (hist.size - hist.first_size() >= p.level_warmup
+                                               or len(hist) > MAX_HISTORY_FACTOR * p.level_windows):
+            hist.popleft()
+
+    def _current_levels(self) -> np.ndarray:
+        p = self.params
+        out = np.full(self.n_cameras, np.nan)
+        for cam, hist in enumerate(self._history):
+            if hist.size >= p.level_warmup:
+                out[cam] = hist.quantile(p.level_quantile)  # = np.quantile of the history's values
+        return out
+
+    def _warm_levels(self) -> np.ndarray:
+        """What :meth:`_current_levels` would give, as far as NaN goes (warming up), with 0 for the levels."""
+        return np.where([h.size >= self.params.level_warmup for h in self._history], 0.0, np.nan)
+
+    # -- diagnostics -------------------------------------------------------------------------------------
+
+    def finish(self) -> None:
+        """End of stream: close every open window (for the diagnostics)."""
+        if self._open:
+            self._close_before(max(self._open) + 1)
+
+    def diagnostics(self) -> dict:
+        """Windows seen, windows with candidates, the highest value against its threshold, thresholds over time.
+
+        Returns
+        -------
+        dict
+            ``windows_seen`` (windows with values), ``windows_with_candidates`` (some value reached the
+            threshold in force), ``value_name``, ``highest_value`` and ``its_threshold`` (the window whose highest
+            value came nearest its threshold), ``threshold_mode``, ``threshold_trace``: [window end us,
+            [threshold per camera]] every 25 windows with values and where a camera's warm-up ends.
+        """
+        self.finish()
+        w = int(self.params.level_window_us)
+        value, thr = self._best
+        return {
+            "windows_seen": int(self._seen),
+            "windows_with_candidates": int(self._with_candidates),
+            "value_name": self.value_name,
+            "highest_value": None if math.isnan(value) else round(value, 6),
+            "its_threshold": None if math.isnan(thr) else round(thr, 6),
+            "threshold_mode": self.params.threshold_mode,
+            "threshold_trace": [[(j + 1) * w, thr] for j, thr in self._trace],
+        }
+
+
+def _scaled(levels: np.ndarray, absolute: float, scale: float, floor: float) -> np.ndarray:
+    """``max(scale * level, floor)``, and ``absolute`` where the level is NaN (warm-up)."""
+    return np.where(np.isnan(levels), float(absolute), np.maximum(float(scale) * levels, float(floor)))
+
+
+def window_index(t: np.ndarray, window_us: int) -> np.ndarray:
+    """Absolute window of each time, ``t // window_us``, as int64."""
+    return np.asarray(t, dtype=np.int64) // int(window_us)
+
+
+def coverage_of_windows(event_windows, matches: np.ndarray, meta: dict, window_us: int = 40_000) -> tuple[int, int]:
+    """(windows with matches, windows with events) on the absolute clock of ``window_us``.
+
+    ``event_windows`` are the windows ``t // window_us`` that hold events (any collection of ints, gathered
+    while the recording streams past). Window-anchored matches are stamped with their window's end and count for
+    the window before that stamp.
+    """
+    t = matches["t"].astype(np.int64)
+    if meta.get("anchor") == "window" and t.size:
+        t = t - 1  # the stamp is the window's end: its events lie before it
+    return _windows_with(t, window_us), len(set(event_windows))
+
+
+def _windows_with(t: np.ndarray, window_us: int) -> int:
+    """Number of absolute windows that hold one of the times ``t``: from their runs when ``t`` is ordered (matches
+    are time-ordered), which saves ``np.unique``'s hash table over every match."""
+    if not is_time_ordered(t):
+        return int(np.unique(window_index(t, window_us)).size)
+    return len(window_segments(t, window_us))
+
+
+def silence_warning(meta: dict, *, n_matches: int) -> str | None:
+    """One line saying why a run yielded no or almost no matches and what to try; None when it answered.
+
+    A run is silent when it has no matches, or matches in less than 1 % of the 40 ms windows that hold
+    events (``meta["diagnostics"]``, written by :func:`cvstereo.run.match`).
+    """
+    d = meta.get("diagnostics") or {}
+    with_events = int(d.get("windows_with_events", 0))
+    with_matches = int(d.get("windows_with_matches", 0))
+    if with_events == 0:
+        return "no events in the recording." if n_matches == 0 else None
+    if n_matches and with_matches >= 0.01 * with_events:
+        return None
+    hint = _hint(meta)
+    if d.get("windows_with_candidates", 0) == 0 and d.get("highest_value") is not None:
+        why = (f"no window reached the threshold: highest {d.get('value_name', 'value')} "
+               f"{d['highest_value']:.3g} < {d['its_threshold']:.3g}")
+    elif n_matches == 0:
+        why = (f"values reached the threshold in {d.get('windows_with_candidates', 0)} of {with_events} windows "
+               "with events, but no pair of cameras agreed")
+    else:
+        why = (f"matches in only {with_matches} of {with_events} windows with events "
+               f"({100.0 * with_matches / with_events:.1f} %)")
+    return f"{why}; {hint}"
+
+
+def _hint(meta: dict) -> str:
+    if meta.get("param_set") == "thesis" or (meta.get("params") or {}).get("threshold_mode") == "absolute":
+        return ("try --param-set adaptive (thresholds that follow the recording's signal level) or a lower "
+                "--param threshold=...")
+    return ("try a lower --param threshold_scale=..., another --variant, or `cvstereo rigcheck` (cameras swapped, "
+            "rows or clocks offset)")

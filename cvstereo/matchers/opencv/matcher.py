@@ -1,0 +1,311 @@
+"""OpenCV's StereoBM and StereoSGBM on the same 40 ms frames as the thesis' frame matchers.
+
+So that a user can compare the calibration-free matchers with OpenCV on equal terms, the baselines see the same
+windows (``[k*W, (k+1)*W)`` on the absolute clock), the same signed, Gaussian-filtered frames, and report in the
+same matches format: at the left camera's pixels that saw events in the window and got a valid disparity,
+stamped with the window's end.
+
+Image mapping. OpenCV's block matchers take 8-bit images, so each filtered frame ``F`` (sum of event signs,
+Gaussian, as in thesis 3.3) becomes ``clip(128 + gain * F, 0, 255)``: mid-grey where nothing happened, brighter for
+ON activity, darker for OFF activity (gain 32: a filtered value of +-4, about 8 events of one sign on a spot,
+saturates). With ``image="count"`` it is ``clip(gain * (ON + OFF count), 0, 255)`` instead, blind to polarity.
+
+OpenCV computes disparities on the left image (its convention: ``x_right = x_left - d``), which is also ours
+(``d = x_left - x_right``). It searches ``min_disparity .. max_disparity`` (OpenCV's numDisparities is the count
+of them, a multiple of 16: the default 0 .. 63 is 64). Its left strip of that many columns has no result, because
+the search would leave the right image; with ``pad=True`` (default) both images get that many mid-grey columns on
+the left, so the whole sensor gets results. OpenCV returns fixed-point disparities (``int16``, 4 fractional bits);
+the ``/16`` is applied here and nowhere else.
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+from dataclasses import dataclass
+from typing import ClassVar, Literal
+
+import cv2
+import numpy as np
+
+from cvstereo.frames.accumulate import event_mask, gaussian_filter, polarity_counts, polarity_frames
+from cvstereo.frames.windows import FrameMatcher, Window, WindowFrameParams
+from cvstereo.matchers.params import Alias
+from cvstereo.model.matches import empty_matches, make_matches
+from cvstereo.model.polarity import OFF, ON
+
+#: OpenCV's fixed-point disparity scale (4 fractional bits).
+DISP_SCALE = 16
+#: Grey value of "no events" in the ``filtered`` image mapping.
+MID_GREY = 128
+
+
+@dataclass(frozen=True, kw_only=True)
+class _OpenCVParams(WindowFrameParams):
+    """Parameters common to both baselines (see the module docstring for the image mapping).
+
+    The window and Gaussian fields (window_us, gaussian, kernel_sigma, kernel_size) are those of
+    :class:`~cvstereo.frames.windows.WindowFrameParams`.
+
+    Attributes
+    ----------
+    image : {"filtered", "count"}
+        Image mapping: signed Gaussian-filtered frame around mid-grey, or event count.
+    gain : float
+        Grey levels per unit of frame value.
+    min_disparity : int
+        Smallest disparity searched, px.
+    max_disparity : int
+        Largest disparity searched, px; ``max_disparity - min_disparity + 1`` must be a positive multiple of 16
+        (OpenCV's rule). Old name: ``num_disparities``, the count (``max_disparity = min_disparity + count - 1``).
+    block_size : int
+        Odd matching block side, px.
+    uniqueness_ratio : int
+        OpenCV's uniquenessRatio, percent (0 disables the check).
+    speckle_window_size, speckle_range : int
+        OpenCV's speckle filter (0: off).
+    pad : bool
+        Pad both images on the left with :attr:`num_disparities` mid-grey columns, so that the left strip gets
+        results.
+    """
+
+    aliases: ClassVar[dict] = {"num_disparities": Alias("max_disparity",
+                                                        lambda n, given: given.get("min_disparity", 0) + int(n) - 1)}
+
+    image: Literal["filtered", "count"] = "filtered"
+    gain: float = 32.0
+    min_disparity: int = 0
+    max_disparity: int = 63
+    block_size: int = 9
+    uniqueness_ratio: int = 10
+    speckle_window_size: int = 0
+    speckle_range: int = 0
+    pad: bool = True
+
+    def __post_init__(self):
+        super().__post_init__()
+        where = type(self).__name__
+        if self.image not in ("filtered", "count"):
+            raise ValueError(f"{where}: image must be 'filtered' or 'count', got '{self.image}'.")
+        if not self.gain > 0:
+            raise ValueError(f"{where}: gain must be > 0 (e.g. 32), got {self.gain}.")
+        if self.num_disparities <= 0 or self.num_disparities % 16:
+            raise ValueError(f"{where}: max_disparity - min_disparity + 1 (the number of disparities OpenCV searches) "
+                             f"must be a positive multiple of 16 (OpenCV's rule), e.g. max_disparity 47 or 63; got "
+                             f"{self.num_disparities} (max_disparity {self.max_disparity}, min_disparity "
+                             f"{self.min_disparity}).")
+        if self.block_size < 1 or self.block_size % 2 == 0:
+            raise ValueError(f"{where}: block_size must be a positive odd number (e.g. 9), got {self.block_size}.")
+        if self.uniqueness_ratio < 0:
+            raise ValueError(f"{where}: uniqueness_ratio must be >= 0, got {self.uniqueness_ratio}.")
+
+    @property
+    def num_disparities(self) -> int:
+        """OpenCV's numDisparities: how many disparities are searched."""
+        return self.max_disparity - self.min_disparity + 1
+
+
+@dataclass(frozen=True, kw_only=True)
+class StereoBMParams(_OpenCVParams):
+    """Parameters of :class:`StereoBMMatcher`: the common ones (see ``_OpenCVParams``) and BM's own.
+
+    Attributes
+    ----------
+    texture_threshold : int
+        OpenCV's textureThreshold: blocks with less texture get no result.
+    prefilter_cap : int
+        OpenCV's preFilterCap (1..63).
+    """
+
+    texture_threshold: int = 10
+    prefilter_cap: int = 31
+
+    def __post_init__(self):
+        super().__post_init__()
+        if not 5 <= self.block_size <= 255:
+            raise ValueError(f"StereoBMParams: block_size must be an odd number in 5..255 for StereoBM, "
+                             f"got {self.block_size}.")
+        if not 1 <= self.prefilter_cap <= 63:
+            raise ValueError(f"StereoBMParams: prefilter_cap must be in 1..63, got {self.prefilter_cap}.")
+
+
+@dataclass(frozen=True, kw_only=True)
+class StereoSGBMParams(_OpenCVParams):
+    """Parameters of :class:`StereoSGBMMatcher`: the common ones (see ``_OpenCVParams``) and SGBM's own.
+
+    Attributes
+    ----------
+    block_size : int
+        Odd block side (SGBM works with small blocks; default 5).
+    p1, p2 : int
+        Smoothness penalties; 0 chooses OpenCV's usual ``8 * block_size**2`` and ``32 * block_size**2``.
+    disp12_max_diff : int
+        Left-right consistency tolerance, px (-1: off).
+    mode : {"sgbm", "hh", "3way"}
+        OpenCV's mode (5-direction SGBM, full 8-direction, 3-way).
+    """
+
+    block_size: int = 5
+    p1: int = 0
+    p2: int = 0
+    disp12_max_diff: int = 1
+    mode: Literal["sgbm", "hh", "3way"] = "sgbm"
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.p1 and self.p2 and self.p2 <= self.p1:
+            raise ValueError(f"StereoSGBMParams: p2 must exceed p1 (OpenCV's rule), got p1={self.p1}, p2={self.p2}.")
+
+
+class _OpenCVMatcher(FrameMatcher):
+    """Common part of the baselines: frames -> 8-bit images -> OpenCV -> matches at left event pixels."""
+
+    variants: ClassVar[dict[str, dict]] = {"default": {}}
+
+    @classmethod
+    def max_disparity_for(cls, default: int, width: int, given: dict) -> int:
+        """The scaled range, rounded up so that OpenCV's disparity count stays a multiple of 16."""
+        low = int(given.get("min_disparity", cls.Params.__dataclass_fields__["min_disparity"].default))
+        count = 16 * math.ceil((default - low + 1) * width / 128 / 16)
+        return low + count - 1
+
+    def __init__(self, params=None, *, resolution=(128, 128)):
+        super().__init__(params, resolution=resolution)
+        # OpenCV refuses (with a C++ traceback) a block that does not fit in the image.
+        if self.params.block_size >= min(self.resolution):
+            raise ValueError(f"{type(self.params).__name__}: block_size {self.params.block_size} does not fit a "
+                             f"{self.resolution[0]}x{self.resolution[1]} sensor; give an odd number below "
+                             f"{min(self.resolution)} (e.g. 9).")
+        self._stereo = self._create()
+
+    def anchor_cameras(self) -> tuple[int, ...]:
+        return (0,)
+
+    @abc.abstractmethod
+    def _create(self):
+        """The configured OpenCV matcher object."""
+
+    def image(self, counts: np.ndarray) -> np.ndarray:
+        """The 8-bit image OpenCV sees for one camera's window (see the module docstring).
+
+        Parameters
+        ----------
+        counts : (2, height, width) int ndarray
+            OFF and ON counts (:func:`cvstereo.frames.accumulate.polarity_counts`).
+
+        Returns
+        -------
+        (height, width) uint8 ndarray
+        """
+        prm = self.params
+        if prm.image == "count":
+            frame, offset = (counts[ON] + counts[OFF]).astype(np.float32), 0.0
+        else:
+            ((_, frame),) = polarity_frames(counts, polarity="shared")
+            offset = MID_GREY
+        if prm.gaussian:
+            frame = gaussian_filter(frame, sigma=prm.kernel_sigma, kernel_size=prm.kernel_size)
+        return np.clip(np.rint(offset + prm.gain * frame), 0, 255).astype(np.uint8)
+
+    def disparity_map(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:
+        """Run OpenCV on a pair of 8-bit images.
+
+        Parameters
+        ----------
+        left, right : (height, width) uint8 ndarray
+
+        Returns
+        -------
+        (height, width) float32 ndarray
+            Disparity ``x_left - x_right`` at the left image's pixels, px; NaN where OpenCV found none.
+        """
+        prm = self.params
+        pad = prm.num_disparities if prm.pad else 0
+        fill = MID_GREY if prm.image == "filtered" else 0
+        if pad:
+            left, right = (cv2.copyMakeBorder(im, 0, 0, pad, 0, cv2.BORDER_CONSTANT, value=fill)
+                           for im in (left, right))
+        raw = self._stereo.compute(left, right)[:, pad:]
+        # OpenCV marks "no disparity" with (min_disparity - 1) * 16; everything at or above min_disparity is valid.
+        valid = raw >= prm.min_disparity * DISP_SCALE
+        return np.where(valid, raw.astype(np.float32) / DISP_SCALE, np.float32(np.nan))
+
+    def match_window(self, window: Window) -> np.ndarray:
+        if not (window.left.size and window.right.size):
+            return empty_matches()
+        counts = [polarity_counts(ev, resolution=self.resolution) for ev in (window.left, window.right)]
+        disp = self.disparity_map(self.image(counts[0]), self.image(counts[1]))
+        return matches_at_left_events(window.t_end, counts[0], disp)
+
+
+def matches_at_left_events(t_end: int, left_counts: np.ndarray, disparity: np.ndarray) -> np.ndarray:
+    """Sample a dense disparity map at the left camera's pixels that saw events (formats.md's window anchors).
+
+    Parameters
+    ----------
+    t_end : int
+        The window's end time, us: the stamp of every match.
+    left_counts : (2, height, width) int ndarray
+        OFF and ON counts of the left camera in the window (:func:`cvstereo.frames.accumulate.polarity_counts`).
+    disparity : (height, width) float ndarray
+        Disparity at the left image's pixels; NaN where there is none.
+
+    Returns
+    -------
+    (M,) ndarray of MATCH_DTYPE
+    """
+    y, x = np.nonzero(event_mask(left_counts) & ~np.isnan(disparity))
+    # Polarity of a pixel: the sign of its sum of event signs (ties count as ON).
+    pol = (left_counts[ON, y, x] >= left_counts[OFF, y, x]).astype(np.int8)
+    return make_matches(t_end, x, y, pol, 0, disparity[y, x])
+
+
+class StereoBMMatcher(_OpenCVMatcher):
+    """OpenCV ``StereoBM`` on the thesis' 40 ms frames (method ``stereobm``).
+
+    Parameters
+    ----------
+    params : StereoBMParams, optional
+    resolution : (width, height), keyword-only
+    """
+
+    Params = StereoBMParams
+    method = "stereobm"
+
+    def _create(self):
+        prm = self.params
+        bm = cv2.StereoBM_create(numDisparities=prm.num_disparities, blockSize=prm.block_size)
+        bm.setMinDisparity(prm.min_disparity)
+        bm.setUniquenessRatio(prm.uniqueness_ratio)
+        bm.setTextureThreshold(prm.texture_threshold)
+        bm.setPreFilterCap(prm.prefilter_cap)
+        bm.setSpeckleWindowSize(prm.speckle_window_size)
+        bm.setSpeckleRange(prm.speckle_range)
+        return bm
+
+
+_SGBM_MODES = {"sgbm": cv2.STEREO_SGBM_MODE_SGBM, "hh": cv2.STEREO_SGBM_MODE_HH,
+               "3way": cv2.STEREO_SGBM_MODE_SGBM_3WAY}
+
+
+class StereoSGBMMatcher(_OpenCVMatcher):
+    """OpenCV ``StereoSGBM`` on the thesis' 40 ms frames (method ``sgbm``).
+
+    Parameters
+    ----------
+    params : StereoSGBMParams, optional
+    resolution : (width, height), keyword-only
+    """
+
+    Params = StereoSGBMParams
+    method = "sgbm"
+
+    def _create(self):
+        prm = self.params
+        area = prm.block_size * prm.block_size
+        return cv2.StereoSGBM_create(
+            minDisparity=prm.min_disparity, numDisparities=prm.num_disparities, blockSize=prm.block_size,
+            P1=prm.p1 or 8 * area, P2=prm.p2 or 32 * area, disp12MaxDiff=prm.disp12_max_diff,
+            uniquenessRatio=prm.uniqueness_ratio, speckleWindowSize=prm.speckle_window_size,
+            speckleRange=prm.speckle_range, mode=_SGBM_MODES[prm.mode],
+        )

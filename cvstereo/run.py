@@ -1,0 +1,278 @@
+"""Run a matcher over a whole recording: :func:`match`, streaming it packet by packet."""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Iterator
+
+import numpy as np
+
+import cvstereo
+from cvstereo.matchers.registry import METHODS, create_matcher
+from cvstereo.model.events import StereoPacket, distinct_sorted, is_time_ordered
+from cvstereo.model.fingerprint import EventFingerprint
+from cvstereo.model.matches import MatchResult, concat_matches
+from cvstereo.model.recording import Recording
+
+#: Windows of the diagnostics (:func:`cvstereo.matchers._shared.signal_level.silence_warning`): 40 ms on the absolute
+# clock.
+DIAGNOSTICS_WINDOW_US = 40_000
+
+#: Packet length used to stream a recording through a matcher. The result does not depend on it; the speed
+#: does: one frame window per packet saves the frame matchers from joining partial windows, and the event
+#: matchers pay a fixed cost per call (on 2arms-50cm event-time ran 3x faster with 40 ms than with 10 ms).
+DEFAULT_PACKET_US = 40_000
+
+
+class _Counted(Iterator[StereoPacket]):
+    """Packets passed through, counting events and the first and last timestamp (for the meta), and taking the
+    fingerprint of the events as read (:mod:`cvstereo.model.fingerprint`; the seconds it takes are kept apart, as
+    they are not the matcher's)."""
+
+    def __init__(self, packets: Iterator[StereoPacket]):
+        self._packets = iter(packets)
+        self.events = 0
+        self.t_first: int | None = None
+        self.t_last: int | None = None
+        self.windows: set[int] = set()  # absolute 40 ms windows that hold events (for the diagnostics)
+        self.fingerprint = EventFingerprint()
+        self.fingerprint_s = 0.0
+
+    def __next__(self) -> StereoPacket:
+        packet = next(self._packets)
+        start = time.perf_counter()
+        self.fingerprint.update(packet.left, packet.right)
+        self.fingerprint_s += time.perf_counter() - start
+        for ev in (packet.left, packet.right):
+            if ev.size:
+                first, last = int(ev["t"][0]), int(ev["t"][-1])
+                self.t_first = first if self.t_first is None else min(self.t_first, first)
+                self.t_last = last if self.t_last is None else max(self.t_last, last)
+                self.windows.update(_windows_of(ev["t"], first, last))
+        self.events += packet.left.size + packet.right.size
+        return packet
+
+    @property
+    def duration_s(self) -> float:
+        return 0.0 if self.t_first is None else (self.t_last - self.t_first) / 1e6
+
+
+def _windows_of(t: np.ndarray, first: int, last: int) -> list[int]:
+    """The diagnostics windows that hold the time-ordered times ``t`` (``first``, ``last``: its ends).
+
+    A packet's times are ordered (the matcher refuses them otherwise), so the windows come from a pass without
+    a sort (``np.unique`` of a packet cost 10 % of the frame matchers' time at 640x480), and from the ends
+    alone where both lie in one window.
+    """
+    k0, k1 = first // DIAGNOSTICS_WINDOW_US, last // DIAGNOSTICS_WINDOW_US
+    if k0 == k1:
+        return [k0]
+    return distinct_sorted(t // DIAGNOSTICS_WINDOW_US).tolist()
+
+
+def match(recording, right=None, *, method: str = "frame", variant: str | None = None,
+          packet_us: int = DEFAULT_PACKET_US, progress: bool = False, row_offset: float = 0,
+          time_offset_us: int = 0, rectification=None, param_set: str = "adaptive", columns: str | None = None,
+          time_unit: str | None = None, resolution: tuple[int, int] | None = None, **params) -> MatchResult:
+    """Run one matcher over a recording, streaming it packet by packet.
+
+    Parameters
+    ----------
+    recording : Recording or path-like
+        A recording in memory, or a file that :func:`cvstereo.io.open_recording` can open: its packets are
+        read from the file as they are matched, so memory stays bounded whatever the file's size.
+    right : path-like, optional
+        The right camera's file, for formats with one file per camera.
+    method : str, keyword-only
+        A registered method (:data:`cvstereo.matchers.registry.METHODS`): ``frame``, ``frame-area``, ``event-time``,
+        ``event-area``, ``event-vector``, ``stereobm``, ``sgbm``, ...
+    variant : str, optional
+        Variant name (formats.md); default: the parameter set's default variant (``thesis``: the method's first).
+    packet_us : int
+        Packet length for streaming.
+    progress : bool
+        Show a progress bar.
+    row_offset, time_offset_us : keyword-only
+        The rig's offsets (:mod:`cvstereo.geometry.rigcorrect`): the right camera's rows are shifted by ``row_offset``
+        and its times by ``-time_offset_us`` before matching, and right-anchored matches are mapped back;
+        recorded in meta under ``rig_correction``. :func:`cvstereo.rigcheck.check_rig` estimates both.
+    columns, time_unit, resolution : keyword-only
+        For events given as arrays (or lists of rows): the column order of ``(N, 4)`` arrays, the unit of their
+        times (required for float times) and the sensor size (default 128x128; tonic's ``sensor_size``
+        ``(W, H, 2)`` is accepted as it is); see :func:`cvstereo.model.arrays.events_from`. With a Recording,
+        ``resolution`` may only repeat the recording's; ``columns`` and ``time_unit`` are refused (nothing
+        would use them).
+    rectification : cvstereo.geometry.rectify.Rectification, optional, keyword-only
+        Rectify the events with a calibration before matching (:mod:`cvstereo.geometry.rectify`); matches are mapped
+        back to the recording's pixels, disparities are the rectified pair's; recorded in meta under
+        ``rectification``. Not together with ``row_offset`` / ``time_offset_us``.
+    param_set : {"adaptive", "thesis"}, keyword-only
+        :mod:`cvstereo.matchers.sets`; recorded in meta under ``param_set``.
+    **params
+        Parameter overrides (field names of the method's parameter dataclass, or their old names), on top of the
+        set's values.
+
+    Returns
+    -------
+    MatchResult
+        Time-ordered matches and the meta of formats.md. ``meta["fingerprint"]`` identifies the events as read
+        (before rig correction or rectification: :mod:`cvstereo.model.fingerprint`), so that the matches can be told
+        from those of another recording; ``elapsed_s`` leaves out the time it took. ``meta["diagnostics"]`` says
+        how much of the recording answered (:func:`cvstereo.matchers._shared.signal_level.silence_warning` turns it
+        into one
+        line): windows with events and with matches (40 ms, absolute clock), and for the thesis matchers windows
+        seen, windows with candidates, the highest value against its threshold and the threshold in force over
+        time.
+
+    Examples
+    --------
+    >>> from cvstereo.model.events import make_events
+    >>> left = make_events([0, 0, 0], [40, 41, 42], [5, 5, 5], [1, 1, 1])
+    >>> result = match(Recording(left, left), method="frame-area", threshold=0.5)
+    >>> result.meta["method"], result.meta["input_events"]
+    ('frame-area', 6)
+    """
+    recording = _as_source(recording, right, method, columns=columns, time_unit=time_unit, resolution=resolution)
+    if isinstance(recording, Recording):
+        stream, source = recording, recording.meta.get("source", "memory")
+        total = recording.left.size + recording.right.size
+    else:
+        from cvstereo.io import open_recording
+
+        source = [os.fspath(recording)] + ([os.fspath(right)] if right is not None else [])
+        stream, total = open_recording(recording, right), None
+    matcher = create_matcher(method, variant, resolution=stream.resolution, param_set=param_set, **params)
+    bar = _progress_bar(progress, total, method)
+    start = time.perf_counter()
+    packets = counted = _Counted(stream.packets(packet_us))
+    correction = None
+    if row_offset or time_offset_us:
+        from cvstereo.geometry.rigcorrect import RigCorrection
+
+        correction = RigCorrection(row_offset, int(time_offset_us), stream.resolution)
+        packets = correction.stream(packets)
+    parts = []
+    rectified = None
+    if rectification is not None:
+        if correction is not None:
+            raise ValueError("give a calibration or row/time offsets, not both: rectification already aligns the rows.")
+        if tuple(rectification.resolution) != tuple(stream.resolution):
+            raise ValueError(f"the calibration is for {rectification.resolution[0]}x{rectification.resolution[1]}, "
+                             f"the recording is {stream.resolution[0]}x{stream.resolution[1]}.")
+        packets = rectified = rectification.stream(packets)
+
+    def restored(found):
+        return found if rectified is None else rectified.restore(found, anchor=matcher.anchor)
+
+    for packet in packets:
+        parts.append(restored(matcher.feed(packet.left, packet.right, until=packet.until)))
+        if bar is not None:
+            bar.update(packet.left.size + packet.right.size)
+    parts.append(restored(matcher.flush()))
+    elapsed = time.perf_counter() - start - counted.fingerprint_s
+    if bar is not None:
+        bar.close()
+    meta = matcher.describe()
+    meta.update(
+        elapsed_s=elapsed,
+        input_events=int(counted.events),
+        duration_s=counted.duration_s,
+        resolution=list(stream.resolution),
+        version=cvstereo.__version__,
+        input=source,
+        fingerprint=counted.fingerprint.result(),
+    )
+    meta["param_set"] = param_set
+    matches = concat_matches(parts)
+    if correction is not None:
+        matches = correction.restore(matches)
+        meta["rig_correction"] = {**correction.describe(), "dropped_events": packets.dropped_rows +
+                                  packets.dropped_times}
+    if rectified is not None:
+        meta["rectification"] = {**rectification.describe(), "dropped_events": sum(rectified.dropped)}
+    order = _time_order(matches["t"])  # sort_matches' order (None: already in it), for per-match arrays too
+    if order is not None:
+        matches = matches[order]
+    arrays = {}
+    if hasattr(matcher, "take_uncertainty"):  # matchers that rate their matches (formats.md: `uncertainty`)
+        uncertainty = matcher.take_uncertainty()
+        if uncertainty.size == matches.size:
+            arrays["uncertainty"] = uncertainty if order is None else uncertainty[order]
+        else:  # a stage in between (rectification) dropped matches: the values no longer line up
+            meta["uncertainty"] = "not stored: a stage between matcher and output changed the matches"
+    meta["diagnostics"] = _diagnostics(matcher, counted.windows, matches, meta)
+    return MatchResult(matches, meta, arrays)
+
+
+def _time_order(t: np.ndarray) -> np.ndarray | None:
+    """The stable order that sorts the times ``t``, or None when they are in order already.
+
+    Matchers return time-ordered matches (the feed contract), so the stable argsort would be the identity; the
+    check is one pass, where the argsort and the gather of every match cost ~5 % of event-area's time at 640x480.
+    """
+    if is_time_ordered(t):
+        return None
+    return np.argsort(t, kind="stable")
+
+
+def _diagnostics(matcher, event_windows: set[int], matches, meta: dict) -> dict:
+    """How much of the recording answered: windows with events and with matches, and the matcher's own."""
+    from cvstereo.matchers._shared.signal_level import coverage_of_windows
+
+    with_matches, with_events = coverage_of_windows(event_windows, matches, meta, DIAGNOSTICS_WINDOW_US)
+    out = {"window_us": DIAGNOSTICS_WINDOW_US, "windows_with_events": with_events,
+           "windows_with_matches": with_matches}
+    if hasattr(matcher, "diagnostics"):
+        out.update(matcher.diagnostics())
+    return out
+
+
+def _as_source(recording, right, method: str, *, columns, time_unit, resolution):
+    """A Recording or a path for :func:`match`, after catching the easy mistakes with the arguments.
+
+    An argument that would be ignored is refused rather than dropped: ``columns`` and ``time_unit`` apply to
+    arrays only, and ``resolution`` to arrays (a Recording and a file carry their own; given with a Recording
+    it must agree with it).
+    """
+    from cvstereo.model.arrays import events_from, is_event_data
+    from cvstereo.model.events import DEFAULT_RESOLUTION, check_resolution
+
+    if isinstance(right, str) and right in METHODS and not os.path.exists(right):
+        raise TypeError(f"match(recording, {right!r}): the method is keyword-only; write "
+                        f"match(recording, method={right!r}) (the second argument is the right camera).")
+    res = None if resolution is None else check_resolution(resolution, source="match(resolution=...)")
+    if isinstance(recording, Recording):
+        if right is not None:
+            raise TypeError("match(recording, right): a Recording holds both cameras already; give right only "
+                            "with the left camera's file or events.")
+        if columns is not None or time_unit is not None:
+            raise TypeError("match(recording, columns=/time_unit=): these say how to read event arrays; a "
+                            "Recording's events are converted already.")
+        if res is not None and res != tuple(recording.resolution):
+            raise ValueError(f"match(recording, resolution={res}): the recording is "
+                             f"{recording.resolution[0]}x{recording.resolution[1]}; build it with the right "
+                             "resolution (Recording(..., resolution=...)) instead.")
+        return recording
+    if is_event_data(recording):
+        if right is None or not is_event_data(right):
+            raise TypeError("match(left_events, right_events, method=...): give the right camera's events too.")
+        res = res or DEFAULT_RESOLUTION
+        return Recording(events_from(recording, columns=columns, time_unit=time_unit, resolution=res,
+                                     source="left events"),
+                         events_from(right, columns=columns, time_unit=time_unit, resolution=res,
+                                     source="right events"), resolution=res, meta={"source": "arrays"})
+    if is_event_data(right):
+        raise TypeError("match(path, right_events): give both cameras as files, or both as event arrays.")
+    if columns is not None or resolution is not None or time_unit is not None:
+        raise TypeError("columns=, time_unit= and resolution= are for events given as arrays; a file says its "
+                        "own (or use the --format options of open_recording).")
+    return recording
+
+
+def _progress_bar(enabled: bool, total: int | None, method: str):
+    if not enabled:
+        return None
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, unit="ev", unit_scale=True, desc=method, leave=False)
