@@ -60,9 +60,9 @@ def command_lines(code: str) -> list[list[str]]:
     return lines
 
 
-def run_page(path: Path, capsys) -> None:
+def run_page(path: Path, capsys) -> dict:
     """Run every block of one page that is not skipped, in the current folder; raise AssertionError naming the
-    block on the first failure."""
+    block on the first failure. Returns the namespace the python blocks ran in."""
     from tests._hostile import run_cli
 
     namespace: dict = {"__name__": "__docs__"}
@@ -84,3 +84,4 @@ def run_page(path: Path, capsys) -> None:
         else:
             raise AssertionError(f"{block.where()}: fence language {block.lang!r} is neither run "
                                  f"({', '.join(RUN_LANGUAGES)}) nor shown ({', '.join(SHOWN_LANGUAGES)})")
+    return namespace
