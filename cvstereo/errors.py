@@ -6,6 +6,9 @@ cvstereo; the CLI turns all of them into one line on stderr and exit code 1.
 
 from __future__ import annotations
 
+__all__ = ["CorruptFileError", "EventFormatError", "MissingExtraError", "NoMatchersError", "SensorError",
+           "StreamEndedError", "require_extra"]
+
 
 class EventFormatError(ValueError):
     """An event array or recording does not follow the contract of formats.md."""

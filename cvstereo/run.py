@@ -15,6 +15,8 @@ from cvstereo.model.fingerprint import EventFingerprint
 from cvstereo.model.matches import MatchResult, concat_matches
 from cvstereo.model.recording import Recording
 
+__all__ = ["DEFAULT_PACKET_US", "DIAGNOSTICS_WINDOW_US", "match"]
+
 #: Windows of the diagnostics (:func:`cvstereo.matchers._shared.signal_level.silence_warning`): 40 ms on the absolute
 # clock.
 DIAGNOSTICS_WINDOW_US = 40_000

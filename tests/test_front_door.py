@@ -183,3 +183,35 @@ def test_isinstance_holds_across_old_and_new_names():
 
     result = old.MatchResult(np.zeros(0, old.MATCH_DTYPE), {})
     assert isinstance(result, MatchResult)
+
+
+def _public_modules() -> list[str]:
+    """Every module of cvstereo whose dotted name has no part starting with ``_`` (packages included)."""
+    out = []
+    for path in sorted((ROOT / "cvstereo").rglob("*.py")):
+        parts = list(path.relative_to(ROOT).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts.pop()
+        if not any(part.startswith("_") for part in parts) and parts[-1] != "__main__":
+            out.append(".".join(parts))
+    return out
+
+
+def test_every_public_module_declares_all_and_defines_every_name_of_it():
+    missing, undefined = [], {}
+    for name in _public_modules():
+        tree = ast.parse((ROOT / (name.replace(".", "/"))).with_suffix(".py").read_text()
+                         if (ROOT / name.replace(".", "/")).with_suffix(".py").exists()
+                         else (ROOT / name.replace(".", "/") / "__init__.py").read_text())
+        if not any(isinstance(n, ast.Assign | ast.AnnAssign) and "__all__" in ast.unparse(n).split("=")[0]
+                   for n in tree.body):
+            missing.append(name)
+            continue
+        if name == "cvstereo.matchers.dv.matcher" and not importlib.util.find_spec("dv_processing"):
+            continue
+        module = importlib.import_module(name)
+        absent = [n for n in module.__all__ if not hasattr(module, n)]
+        if absent:
+            undefined[name] = absent
+    assert len(_public_modules()) > 100
+    assert missing == [] and undefined == {}

@@ -38,6 +38,32 @@ from cvstereo.model.recording import Recording
 from cvstereo.run import match
 from cvstereo.sweep import Cell
 
+__all__ = [
+    "ACCURACY_FIGURES",
+    "EXTRA_SECONDS",
+    "FIT_DISTANCES",
+    "QUICK_SECONDS",
+    "REAL_DISPARITIES",
+    "RESULT_FILES",
+    "TEST_DISTANCES",
+    "BenchConfig",
+    "PeakMemory",
+    "accuracy_cells",
+    "bench_cell_figures",
+    "bench_markdown",
+    "distance_recordings",
+    "distance_table",
+    "machine_info",
+    "real_recordings",
+    "run_bench",
+    "share_within",
+    "simulated_recordings",
+    "speed_cells",
+    "speed_table",
+    "warm_up",
+    "write_results",
+]
+
 #: The real recordings and the disparities known in them (README of tum-stereo): px.
 REAL_DISPARITIES: dict[str, tuple[float, ...]] = {
     "Fan_disp8.dat": (8.0,),

@@ -23,6 +23,8 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+__all__ = ["MAX_RUNS", "TOLERANCE", "Agreement", "Timing", "load_average", "measure"]
+
 #: Two runs agree when the slower is at most this share slower than the faster.
 TOLERANCE = 0.10
 #: Runs at most per figure (when no two agree, the fastest is reported, flagged).

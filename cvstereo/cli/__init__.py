@@ -21,6 +21,8 @@ import threading
 import cvstereo
 from cvstereo._signals import STOP_SIGNALS, TERMINATING_SIGNALS, Terminated, signal_of
 
+__all__ = ["COMMANDS", "build_parser", "main", "plain_help"]
+
 #: Subcommand name -> module under cvstereo.cli that implements it.
 COMMANDS: dict[str, str] = {
     "info": "info",

@@ -8,6 +8,8 @@ from pathlib import Path
 
 from cvstereo.cli._common import add_progress_option, progress_wanted
 
+__all__ = ["add_parser", "run"]
+
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p = sub.add_parser(

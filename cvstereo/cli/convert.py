@@ -7,6 +7,8 @@ import sys
 
 from cvstereo.cli._common import add_recording_arguments, format_options, naming, recording_plan
 
+__all__ = ["add_parser", "run"]
+
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
     from cvstereo.io import FORMATS

@@ -15,6 +15,9 @@ from pathlib import Path
 
 from cvstereo.cli._common import add_progress_option, progress_wanted
 
+__all__ = ["DEMO_METHODS", "FIGURE_COMBOS", "FIGURE_FOLDER", "FIGURE_RECORDING", "FIGURE_WINDOW_US", "TABLE_FILES",
+           "add_parser", "run", "shared_folder"]
+
 #: Matchers the demo runs: the thesis' five and OpenCV's block matcher (`cvstereo bench` runs them all).
 DEMO_METHODS = ("frame", "frame-area", "event-time", "event-area", "event-vector", "stereobm")
 

@@ -8,6 +8,8 @@ import math
 from cvstereo.cli._common import add_matcher_options, matcher_overrides, naming
 from cvstereo.cli._text import number
 
+__all__ = ["add_parser", "run"]
+
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p = sub.add_parser(

@@ -15,6 +15,8 @@ from cvstereo.cli._common import (
 )
 from cvstereo.cli._text import printable
 
+__all__ = ["add_parser", "run"]
+
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p = sub.add_parser(

@@ -9,6 +9,8 @@ import numpy as np
 from cvstereo.cli._common import add_format_options, check_files, format_options, is_matches_file, naming
 from cvstereo.cli._text import number, printable
 
+__all__ = ["add_parser", "describe", "describe_matches", "run"]
+
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p = sub.add_parser(

@@ -14,6 +14,8 @@ import sys
 from cvstereo.cli._common import add_matcher_options, matcher_overrides
 from cvstereo.sensors.session import add_rig_arguments, open_rig, stop_on_signals
 
+__all__ = ["add_parser", "run"]
+
 
 def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
     p = subparsers.add_parser(name, help="match two live eDVS128 boards (or --simulate) and show depth",

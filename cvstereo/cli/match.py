@@ -37,6 +37,8 @@ from cvstereo.cli._text import number, plain_text
 from cvstereo.matchers._shared.signal_level import silence_warning
 from cvstereo.matchers.sets import ADAPTIVE
 
+__all__ = ["MAX_TIME_OFFSET_US", "add_parser", "list_methods", "run"]
+
 #: Largest --time-offset-us either way: a day (real rigs are off by milliseconds).
 MAX_TIME_OFFSET_US = 86_400_000_000
 

@@ -21,6 +21,9 @@ from cvstereo.cli._common import (
     require_range,
 )
 
+__all__ = ["KINDS", "MAX_DPI", "MAX_TIME_MS", "MAX_WINDOWS", "MAX_WINDOW_MS", "add_parser", "check_window_inside",
+           "check_window_options", "load_picture_inputs", "make_figure", "name_recording", "run"]
+
 #: Largest --dpi: print quality; a figure at 100000 dpi would need gigabytes.
 MAX_DPI = 1200
 #: Largest --windows of a disparity map (one row of pictures each).

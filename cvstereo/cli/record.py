@@ -16,6 +16,8 @@ from pathlib import Path
 
 from cvstereo.sensors.session import add_rig_arguments, open_rig, stop_on_signals
 
+__all__ = ["add_parser", "run"]
+
 
 def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
     p = subparsers.add_parser(name, help="record two eDVS128 boards (or --simulate) into a recording .npz",

@@ -20,6 +20,8 @@ from cvstereo.cli._common import (
     recording_plan,
 )
 
+__all__ = ["add_parser", "run"]
+
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p = sub.add_parser(

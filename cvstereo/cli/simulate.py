@@ -24,6 +24,8 @@ from pathlib import Path
 
 from cvstereo.cli._common import add_progress_option, progress_wanted
 
+__all__ = ["add_parser", "run"]
+
 #: --distance default per scene that takes one (metres).
 _DEFAULT_DISTANCE = {"arms": 0.5, "fan": 1.5}
 

@@ -12,6 +12,8 @@ import sys
 
 from cvstereo.cli._common import add_progress_option, progress_wanted
 
+__all__ = ["GRID_EXAMPLE", "SHOWN_FAILURES", "add_parser", "run"]
+
 GRID_EXAMPLE = """\
 grid file example (TOML):
   recordings = ["preset:1arm-100cm:2", "recordings/*.npz"]

@@ -17,6 +17,8 @@ from cvstereo.cli._common import (
 )
 from cvstereo.cli.plot import check_window_options, load_picture_inputs
 
+__all__ = ["MAX_FPS", "MAX_SCALE", "add_parser", "run"]
+
 #: Limits of the video options: a frame rate a player shows, and a frame size that fits in memory.
 MAX_FPS, MAX_SCALE = 1000.0, 32
 

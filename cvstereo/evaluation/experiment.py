@@ -22,6 +22,8 @@ from cvstereo.model.recording import Recording
 from cvstereo.sweep.engine import Score, run_sweep
 from cvstereo.sweep.grid import Cell
 
+__all__ = ["Combo", "ExperimentResult", "all_combos", "experiment_markdown", "run_experiment"]
+
 
 @dataclass(frozen=True)
 class Combo:

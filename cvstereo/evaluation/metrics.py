@@ -29,6 +29,9 @@ import numpy as np
 from cvstereo.model.matches import MatchResult
 from cvstereo.model.recording import Recording
 
+__all__ = ["DEFAULT_COLUMNS", "FIGURES", "check_matches", "check_same_recording", "evaluate", "format_figure",
+           "markdown_table", "match_truth", "to_json"]
+
 #: Every figure :func:`evaluate` returns, in the order tables show them.
 FIGURES = (
     "matches", "mean", "std", "truth_mean", "mae", "rmse", "median_ae", "bad1", "bad2", "false_rate",

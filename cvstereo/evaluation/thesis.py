@@ -6,6 +6,8 @@ Recording names are the simulator's preset names that re-create the thesis' six 
 
 from __future__ import annotations
 
+__all__ = ["DISPARITY_TABLES", "EVENT_COUNTS", "MATLAB_SECONDS", "RECORDINGS", "RECORDING_SECONDS", "thesis_disparity"]
+
 #: The thesis' six recordings, in the order of its tables.
 RECORDINGS = ("1arm-50cm", "1arm-100cm", "1arm-150cm", "2arms-50cm", "2arms-100cm", "2arms-150cm")
 

@@ -28,6 +28,9 @@ from cvstereo.errors import EventFormatError
 from cvstereo.model.events import DEFAULT_RESOLUTION
 from cvstereo.model.polarity import OFF, ON, Polarity, frame_signs, slot_of_p
 
+__all__ = ["OFF_SENSOR", "check_filter_params", "event_channel", "event_mask", "filtered_unit", "frame_shape",
+           "gaussian_filter", "polarity_counts", "polarity_frames", "signed_frame", "stacked_frames"]
+
 
 def frame_shape(resolution: tuple[int, int]) -> tuple[int, int]:
     """(height, width) of a frame for a sensor of (width, height): the array shape of every frame."""

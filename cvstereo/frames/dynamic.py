@@ -47,6 +47,34 @@ from cvstereo.matchers.params import AliasedParams
 from cvstereo.model.events import DEFAULT_RESOLUTION
 from cvstereo.model.polarity import Polarity, check_polarity, slot_of_p
 
+__all__ = [
+    "BOUND_SHIFT",
+    "FORGET_TICKS",
+    "RENORM",
+    "SUM_REBUILD",
+    "DynamicFrameParams",
+    "FrameBank",
+    "advance",
+    "advance_due",
+    "advance_due_bounded",
+    "advance_due_summed",
+    "block_bounds",
+    "column_sums",
+    "dynamic_unit",
+    "event_columns",
+    "event_matrix",
+    "process_events",
+    "rebuild_bounds",
+    "rebuild_sums",
+    "skip_below",
+    "splat",
+    "splat_bounded",
+    "splat_summed",
+    "sum_drift",
+    "tick_due",
+    "update_kernel",
+]
+
 #: Renormalise the stored frames when the lazy decay factor falls below this (0.99^22900, about 5.7 s).
 RENORM = 1e-100
 

@@ -24,6 +24,8 @@ from cvstereo.matchers.protocol import StreamMatcher
 from cvstereo.model.events import DEFAULT_RESOLUTION, count_before, empty_events, paired_window_segments
 from cvstereo.model.matches import concat_matches, empty_matches, join_records
 
+__all__ = ["FrameMatcher", "Window", "WindowAccumulator", "WindowFrameParams", "check_window_us"]
+
 
 def check_window_us(window_us: int, where: str) -> None:
     """Raise ValueError unless ``window_us`` is a positive integer."""

@@ -31,6 +31,8 @@ import numpy as np
 from cvstereo import _yaml
 from cvstereo.geometry.depth import DepthModel
 
+__all__ = ["MODELS", "CameraCalibration", "StereoCalibration", "load_calibration"]
+
 #: Distortion models: OpenCV's polynomial (Kalibr's "radtan", ROS "plumb_bob") and the fisheye "equidistant".
 MODELS = ("radtan", "equidistant")
 

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+__all__ = ["DepthModel", "depth_from_meta", "fit_depth_model"]
+
 
 @dataclass(frozen=True)
 class DepthModel:

@@ -25,6 +25,8 @@ import os
 from cvstereo.geometry.depth import DepthModel
 from cvstereo.io._atomic import write_text_atomic
 
+__all__ = ["FORMAT", "VERSION", "WHAT", "load_depth_model", "save_depth_model"]
+
 FORMAT = "cvstereo-depth-model"
 VERSION = 1
 #: What a depth-model file is, for a message about a missing one.

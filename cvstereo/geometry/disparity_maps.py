@@ -17,6 +17,8 @@ from collections.abc import Iterator
 
 import numpy as np
 
+__all__ = ["disparity_image", "match_window_slice", "pixel_mean", "window_disparity_images"]
+
 
 def pixel_mean(x: np.ndarray, y: np.ndarray, values: np.ndarray, *, resolution: tuple[int, int]) -> np.ndarray:
     """Mean of the finite ``values`` at each pixel, NaN where a pixel has none.

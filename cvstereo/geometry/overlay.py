@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
+__all__ = ["overlay_scores", "overlay_shift", "row_correlation", "side_of_profile"]
+
 
 def overlay_scores(image_a: np.ndarray, image_b: np.ndarray, *, max_shift: int) -> np.ndarray:
     """Normalised cross-correlation of log counts at every shift ``-max_shift..max_shift``.

@@ -33,6 +33,8 @@ from cvstereo.geometry.calibration import CameraCalibration, StereoCalibration
 from cvstereo.model.events import StereoPacket
 from cvstereo.model.matches import MATCH_DTYPE
 
+__all__ = ["NONE", "Rectification", "RectifiedStream"]
+
 #: Marks a pixel without a partner in the lookup tables.
 NONE = -1
 

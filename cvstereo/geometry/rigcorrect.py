@@ -38,6 +38,8 @@ import numpy as np
 from cvstereo.model.events import DEFAULT_RESOLUTION, StereoPacket, count_before, empty_events
 from cvstereo.model.matches import MATCH_DTYPE
 
+__all__ = ["CorrectedStream", "RigCorrection"]
+
 
 @dataclass(frozen=True)
 class RigCorrection:

@@ -34,6 +34,18 @@ from dataclasses import dataclass, field
 from cvstereo.geometry.depth import DepthModel, depth_from_meta
 from cvstereo.model.recording import Recording
 
+__all__ = [
+    "ASPECTS",
+    "OPTION_NAMES",
+    "SOURCES",
+    "Geometry",
+    "GeometryConflict",
+    "GeometryOptions",
+    "as_matched",
+    "depth_for_matches",
+    "stored_depth",
+]
+
 #: The sources of geometry, first = strongest.
 SOURCES = ("calibration", "options", "recording", "rigcheck")
 #: The parts of the geometry, in the order the summary line names them.

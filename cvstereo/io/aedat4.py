@@ -39,6 +39,8 @@ from cvstereo.io.stream import MONO, Chunk, RecordingStream
 from cvstereo.model.events import EVENT_DTYPE, check_resolution
 from cvstereo.model.recording import CAMERAS
 
+__all__ = ["MAGIC", "OPEN_CPU_S_PER_BYTE", "aedat4_cameras", "open_aedat4"]
+
 MAGIC = b"#!AER-DAT4.0"
 #: How much of the file's start is searched for the XML header (it is a few KB).
 _HEADER_BYTES = 1 << 20

@@ -14,6 +14,8 @@ from cvstereo.io.edvs_text_parse import CHUNK_LINES
 from cvstereo.model.events import DEFAULT_RESOLUTION, validate_events
 from cvstereo.model.recording import Recording
 
+__all__ = ["write_edvs_merged", "write_edvs_pair", "write_edvs_text"]
+
 
 def write_edvs_text(path: str | os.PathLike, events: np.ndarray, *,
                     resolution: tuple[int, int] = DEFAULT_RESOLUTION) -> None:

@@ -36,6 +36,9 @@ from cvstereo.io.stream import MONO, Chunk, RecordingStream
 from cvstereo.model.columns import check_times, times_to_us, whole_numbers
 from cvstereo.model.recording import CAMERAS
 
+__all__ = ["CHUNK_MS", "CHUNK_ROWS", "DSEC_RESOLUTION", "INDEX_BLOCK", "MVSEC_RESOLUTION", "dsec_time_range",
+           "hdf5_layout", "open_dsec", "open_mvsec", "read_time_slice"]
+
 DSEC_RESOLUTION = (640, 480)
 MVSEC_RESOLUTION = (346, 260)
 #: DSEC chunk length, milliseconds.

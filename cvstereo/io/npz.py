@@ -23,6 +23,9 @@ from cvstereo.model.events import DEFAULT_RESOLUTION, as_events, check_resolutio
 from cvstereo.model.matches import REQUIRED_META, MatchResult, validate_matches
 from cvstereo.model.recording import Recording
 
+__all__ = ["iter_npz_chunks", "npz_keys", "read_matches", "read_npz_header", "read_recording_npz", "write_matches",
+           "write_recording_npz"]
+
 
 def _meta_array(meta: dict) -> np.ndarray:
     return np.array(json.dumps(meta, sort_keys=True, default=_json_default))

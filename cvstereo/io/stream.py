@@ -19,6 +19,8 @@ from cvstereo.io.npz import iter_npz_chunks, read_npz_header
 from cvstereo.model.events import StereoPacket, empty_events, iter_stereo_packets
 from cvstereo.model.recording import CAMERAS, Recording
 
+__all__ = ["MONO", "Chunk", "RecordingStream", "open_npz"]
+
 #: Camera name of a stream read from a file that holds a single camera.
 MONO = "mono"
 

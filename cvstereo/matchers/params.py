@@ -36,6 +36,8 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import Any, NamedTuple
 
+__all__ = ["Alias", "AliasedParams", "aliases_of", "canonical_params"]
+
 
 class Alias(NamedTuple):
     """An old parameter name: the field it became and, where the value changed too, how to convert it.

@@ -26,6 +26,8 @@ from cvstereo.matchers.params import canonical_params
 from cvstereo.model.events import DEFAULT_RESOLUTION, EVENT_DTYPE, MAX_RESOLUTION, check_resolution, validate_events
 from cvstereo.model.matches import empty_matches
 
+__all__ = ["MAX_EXTENT", "MAX_PARAM_INT", "StreamMatcher", "check_param_value", "check_params", "check_until"]
+
 #: Largest magnitude of an integer parameter: a C int. Kernels, OpenCV and products of windows and counts
 #: stay far from int64 overflow below it (a window of 2**31 us is 36 minutes).
 MAX_PARAM_INT = 2**31 - 1

@@ -22,6 +22,8 @@ from cvstereo.errors import EventFormatError
 from cvstereo.model.columns import FIELD_LABELS, TIME_UNITS, times_to_us, whole_numbers
 from cvstereo.model.events import DEFAULT_RESOLUTION, events_from_columns
 
+__all__ = ["FIELD_ALIASES", "events_from", "is_event_data"]
+
 #: Other names of the four fields in common libraries (dv-processing, Prophesee/Metavision, ROS bags).
 FIELD_ALIASES = {"timestamp": "t", "ts": "t", "time": "t", "polarity": "p", "pol": "p", "on": "p"}
 

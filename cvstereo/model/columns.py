@@ -22,6 +22,9 @@ import numpy as np
 
 from cvstereo.errors import EventFormatError
 
+__all__ = ["FIELD_LABELS", "INT16_MAX", "INT64_MAX", "INT64_MIN", "TIME_UNITS", "check_coordinates", "check_polarity",
+           "check_times", "first_bad", "labelled", "times_to_us", "whole_numbers"]
+
 #: The range of the int64 microsecond times of the event dtype.
 INT64_MIN, INT64_MAX = int(np.iinfo(np.int64).min), int(np.iinfo(np.int64).max)
 #: The int16 coordinates of the event dtype hold 0..INT16_MAX (negative coordinates are refused everywhere).

@@ -34,6 +34,8 @@ import numpy as np
 from cvstereo.model.events import EVENT_DTYPE, as_events
 from cvstereo.model.recording import Recording
 
+__all__ = ["CAMERAS", "CHECKSUM", "EventFingerprint", "difference", "fingerprint_of", "stream_sum", "swap_cameras"]
+
 #: Name of the checksum stored with the fingerprint; a file with another cannot be checked by this version.
 CHECKSUM = "sum64-le"
 #: Bytes per checksum word.

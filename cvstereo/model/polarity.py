@@ -25,6 +25,8 @@ from typing import Literal
 
 import numpy as np
 
+__all__ = ["OFF", "ON", "POLARITY_MODES", "Polarity", "check_polarity", "frame_signs", "slot_of_p"]
+
 #: ``p`` of an ON event (brightness up) and of an OFF event.
 ON, OFF = 1, 0
 

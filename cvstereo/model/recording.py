@@ -17,6 +17,8 @@ from cvstereo.model.events import (
     time_slice,
 )
 
+__all__ = ["CAMERAS", "Recording"]
+
 CAMERAS = ("left", "right")
 
 

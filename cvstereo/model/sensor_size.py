@@ -6,6 +6,8 @@
 
 from __future__ import annotations
 
+__all__ = ["DEFAULT_RESOLUTION", "MAX_RESOLUTION", "TONIC_POLARITIES", "check_resolution"]
+
 #: Sensor size of the DVS128 / eDVS128, (width, height).
 DEFAULT_RESOLUTION = (128, 128)
 

@@ -16,6 +16,8 @@ from cvstereo.rigcheck.rows import row_offsets
 from cvstereo.rigcheck.stats import count_statistics
 from cvstereo.rigcheck.time_offset import time_offset
 
+__all__ = ["MAX_WINDOW_US", "MIN_WINDOW_US", "STAGES", "check_rig"]
+
 #: The stages :func:`check_rig` reports to its ``progress`` callback, in order (the two repeats may be skipped).
 STAGES = ("row offset", "time offset", "row offset again", "time offset again", "side and disparity", "counts")
 

@@ -16,6 +16,8 @@ from cvstereo.geometry.overlay import row_correlation, side_of_profile
 from cvstereo.rigcheck.peaks import fft_len, subsample_peak
 from cvstereo.rigcheck.windows import window_frames
 
+__all__ = ["DisparityFindings", "Overlays", "disparity_overlays", "side_and_disparity"]
+
 
 class Overlays(NamedTuple):
     """What :func:`disparity_overlays` measured."""

@@ -5,6 +5,8 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+__all__ = ["RigCheckParams"]
+
 
 @dataclass(frozen=True)
 class RigCheckParams:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+__all__ = ["clip01", "contrast", "fft_len", "half_width", "smooth_lags", "subsample_peak", "support"]
+
 
 def subsample_peak(v, i):
     """Sub-sample position of the peak at index ``i`` by a parabola through its neighbours."""

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 from cvstereo.model.recording import Recording
 from cvstereo.rigcheck.params import RigCheckParams
 
+__all__ = ["RigReport"]
+
 
 @dataclass(frozen=True)
 class RigReport:

@@ -9,6 +9,8 @@ import numpy as np
 from cvstereo.rigcheck.peaks import contrast, fft_len, subsample_peak, support
 from cvstereo.rigcheck.windows import window_frames
 
+__all__ = ["RowOffsets", "row_offsets"]
+
 
 class RowOffsets(NamedTuple):
     """What :func:`row_offsets` found (in the camera order given)."""

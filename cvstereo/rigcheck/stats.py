@@ -8,6 +8,8 @@ import numpy as np
 
 from cvstereo.rigcheck.peaks import clip01
 
+__all__ = ["CountStatistics", "burst_ratio", "count_statistics", "isolated_events"]
+
 
 class CountStatistics(NamedTuple):
     """Counts and noise of the two cameras (left first)."""

@@ -8,6 +8,8 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
+__all__ = ["WindowFrames", "signed_frame", "window_frames"]
+
 
 class WindowFrames(NamedTuple):
     """One window busy in both cameras."""

@@ -37,6 +37,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+__all__ = ["ARRIVAL_JITTER_US", "ARRIVAL_SLACK_US", "OFFSET_LEAK", "Arrivals", "Pieces", "WrapClock", "Wraps"]
+
 #: Largest error of the host's arrival times, us: a waiting reader's time of an event's bytes is within this
 #: of the event's device time plus a constant offset (thread scheduling, the USB adapter's latency timer: 16 ms
 #: by default on FTDI chips).

@@ -23,6 +23,8 @@ from cvstereo.sensors.decoder import StreamDecoder, warm_up
 from cvstereo.sensors.detect import DETECT_BYTES, ProtocolMismatchError, check_protocol
 from cvstereo.sensors.protocol import BITS_PER_BYTE, DEFAULT_BAUD, ProtocolSettings
 
+__all__ = ["DEFAULT_SILENCE_S", "DRAIN_MAX_S", "DRAIN_QUIET_S", "EDVS", "RELEASE_AFTER_S", "Chunk", "host_us"]
+
 #: Seconds without a byte after which a streaming sensor counts as silent (the issue: "about a second").
 DEFAULT_SILENCE_S = 1.0
 

@@ -14,6 +14,8 @@ from cvstereo.matchers.protocol import StreamMatcher
 from cvstereo.sensors.edvs import host_us
 from cvstereo.sensors.stereo import StereoEDVS
 
+__all__ = ["UPDATE_S", "LiveStats", "run_live"]
+
 #: Seconds between status lines (10 Hz).
 UPDATE_S = 0.1
 

@@ -34,6 +34,8 @@ from cvstereo.sensors._scan import Scan
 from cvstereo.sensors.arrival import WrapClock
 from cvstereo.sensors.protocol import MAX_DELTA_BYTES
 
+__all__ = ["DEFAULT_RESYNC_EVENTS", "RESYNC_WINDOW", "Resync"]
+
 #: Events that must agree before the decoder trusts a new alignment found after corrupt bytes. Garbage
 #: passes one event's checks with a probability of about 1/8 (E2), so eight in a row is ~1e-7.
 DEFAULT_RESYNC_EVENTS = 8

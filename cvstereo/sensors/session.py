@@ -13,6 +13,8 @@ from typing import TYPE_CHECKING
 
 from cvstereo.sensors.protocol import DEFAULT_BAUD, FORMATS, ProtocolSettings
 
+__all__ = ["Stop", "add_rig_arguments", "open_rig", "positive_number", "protocol_settings", "stop_on_signals"]
+
 if TYPE_CHECKING:  # the boards' modules load numba; the CLI imports them only when it runs
     from cvstereo.sensors.stereo import StereoEDVS
     from cvstereo.sensors.virtual import VirtualEDVS

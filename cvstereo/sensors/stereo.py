@@ -21,6 +21,8 @@ from cvstereo.model.events import EVENT_DTYPE, StereoPacket, count_before
 from cvstereo.sensors.edvs import EDVS, Chunk, host_us
 from cvstereo.sensors.protocol import DEFAULT_BAUD, ProtocolSettings
 
+__all__ = ["CAMERAS", "StereoEDVS", "StereoSettings"]
+
 CAMERAS = ("left", "right")
 
 

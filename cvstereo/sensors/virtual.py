@@ -24,6 +24,8 @@ import numpy as np
 
 from cvstereo.sensors.protocol import DEFAULT_BAUD, FORMAT_NUMBERS, ProtocolSettings, encode_events
 
+__all__ = ["BANNER", "TICK_S", "VirtualClock", "VirtualEDVS", "read_back"]
+
 #: Banner sent after ``R`` (contains "EDVS", as the real board's does).
 BANNER = "EDVS128 virtual board (cvstereo), 1us timestamps"
 

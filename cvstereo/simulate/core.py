@@ -12,6 +12,8 @@ from cvstereo.model.recording import Recording
 from cvstereo.simulate.dvs import PixelArray, background_noise, hot_pixels, jitter, log_intensity
 from cvstereo.simulate.rig import Rig
 
+__all__ = ["DEFAULT_RENDER_HZ", "GENERATOR_VERSION", "MAX_RENDER_HZ", "MAX_SECONDS", "simulate"]
+
 #: Bump whenever a change alters the events a seed produces: cached presets carry it in their key.
 GENERATOR_VERSION = 2
 

@@ -19,6 +19,8 @@ from numba import njit
 
 from cvstereo.simulate.rig import SensorModel
 
+__all__ = ["DARK_LEVEL", "PixelArray", "background_noise", "hot_pixels", "jitter", "log_intensity", "reference_events"]
+
 #: Added to the linear intensity before the log: the photoreceptor's dark current keeps log(0) finite and
 #: makes very dark regions less sensitive, as in a real DVS.
 DARK_LEVEL = 0.01

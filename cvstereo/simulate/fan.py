@@ -32,6 +32,8 @@ from cvstereo.simulate import textures
 from cvstereo.simulate.render import ALPHA_TRUTH_MIN
 from cvstereo.simulate.rig import Rig
 
+__all__ = ["FAN_RENDER_HZ", "FanScene"]
+
 #: Render rate the fan needs: its blade tips sweep about 1,900 px/s at the defaults, 0.4 px per step here.
 FAN_RENDER_HZ = 5_000.0
 

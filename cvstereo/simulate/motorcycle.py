@@ -17,6 +17,8 @@ from cvstereo.simulate.motion import Motion
 from cvstereo.simulate.render import render_image
 from cvstereo.simulate.rig import Rig
 
+__all__ = ["MotorcycleScene"]
+
 
 @functools.lru_cache(maxsize=2)
 def _motorcycle_images(scale: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -20,6 +20,8 @@ from cvstereo.simulate.core import GENERATOR_VERSION, simulate
 from cvstereo.simulate.rig import Rig
 from cvstereo.simulate.scenes import ArmsScene
 
+__all__ = ["PRESETS", "Preset", "cache_key", "cached_preset", "default_cache_dir", "get_preset", "simulate_preset"]
+
 
 @dataclass(frozen=True)
 class Preset:

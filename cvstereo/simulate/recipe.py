@@ -16,6 +16,8 @@ from dataclasses import dataclass
 from cvstereo.model.recording import Recording
 from cvstereo.simulate.core import GENERATOR_VERSION, simulate
 
+__all__ = ["Recipe", "Suite"]
+
 
 class Recipe:
     """A suite recording's generation: needs ``suite``, ``name``, ``scene``, ``rig``, ``seconds``, ``seed``,

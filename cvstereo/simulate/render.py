@@ -19,6 +19,8 @@ import cv2
 import numpy as np
 from numba import njit, prange
 
+__all__ = ["ALPHA_TRUTH_MIN", "layer_hits", "render_image", "render_planes"]
+
 #: A surface counts as "seen" at a pixel from this coverage on. Where everything else stands still, any
 #: visible part of a moving surface is what changes the pixel: with the log response, a bright dot covering
 #: 0.1 % of a pixel on a dark background still moves the level by 0.03, enough to fire the last OFF event of

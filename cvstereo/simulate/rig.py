@@ -39,6 +39,8 @@ import numpy as np
 
 from cvstereo.model.events import DEFAULT_RESOLUTION
 
+__all__ = ["EDVS1_RIGHT", "EDVS2_LEFT", "MAX_ROLL_DEG", "SENSORS", "Camera", "Rig", "SensorModel"]
+
 #: Fixed-point iterations that invert the radial distortion; 12 reach 1e-9 for |k1 * r^2| < 0.2.
 _UNDISTORT_ITERATIONS = 12
 

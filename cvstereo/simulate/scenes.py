@@ -28,6 +28,8 @@ from cvstereo.simulate.motorcycle import MotorcycleScene
 from cvstereo.simulate.render import layer_hits, render_planes
 from cvstereo.simulate.rig import Rig
 
+__all__ = ["SCENES", "ArmsScene", "LayeredScene", "PlaneLayer", "RotationScene"]
+
 
 @dataclass(frozen=True, eq=False)
 class PlaneLayer:

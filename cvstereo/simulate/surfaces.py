@@ -22,6 +22,8 @@ import numpy as np
 
 from cvstereo.simulate import textures
 
+__all__ = ["PERIODIC", "PHOTOS", "PROCEDURAL", "noise", "pattern", "photo", "photo_patch", "surface"]
+
 #: Photos of ``skimage.data`` in the scikit-image wheel (loading them needs no network).
 PHOTOS = ("astronaut", "brick", "camera", "cell", "chelsea", "clock", "coffee", "coins", "grass", "gravel",
           "hubble_deep_field", "immunohistochemistry", "moon", "page", "retina", "rocket", "text")

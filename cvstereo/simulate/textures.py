@@ -10,6 +10,9 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+__all__ = ["NATURAL_IMAGES", "NATURAL_PIXEL_M", "OPTICS_BLUR_PX", "SLEEVE_PATTERNS", "arm", "blur", "checkerboard",
+           "dot", "natural_patch", "panel", "sleeve_pattern", "smooth_noise", "texel_size", "wall"]
+
 #: Standard deviation of the lens blur plus pixel area, in sensor pixels. About half a pixel makes a
 #: silhouette cross a pixel over two render steps or more, so that event timestamps follow the edge.
 OPTICS_BLUR_PX = 0.6

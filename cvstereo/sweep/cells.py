@@ -14,6 +14,9 @@ import os
 import stat
 from pathlib import Path
 
+__all__ = ["CELLS", "FIGURE_COLUMNS", "MAX_CELL_BYTES", "TIMING_COLUMNS", "cell_path", "empty_row", "error_text",
+           "read_cell", "trusted", "write_cell"]
+
 #: Figures of :func:`cvstereo.evaluation.metrics.evaluate` kept per cell.
 FIGURE_COLUMNS = ("matches", "coverage", "bad1", "bad2", "mae", "rmse", "median_ae", "false_rate", "mean", "std",
                   "truth_mean")

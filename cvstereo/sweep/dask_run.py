@@ -18,6 +18,8 @@ from collections.abc import Callable
 from cvstereo._signals import held_stop_signals, sigint_blocked_for_children
 from cvstereo.sweep.cells import empty_row, error_text
 
+__all__ = ["DASK_LOGGER", "SCHEDULER_TIMEOUT_S", "WORKER_LOG_LEVELS", "run_on_dask"]
+
 #: Seconds to wait for an existing scheduler to answer (Dask's own default, 30 s, looks like a hang).
 SCHEDULER_TIMEOUT_S = 5
 #: Dask's loggers: quiet while a stopped sweep closes its cluster.

@@ -19,6 +19,9 @@ from cvstereo.matchers.registry import ENTRY_POINT_GROUP
 from cvstereo.sweep.cells import CELLS, FIGURE_COLUMNS, TIMING_COLUMNS, empty_row, error_text, read_cell, write_cell
 from cvstereo.sweep.grid import Cell
 
+__all__ = ["Score", "SweepResult", "cell_key", "check_output_folder", "file_digest", "recording_digest", "run_cell",
+           "run_sweep", "source_digest"]
+
 if TYPE_CHECKING:
     from cvstereo.model.matches import MatchResult
     from cvstereo.model.recording import Recording

@@ -11,6 +11,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+__all__ = ["Cell", "Grid", "toml_text"]
+
 
 @dataclass(frozen=True)
 class Cell:

@@ -13,6 +13,8 @@ import tomllib
 
 from cvstereo.sweep.grid import Grid, toml_text
 
+__all__ = ["BLOCK_KEYS", "FILE_KEYS", "read_grid_file"]
+
 #: Keys of a grid file's top level, and of each of its ``[[grid]]`` tables.
 FILE_KEYS = ("recordings", "figure", "grid")
 BLOCK_KEYS = ("methods", "method", "variants", "params", "param_sets")

@@ -12,6 +12,8 @@ import math
 import os
 from collections.abc import Callable, Iterable
 
+__all__ = ["check_recording_file", "resolve_recordings"]
+
 #: A checked spec: generates (presets, suites) or lists (files) its recordings when called.
 _Source = Callable[[bool], list[str]]
 

@@ -10,6 +10,8 @@ from collections.abc import Sequence
 
 from cvstereo.sweep.cells import FIGURE_COLUMNS
 
+__all__ = ["LOWER_IS_BETTER", "check_figure", "summary_markdown", "write_table"]
+
 #: Figures where smaller is better (the others, e.g. coverage, are better larger).
 LOWER_IS_BETTER = frozenset({"bad1", "bad2", "mae", "rmse", "median_ae", "false_rate", "std"})
 

@@ -38,6 +38,9 @@ from cvstereo.viz._mpl import (
     show_sensor_image,
 )
 
+__all__ = ["ERROR_BIN_PX", "TRUTH_BAND", "as_result", "fill_gaps", "grouped_percentiles", "plot_disparity_map",
+           "plot_disparity_over_time", "plot_error_histogram", "window_truth"]
+
 #: Share of the truth drawn as a band around its median per window (10th to 90th percentile): wide enough to
 #: show two objects at different distances, narrow enough to ignore stray events at object borders.
 TRUTH_BAND = (10, 90)

@@ -24,6 +24,9 @@ from cvstereo.viz._images import (
 )
 from cvstereo.viz._mpl import SIGNED_CMAP, cmap_with_background, new_figure, recording_name, show_sensor_image
 
+__all__ = ["THESIS_THRESHOLD", "dynamic_frame_values", "plot_dynamic_frames", "plot_event_frames",
+           "plot_filtered_frames"]
+
 #: The thesis' threshold on filtered frames (eq. 3.7) and on dynamic frames (event-time matcher): 1.2.
 THESIS_THRESHOLD = 1.2
 

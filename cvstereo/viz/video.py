@@ -34,6 +34,9 @@ from cvstereo.viz._images import (
     window_grid,
 )
 
+__all__ = ["CODECS", "CODEC_NAMES", "COLORBAR_LABEL_PX_PER_FONT", "COLORBAR_PX", "GAP_PX", "GAP_RGB", "HEADER_MIN_PX",
+           "HEADER_PX_PER_SCALE", "video_codec", "write_video"]
+
 #: Codecs tried in order: H.264 (``avc1``: about half the size at the same quality, where the OpenCV build has an
 #: encoder for it; the opencv-python wheels have none), then MPEG-4 part 2 (``mp4v``: every OpenCV build with
 #: FFmpeg writes it, and every player reads it).

@@ -1,0 +1,1 @@
+"""Machinery several matchers share; private to :mod:`cvstereo.matchers`."""

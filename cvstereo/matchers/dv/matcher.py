@@ -20,6 +20,8 @@ from cvstereo.frames.windows import FrameMatcher, Window, check_window_us
 from cvstereo.matchers.opencv.matcher import DISP_SCALE, matches_at_left_events
 from cvstereo.model.matches import empty_matches
 
+__all__ = ["DvSemiDenseMatcher", "DvSemiDenseParams"]
+
 
 @dataclass(frozen=True)
 class DvSemiDenseParams:

@@ -63,6 +63,8 @@ from cvstereo.frames.dynamic import SUM_REBUILD, advance_due_summed, column_sums
 from cvstereo.matchers._shared.event_common import MergedEventMatcher, emit_match
 from cvstereo.matchers._shared.thesis_params import EventAreaParams
 
+__all__ = ["EventAreaMatcher"]
+
 
 @njit(cache=True)
 def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift, kernel, decay, period, thresholds,

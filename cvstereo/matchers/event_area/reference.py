@@ -8,6 +8,8 @@ from cvstereo.matchers._shared.reference_frames import DynamicFrames, match_merg
 from cvstereo.matchers._shared.thesis_params import EventAreaParams
 from cvstereo.model.events import DEFAULT_RESOLUTION
 
+__all__ = ["event_area_reference"]
+
 
 def event_area_reference(left: np.ndarray, right: np.ndarray, params: EventAreaParams | None = None, *,
                          resolution: tuple[int, int] = DEFAULT_RESOLUTION) -> np.ndarray:

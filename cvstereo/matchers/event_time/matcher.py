@@ -63,6 +63,8 @@ from cvstereo.matchers.protocol import StreamMatcher
 from cvstereo.model.events import paired_window_segments
 from cvstereo.model.matches import empty_matches
 
+__all__ = ["NO_TIME", "EventTimeMatcher"]
+
 #: "No event yet" in the tables of event times: below any time stamp (time stamps may be negative).
 NO_TIME = np.iinfo(np.int64).min
 

@@ -12,6 +12,8 @@ from cvstereo.matchers._shared.thesis_params import EventTimeParams
 from cvstereo.model.events import DEFAULT_RESOLUTION
 from cvstereo.model.matches import empty_matches, make_matches
 
+__all__ = ["event_time_reference"]
+
 
 def _neighbour_intervals(events: np.ndarray, cap: int) -> list[float]:
     """Per event, the time back to the last earlier event (strictly earlier) of its polarity in its 3x3

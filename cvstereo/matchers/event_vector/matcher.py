@@ -61,6 +61,8 @@ from cvstereo.frames.dynamic import BOUND_SHIFT, advance_due_bounded, block_boun
 from cvstereo.matchers._shared.event_common import MergedEventMatcher, emit_match
 from cvstereo.matchers._shared.thesis_params import EventVectorParams
 
+__all__ = ["EventVectorMatcher"]
+
 
 @njit(cache=True, inline="always")
 def _sign(v):

@@ -9,6 +9,8 @@ from cvstereo.matchers._shared.reference_frames import DynamicFrames, match_merg
 from cvstereo.matchers._shared.thesis_params import EventVectorParams
 from cvstereo.model.events import DEFAULT_RESOLUTION
 
+__all__ = ["accumulation_vector", "choose", "event_vector_reference", "run_sides"]
+
 
 def accumulation_vector(frames: DynamicFrames, slot: int, x: int, y: int, threshold: float) -> tuple[int, int]:
     """The vector (a, b) of pixel (x, y): signed distances to the next accumulation left and right of its run.

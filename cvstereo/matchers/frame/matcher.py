@@ -50,6 +50,8 @@ from cvstereo.matchers._shared.thesis_params import WIDTH_EPS, FrameClusterParam
 from cvstereo.model.matches import empty_matches, make_matches
 from cvstereo.model.polarity import slot_of_p
 
+__all__ = ["FrameClusterMatcher", "active_values"]
+
 
 class FrameClusterMatcher(FrameMatcher):
     """Frame-based cluster matcher (thesis 3.3) as a streaming object.

@@ -23,6 +23,8 @@ from cvstereo.model.events import DEFAULT_RESOLUTION
 from cvstereo.model.matches import empty_matches, make_matches
 from cvstereo.model.polarity import frame_signs
 
+__all__ = ["Pairs", "Runs", "cluster_signs", "frame_clusters_reference", "match_frame_pair", "match_runs", "row_runs"]
+
 
 class Runs(NamedTuple):
     """Clusters of a frame: maximal runs of equal nonzero sign within one row, in row-major order.

@@ -48,6 +48,8 @@ from cvstereo.matchers._shared.thesis_params import FrameAreaParams
 from cvstereo.model.matches import empty_matches, make_matches
 from cvstereo.model.polarity import slot_of_p
 
+__all__ = ["FrameAreaMatcher", "scan_sad"]
+
 
 def scan_sad(reference: np.ndarray, other: np.ndarray, *, threshold: float, max_disparity: int, block: int = 5,
              reference_camera: int = 1) -> np.ndarray:

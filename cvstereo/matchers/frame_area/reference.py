@@ -19,6 +19,8 @@ from cvstereo.model.events import DEFAULT_RESOLUTION
 from cvstereo.model.matches import empty_matches, make_matches
 from cvstereo.model.polarity import frame_signs
 
+__all__ = ["frame_area_reference", "sad_volume", "scan_disparity_map"]
+
 
 def sad_volume(reference: np.ndarray, other: np.ndarray, *, max_disparity: int, block: int = 5,
                reference_camera: int = 1) -> np.ndarray:

@@ -97,6 +97,8 @@ from cvstereo.matchers.fused.params import FusedParams
 from cvstereo.matchers.fused.signal import level_of
 from cvstereo.model.matches import MATCH_DTYPE
 
+__all__ = ["FusedMatcher", "Scratch", "WindowState", "finish_window", "occluded"]
+
 
 @njit(cache=True, nogil=True)
 def occluded(x, y, disparity, uncertainty, margin, support):

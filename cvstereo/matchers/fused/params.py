@@ -7,6 +7,8 @@ from dataclasses import dataclass
 
 from cvstereo.frames.windows import check_window_us
 
+__all__ = ["FusedParams"]
+
 
 @dataclass(frozen=True)
 class FusedParams:

@@ -16,6 +16,9 @@ from cvstereo.matchers.fused.signal import signal_level
 from cvstereo.model.events import DEFAULT_RESOLUTION
 from cvstereo.model.matches import concat_matches, make_matches
 
+__all__ = ["aggregate", "choose", "cost_volume", "fused_reference", "path_step", "support_sum", "time_surfaces",
+           "windows"]
+
 
 def windows(left: np.ndarray, right: np.ndarray, window_us: int):
     """``(t_end, left events, right events)`` of every window in which either camera has events, in time order

@@ -13,6 +13,8 @@ import numpy as np
 
 from cvstereo.matchers.fused._features import percentile
 
+__all__ = ["LEVEL_PERCENTILE", "level_of", "signal_level"]
+
 #: Percentile of the non-zero feature values taken as a window's signal level.
 LEVEL_PERCENTILE = 90.0
 

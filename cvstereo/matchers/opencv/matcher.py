@@ -34,6 +34,9 @@ from cvstereo.matchers.params import Alias
 from cvstereo.model.matches import empty_matches, make_matches
 from cvstereo.model.polarity import OFF, ON
 
+__all__ = ["DISP_SCALE", "MID_GREY", "StereoBMMatcher", "StereoBMParams", "StereoSGBMMatcher", "StereoSGBMParams",
+           "matches_at_left_events"]
+
 #: OpenCV's fixed-point disparity scale (4 fractional bits).
 DISP_SCALE = 16
 #: Grey value of "no events" in the ``filtered`` image mapping.
