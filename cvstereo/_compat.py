@@ -75,6 +75,11 @@ MOVED: dict[str, str] = {
     "cvstereo.thesis": "cvstereo.evaluation.thesis",
     "cvstereo.experiment": "cvstereo.evaluation.experiment",
     "cvstereo.timing": "cvstereo.benchmark.timing",
+    # Private modules that other packages imported: public now (no module imports another package's private one).
+    "cvstereo.io._atomic": "cvstereo.io.atomic",
+    "cvstereo.io._source": "cvstereo.io.files",
+    "cvstereo.io._paths": "cvstereo.io.paths",
+    "cvstereo.viz._mpl": "cvstereo.viz.mpl",
 }
 
 

@@ -19,6 +19,13 @@ from pathlib import Path
 
 LOG = logging.getLogger("cvstereo")
 
+#: The folders of the package (relative to it) that hold modules with cached numba kernels: numba writes a
+#: kernel's cache into ``__pycache__`` beside its module, and matcher-only kernels live beside their matcher.
+#: (test_numba_cache checks this list against the source.)
+KERNEL_FOLDERS = ("frames", "matchers", "matchers/_shared", "matchers/event_area", "matchers/event_time",
+                  "matchers/event_vector", "matchers/frame", "matchers/frame_area", "matchers/fused", "sensors",
+                  "simulate")
+
 
 def can_write(folder: str | os.PathLike) -> bool:
     """True if a file can be created in ``folder`` (made if missing), as numba itself checks it."""
@@ -76,7 +83,7 @@ def configure() -> None:
     if os.environ.get("NUMBA_CACHE_DIR"):
         return  # the user chose
     here = Path(__file__).resolve().parent
-    packages = [here, here.parent / "calibration_free"]
+    packages = [here / folder for folder in KERNEL_FOLDERS]
     try:
         user_cache = numba_user_cache_dir()
     except RuntimeError:  # no home folder at all

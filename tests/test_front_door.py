@@ -215,3 +215,10 @@ def test_every_public_module_declares_all_and_defines_every_name_of_it():
             undefined[name] = absent
     assert len(_public_modules()) > 100
     assert missing == [] and undefined == {}
+
+
+def test_the_changelog_lists_every_move():
+    text = (ROOT / "CHANGELOG.md").read_text()
+    assert f"## {cvstereo.__version__}" in text
+    missing = [f"{old} -> {new}" for old, new in MOVED.items() if f"| `{old}` | `{new}` |" not in text]
+    assert missing == []

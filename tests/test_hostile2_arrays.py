@@ -16,12 +16,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cvstereo.arrays import events_from
+from cvstereo.events import EVENT_DTYPE, as_events, make_events
+from cvstereo.pipeline import match
+from cvstereo.recording import Recording
 
 from cvstereo.io import write_recording
-from cvstereo.model.arrays import events_from
-from cvstereo.model.events import EVENT_DTYPE, as_events, make_events
-from cvstereo.model.recording import Recording
-from cvstereo.run import match
 from tests._hostile import case, check_case
 from tests._hostile_calls import accepted, refused, same_events, working_copy
 

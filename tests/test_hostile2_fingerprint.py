@@ -16,11 +16,11 @@ import shutil
 from pathlib import Path
 
 import pytest
+from cvstereo.recording import Recording
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cvstereo.io import read_matches, write_matches, write_recording
-from cvstereo.model.recording import Recording
 from tests._hostile import Case, case, check_case, run_cli
 from tests._io_helpers import textured_blobs
 
@@ -145,7 +145,7 @@ def test_matches_of_swapped_cameras_are_scored_on_the_cameras_they_used(work, ca
 
 def _fingerprint_of_cuts(rec: Recording, cuts: list[int]) -> dict:
     """The fingerprint of ``rec`` fed in packets cut at the event indices ``cuts`` (any, repeated, unordered)."""
-    from cvstereo.model.fingerprint import EventFingerprint
+    from cvstereo.fingerprint import EventFingerprint
 
     fp = EventFingerprint()
     bounds = [0, *sorted(cuts), None]
@@ -157,7 +157,7 @@ def _fingerprint_of_cuts(rec: Recording, cuts: list[int]) -> dict:
 @settings(max_examples=40, deadline=None)
 @given(st.lists(st.integers(0, 2880), max_size=12))
 def test_the_fingerprint_does_not_depend_on_packet_cuts(cuts):
-    from cvstereo.model.fingerprint import fingerprint_of
+    from cvstereo.fingerprint import fingerprint_of
 
     rec = textured_blobs(0, 4, disparity=13, window_us=W)
     assert _fingerprint_of_cuts(rec, cuts) == fingerprint_of(rec), f"SILENT: cuts {sorted(cuts)} change it"
@@ -165,8 +165,9 @@ def test_the_fingerprint_does_not_depend_on_packet_cuts(cuts):
 
 @pytest.mark.parametrize("packet_us", [1, 999, 40_000, 10**9])
 def test_match_stores_the_same_fingerprint_for_any_packet_length(packet_us):
+    from cvstereo.fingerprint import fingerprint_of
+
     from calibration_free import match
-    from cvstereo.model.fingerprint import fingerprint_of
 
     rec = textured_blobs(0, 4, disparity=13, window_us=W)
     got = match(rec, method="frame", packet_us=packet_us).meta.get("fingerprint")
@@ -175,8 +176,9 @@ def test_match_stores_the_same_fingerprint_for_any_packet_length(packet_us):
 
 def test_the_fingerprint_tells_every_hostile_recording_apart(base):
     """Independent of the CLI: each hostile recording's fingerprint differs from the real one's."""
+    from cvstereo.fingerprint import fingerprint_of
+
     from cvstereo.io import read_recording
-    from cvstereo.model.fingerprint import fingerprint_of
 
     real = fingerprint_of(read_recording(base / "rec.npz"))
     for name in ("allt", "shift1s", "shiftend", "swapped", "moved", "empty"):

@@ -17,10 +17,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cvstereo.events import make_events
+from cvstereo.recording import Recording
 
 from cvstereo.io import read_matches, read_recording, write_recording
-from cvstereo.model.events import make_events
-from cvstereo.model.recording import Recording
 from tests._hostile import Case, case, check_case, run_cli
 
 pytestmark = pytest.mark.timeout(180)

@@ -17,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cvstereo.depth import DepthModel
+from cvstereo.depth_file import save_depth_model
 
-from cvstereo.geometry.depth import DepthModel
-from cvstereo.geometry.depth_file import save_depth_model
 from cvstereo.io import read_matches, write_matches, write_recording
 from tests._hostile import Case, case, check_case, leftovers, null_device, run_cli, snapshot
 from tests._io_helpers import textured_blobs
@@ -276,12 +276,12 @@ def test_plot_all_that_fails_leaves_no_folder(work, monkeypatch, capsys):
 
 
 def test_point_cloud_without_depth_is_refused_before_matching(work, monkeypatch, capsys):
-    import cvstereo.run
+    import cvstereo.pipeline
 
     def never(*args, **kwargs):
         raise AssertionError("SILENT: matched before refusing an output it cannot write")
 
-    monkeypatch.setattr(cvstereo.run, "match", never)
+    monkeypatch.setattr(cvstereo.pipeline, "match", never)
     code, _, err = _run(["match", "rec.npz", "--point-cloud", "pc.ply", "-o", "m2.npz"], capsys)
     assert code == 1, f"SILENT: exit {code}"
     assert "depth model" in err, f"MESSAGE: {err!r}"

@@ -16,10 +16,10 @@ import time
 
 import numpy as np
 import pytest
+from cvstereo.events import make_events
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from cvstereo.model.events import make_events
 from cvstereo.sensors.decoder import StreamDecoder
 from cvstereo.sensors.protocol import ProtocolSettings, encode_events
 from tests._serial_clock import (

@@ -15,11 +15,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from cvstereo.matches import concat_matches
+from cvstereo.pipeline import match
+from cvstereo.recording import Recording
+from cvstereo.registry import DEFAULT_METHOD, METHODS, available_methods, create_matcher, matcher_class
 
-from cvstereo.matchers.registry import DEFAULT_METHOD, METHODS, available_methods, create_matcher, matcher_class
-from cvstereo.model.matches import concat_matches
-from cvstereo.model.recording import Recording
-from cvstereo.run import match
 from tests._io_helpers import textured_blobs
 
 pytestmark = pytest.mark.timeout(120)

@@ -16,13 +16,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cvstereo.events import EVENT_DTYPE, MAX_RESOLUTION, make_events
+from cvstereo.recording import Recording
+from cvstereo.registry import available_methods, create_matcher, matcher_class, parse_param_strings
 
 from cvstereo.cli import main
 from cvstereo.errors import EventFormatError
 from cvstereo.io.npz import write_recording_npz
-from cvstereo.matchers.registry import available_methods, create_matcher, matcher_class, parse_param_strings
-from cvstereo.model.events import EVENT_DTYPE, MAX_RESOLUTION, make_events
-from cvstereo.model.recording import Recording
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -52,7 +52,7 @@ def _first_outside(events: np.ndarray, resolution) -> tuple[int, str]:
 _FEED = textwrap.dedent("""
     import sys
     import numpy as np
-    from cvstereo.matchers.registry import create_matcher
+    from cvstereo.registry import create_matcher
     left, right = np.load(sys.argv[1]), np.load(sys.argv[2])
     m = create_matcher(sys.argv[3], resolution=(int(sys.argv[4]), int(sys.argv[5])))
     try:

@@ -25,10 +25,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cvstereo.recording import Recording
 
 from cvstereo.cli import main
 from cvstereo.io import read_matches, read_recording, write_matches, write_recording
-from cvstereo.model.recording import Recording
 from tests._hostile import Case, case, check_case, leftovers, null_device, snapshot
 from tests._io_helpers import textured_blobs
 

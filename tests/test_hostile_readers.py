@@ -17,14 +17,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cvstereo.events import MAX_RESOLUTION, make_events
+from cvstereo.matches import make_matches
+from cvstereo.recording import Recording
 
 from cvstereo.cli import main
 from cvstereo.errors import CorruptFileError, EventFormatError
 from cvstereo.io import open_recording, read_matches, read_recording
 from cvstereo.io.npz import iter_npz_chunks, npz_keys, read_npz_header, write_matches, write_recording_npz
-from cvstereo.model.events import MAX_RESOLUTION, make_events
-from cvstereo.model.matches import make_matches
-from cvstereo.model.recording import Recording
 
 pytestmark = pytest.mark.timeout(60)
 

@@ -9,12 +9,12 @@ import struct
 
 import numpy as np
 import pytest
+from cvstereo.events import EVENT_DTYPE, make_events
+from cvstereo.recording import Recording
 
 from cvstereo.cli import main
 from cvstereo.errors import CorruptFileError
 from cvstereo.io.npz import write_recording_npz
-from cvstereo.model.events import EVENT_DTYPE, make_events
-from cvstereo.model.recording import Recording
 from cvstereo.sensors import VirtualEDVS
 from cvstereo.sensors.decoder import RESYNC_WINDOW, StreamDecoder
 from cvstereo.sensors.detect import ProtocolMismatchError, check_protocol

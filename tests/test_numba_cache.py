@@ -47,3 +47,12 @@ def test_user_cache_dir_is_numbas_own():
     from cvstereo._numba_cache import numba_user_cache_dir
 
     assert numba_user_cache_dir() == Path(AppDirs(appname="numba", appauthor=False).user_cache_dir)
+
+
+def test_kernel_folders_are_the_folders_of_the_modules_with_cached_kernels():
+    from cvstereo import _numba_cache
+
+    package = Path(_numba_cache.__file__).parent
+    with_kernels = {path.parent.relative_to(package).as_posix() for path in package.rglob("*.py")
+                    if path.name != "_numba_cache.py" and "cache=True" in path.read_text()}
+    assert with_kernels == set(_numba_cache.KERNEL_FOLDERS) and "matchers/frame" in with_kernels

@@ -108,7 +108,7 @@ def _experiment(args: argparse.Namespace, methods: list[str], out: Path, combos)
     from cvstereo.evaluation.metrics import to_json
     from cvstereo.evaluation.thesis import RECORDINGS
     from cvstereo.io import read_recording
-    from cvstereo.io._atomic import write_text_atomic
+    from cvstereo.io.atomic import write_text_atomic
     from cvstereo.simulate import cached_preset
 
     print("Simulating the thesis' six recordings (cached after the first run) ...", file=sys.stderr)

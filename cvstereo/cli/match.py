@@ -34,7 +34,7 @@ from cvstereo.cli._common import (
     require_range,
 )
 from cvstereo.cli._text import number, plain_text
-from cvstereo.matchers._shared.signal_level import silence_warning
+from cvstereo.evaluation.diagnostics import silence_warning
 from cvstereo.matchers.sets import ADAPTIVE
 
 __all__ = ["MAX_TIME_OFFSET_US", "add_parser", "list_methods", "run"]

@@ -34,7 +34,7 @@ MAX_WINDOW_MS, MAX_TIME_MS = 3_600_000, 1e13
 
 def name_recording(recording, path) -> None:
     """Give a recording without a preset or scene (a real file) its file name, so that titles name it."""
-    from cvstereo.viz._mpl import recording_name
+    from cvstereo.viz.mpl import recording_name
 
     if not recording_name(recording.meta):
         recording.meta["name"] = Path(path).name
@@ -127,7 +127,7 @@ def _ms_to_us(ms: float | None) -> int | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cvstereo.viz._mpl import require_matplotlib
+    from cvstereo.viz.mpl import require_matplotlib
 
     require_matplotlib()  # before reading anything: a missing extra is said at once
     check_window_options(args)

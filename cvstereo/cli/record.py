@@ -33,7 +33,7 @@ def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
 
 def _refuse_output_over_inputs(output: str, inputs: dict[str, str | None]) -> None:
     """``-o`` must not be the file of any of these options (through symlinks and hard links too)."""
-    from cvstereo.io._paths import refuse_output_over_input
+    from cvstereo.io.paths import refuse_output_over_input
 
     for option, path in inputs.items():
         refuse_output_over_input(output, [path], what=f"{option} file")

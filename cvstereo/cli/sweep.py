@@ -141,7 +141,7 @@ def _report_failures(rows: list[dict], table) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from cvstereo.io._atomic import write_text_atomic
+    from cvstereo.io.atomic import write_text_atomic
     from cvstereo.sweep import (
         check_figure,
         check_output_folder,

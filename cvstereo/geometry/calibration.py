@@ -15,23 +15,31 @@ Sources:
   ``rectification_matrix``/``projection_matrix`` when given (MVSEC ships them), else computed;
 - ``.json`` / ``.npz`` with keys ``K1, D1, K2, D2, R, T, resolution`` (optional ``model``).
 
-YAML is read by :mod:`cvstereo._yaml` (a documented subset; PyYAML is not a dependency).
+YAML is read with PyYAML's safe loader (:func:`parse_calibration_yaml`), files of at most
+:data:`MAX_YAML_BYTES`.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import cv2
 import numpy as np
+import yaml
 
-from cvstereo import _yaml
 from cvstereo.geometry.depth import DepthModel
 
-__all__ = ["MODELS", "CameraCalibration", "StereoCalibration", "load_calibration"]
+__all__ = ["MAX_YAML_BYTES", "MODELS", "CameraCalibration", "StereoCalibration", "load_calibration",
+           "parse_calibration_yaml"]
+
+#: The largest calibration YAML file read. Calibration files are a few kB; the cap keeps a wrong path (a
+#: recording named .yaml) from being parsed whole into memory.
+MAX_YAML_BYTES = 1 << 20
 
 #: Distortion models: OpenCV's polynomial (Kalibr's "radtan", ROS "plumb_bob") and the fisheye "equidistant".
 MODELS = ("radtan", "equidistant")
@@ -265,7 +273,11 @@ def load_calibration(path: str | os.PathLike) -> StereoCalibration:
     if suffix not in (".yaml", ".yml"):
         raise ValueError(f"{path}: calibration files are .yaml/.yml (DSEC, Kalibr), .json or .npz (K1, D1, K2, D2, "
                          f"R, T, resolution); got '{suffix}'.")
-    data = _yaml.load(path)
+    size = path.stat().st_size
+    if size > MAX_YAML_BYTES:
+        raise ValueError(f"{path}: {size} bytes, more than a calibration file holds (at most {MAX_YAML_BYTES}); "
+                         "is this the calibration file?")
+    data = parse_calibration_yaml(path.read_bytes().decode("utf-8", errors="replace"), source=str(path))
     if isinstance(data, dict) and "intrinsics" in data and "extrinsics" in data:
         return _dsec(data, source)
     if isinstance(data, dict) and "cam0" in data and "cam1" in data:
@@ -275,3 +287,46 @@ def load_calibration(path: str | os.PathLike) -> StereoCalibration:
     keys = ", ".join(map(str, data)) if isinstance(data, dict) else type(data).__name__
     raise ValueError(f"{path}: not a known calibration layout (DSEC: intrinsics/extrinsics; Kalibr: cam0/cam1; "
                      f"OpenCV: K1, D1, K2, D2, R, T); its top level has {keys}.")
+
+
+class _CalibrationLoader(yaml.SafeLoader):
+    """PyYAML's safe loader, plus OpenCV's ``!!opencv-matrix`` tag (read as the plain mapping under it), with
+    YAML 1.2's booleans: only ``true``/``false`` (any case), so that ``on``, ``off``, ``yes``, ``no`` stay text
+    (YAML 1.1 reads a key ``on`` as True)."""
+
+    yaml_implicit_resolvers: ClassVar[dict] = {
+        first: [(tag, regexp) for tag, regexp in resolvers if tag != "tag:yaml.org,2002:bool"]
+        for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()}
+
+
+_CalibrationLoader.add_implicit_resolver("tag:yaml.org,2002:bool",
+                                         re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$"), list("tTfF"))
+_CalibrationLoader.add_constructor("tag:yaml.org,2002:opencv-matrix",
+                                   lambda loader, node: loader.construct_mapping(node, deep=True))
+
+
+def parse_calibration_yaml(text: str, *, source: str = "<yaml>"):
+    """Parse a calibration file's YAML with PyYAML's safe loader (no Python objects are ever built).
+
+    OpenCV's files start with ``%YAML:1.0`` (a colon where YAML wants a space) and tag matrices
+    ``!!opencv-matrix``: both are accepted, the tagged mapping is returned as it is.
+
+    Raises
+    ------
+    ValueError
+        Not valid YAML; the message names ``source`` and the line.
+
+    Examples
+    --------
+    >>> parse_calibration_yaml("%YAML:1.0\\n---\\nM: !!opencv-matrix\\n   rows: 1\\n   data: [ 1., 2. ]\\n")
+    {'M': {'rows': 1, 'data': [1.0, 2.0]}}
+    """
+    if text.startswith("%YAML:"):
+        text = "%YAML " + text[len("%YAML:"):]
+    try:
+        return yaml.load(text, Loader=_CalibrationLoader)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise ValueError(f"{source}: not valid YAML{where} ({problem}).") from None

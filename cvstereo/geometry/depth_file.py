@@ -23,7 +23,7 @@ import math
 import os
 
 from cvstereo.geometry.depth import DepthModel
-from cvstereo.io._atomic import write_text_atomic
+from cvstereo.io.atomic import write_text_atomic
 
 __all__ = ["FORMAT", "VERSION", "WHAT", "load_depth_model", "save_depth_model"]
 

@@ -27,15 +27,8 @@ import numpy as np
 
 from cvstereo.geometry.depth import DepthModel
 
-__all__ = [
-    "POINT_DTYPE",
-    "THESIS_FOCAL_PX",
-    "Intrinsics",
-    "depth_per_match",
-    "point_cloud",
-    "window_point_clouds",
-    "write_ply",
-]
+__all__ = ["POINT_DTYPE", "THESIS_FOCAL_PX", "Intrinsics", "depth_per_match", "point_cloud", "window_point_clouds",
+           "write_ply"]
 
 #: The thesis rig's focal length, px (the simulator's ``Rig.focal_px``).
 THESIS_FOCAL_PX = 165.0
@@ -207,7 +200,7 @@ def write_ply(path: str | os.PathLike, points: np.ndarray, *, model: DepthModel,
         from plyfile import PlyData, PlyElement
     except ImportError as exc:
         raise ImportError("writing PLY needs plyfile: pip install 'cvstereo[pointcloud]'") from exc
-    from cvstereo.io._atomic import atomic_path
+    from cvstereo.io.atomic import atomic_path
 
     header = ("cvstereo point cloud: left camera frame, X right, Y down, Z forward, metres",
               f"depth model: d = a/Z - c with a = {model.a:.6g} px*m, c = {model.c:.6g} px",

@@ -14,9 +14,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from cvstereo.io._source import require_regular_file
 from cvstereo.io.aedat2 import open_aedat2, write_aedat2
 from cvstereo.io.edvs_text import open_edvs_merged, open_edvs_text, read_text_header, write_edvs_merged, write_edvs_pair
+from cvstereo.io.files import require_regular_file
 from cvstereo.io.npz import read_matches, read_recording_npz, write_matches, write_recording_npz
 from cvstereo.io.stream import RecordingStream, open_npz
 from cvstereo.model.recording import Recording
@@ -259,7 +259,7 @@ def output_format(path: str | os.PathLike, *, format: str | None = None,
                          f"{'/'.join(TEXT_SUFFIXES)}): give the right camera's file exactly for it (format here: "
                          f"'{fmt}', from {'the name' if format is None else 'the option'}).")
     if right is not None:
-        from cvstereo.io._paths import refuse_output_over_input
+        from cvstereo.io.paths import refuse_output_over_input
 
         refuse_output_over_input(right, [path], option="the right camera's output", what="left camera's output")
     for p in (path, right):
@@ -303,18 +303,6 @@ def write_recording(path: str | os.PathLike, recording: Recording, *, format: st
     fmt.write(path, recording, **{k: options[k] for k in fmt.write_options})
 
 
-__all__ = [
-    "FORMATS",
-    "FORMAT_TABLE",
-    "Format",
-    "RecordingStream",
-    "detect_format",
-    "open_recording",
-    "output_format",
-    "read_matches",
-    "read_recording",
-    "read_recording_npz",
-    "write_matches",
-    "write_recording",
-    "write_recording_npz",
-]
+__all__ = ["FORMATS", "FORMAT_TABLE", "Format", "RecordingStream", "detect_format", "open_recording", "output_format",
+           "read_matches", "read_recording", "read_recording_npz", "write_matches", "write_recording",
+           "write_recording_npz"]

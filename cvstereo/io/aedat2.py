@@ -32,9 +32,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from cvstereo.errors import CorruptFileError
-from cvstereo.io._atomic import atomic_path
 from cvstereo.io._checked import ChunkChecker
-from cvstereo.io._source import open_regular, printable
+from cvstereo.io.atomic import atomic_path
+from cvstereo.io.files import open_regular, printable
 from cvstereo.io.stream import MONO, Chunk, RecordingStream
 from cvstereo.model.events import EVENT_DTYPE, empty_events, validate_events
 from cvstereo.model.recording import CAMERAS, Recording
@@ -372,20 +372,6 @@ def _write(path, events: np.ndarray, eyes, *, resolution) -> None:
         fh.write(records.tobytes())
 
 
-__all__ = [
-    "MAGIC",
-    "RECORD_DTYPE",
-    "RESOLUTION",
-    "AedatHeader",
-    "AedatScan",
-    "decode_addresses",
-    "encode_addresses",
-    "iter_aedat2_chunks",
-    "open_aedat2",
-    "read_aedat2",
-    "read_aedat2_events",
-    "read_aedat2_header",
-    "scan_aedat2",
-    "write_aedat2",
-    "write_aedat2_events",
-]
+__all__ = ["MAGIC", "RECORD_DTYPE", "RESOLUTION", "AedatHeader", "AedatScan", "decode_addresses", "encode_addresses",
+           "iter_aedat2_chunks", "open_aedat2", "read_aedat2", "read_aedat2_events", "read_aedat2_header",
+           "scan_aedat2", "write_aedat2", "write_aedat2_events"]

@@ -33,8 +33,8 @@ import numpy as np
 
 from cvstereo.errors import CorruptFileError
 from cvstereo.io._checked import ChunkChecker
-from cvstereo.io._source import open_regular
 from cvstereo.io._watchdog import worker_frames
+from cvstereo.io.files import open_regular
 from cvstereo.io.stream import MONO, Chunk, RecordingStream
 from cvstereo.model.events import EVENT_DTYPE, check_resolution
 from cvstereo.model.recording import CAMERAS

@@ -9,7 +9,7 @@ import os
 
 import numpy as np
 
-from cvstereo.io._atomic import atomic_path
+from cvstereo.io.atomic import atomic_path
 from cvstereo.io.edvs_text_parse import CHUNK_LINES
 from cvstereo.model.events import DEFAULT_RESOLUTION, validate_events
 from cvstereo.model.recording import Recording

@@ -16,8 +16,8 @@ from collections.abc import Iterator
 import numpy as np
 
 from cvstereo.errors import CorruptFileError, EventFormatError
-from cvstereo.io._atomic import atomic_path
-from cvstereo.io._source import require_regular_file
+from cvstereo.io.atomic import atomic_path
+from cvstereo.io.files import require_regular_file
 from cvstereo.matchers.protocol import MAX_PARAM_INT
 from cvstereo.model.events import DEFAULT_RESOLUTION, as_events, check_resolution
 from cvstereo.model.matches import REQUIRED_META, MatchResult, validate_matches

@@ -8,14 +8,14 @@ before a possibly long computation: every input is a regular file; no output is 
 extension of its kind, or none: a name without extension gets the command's own format; devices and FIFOs
 are streams, whatever their names); its folder exists (or is a folder the plan creates) and a temporary file
 can be made there, so that a read-only folder is reported before the work, not after. Inside the block the
-writers write as they always do (:func:`cvstereo.io._atomic.atomic_path`), into the plan's temporary files.
-Leaving the block publishes every output that was written (:func:`cvstereo.io._atomic.publish`: all or none,
+writers write as they always do (:func:`cvstereo.io.atomic.atomic_path`), into the plan's temporary files.
+Leaving the block publishes every output that was written (:func:`cvstereo.io.atomic.publish`: all or none,
 previous versions restored); an exception or a signal instead removes the temporary files and the folders the
 plan created, so that a failed run leaves no output, half or whole. Every error names the user's path.
 
 >>> import os, tempfile
 >>> from pathlib import Path
->>> from cvstereo.io._atomic import write_text_atomic
+>>> from cvstereo.io.atomic import write_text_atomic
 >>> a, b = (os.path.join(tempfile.mkdtemp(), name) for name in ("a.txt", "b.txt"))
 >>> plan = OutputPlan()
 >>> plan.write(a, ANY_FILE)
@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple
 
-from cvstereo.io._atomic import (
+from cvstereo.io.atomic import (
     ACTIVE_PLAN,
     Staged,
     discard,
@@ -48,8 +48,8 @@ from cvstereo.io._atomic import (
     publish,
     stage,
 )
-from cvstereo.io._paths import OutputIsInputError, refuse_output_over_input, same_file
-from cvstereo.io._source import require_regular_file
+from cvstereo.io.files import require_regular_file
+from cvstereo.io.paths import OutputIsInputError, refuse_output_over_input, same_file
 
 
 class OutputKind(NamedTuple):

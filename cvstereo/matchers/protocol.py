@@ -351,4 +351,18 @@ class StreamMatcher(abc.ABC):
         """Cameras whose pixels the matches are anchored on (0 = left, 1 = right)."""
         return (0, 1)
 
+    def take_uncertainty(self) -> np.ndarray | None:
+        """The uncertainty (0..1, lower is more certain) of every match returned since the last call, in order,
+        or None: this matcher does not rate its matches (the default).
+
+        Part of the protocol so that the run loop asks every matcher the same way; a matcher that rates its
+        matches (formats.md's optional per-match array ``uncertainty``) overrides it.
+        """
+        return None
+
+    def diagnostics(self) -> dict:
+        """What the matcher observed of its own thresholds so far, for ``meta["diagnostics"]``
+        (:func:`cvstereo.evaluation.diagnostics.silence_warning` reads it); empty by default."""
+        return {}
+
     method: ClassVar[str] = "?"

@@ -47,7 +47,7 @@ def cell_path(out: Path, key: str) -> Path:
 
 def write_cell(out: Path, key: str, row: dict) -> None:
     """Write a finished cell's row, with its key (so that a file copied to another cell's name is told apart)."""
-    from cvstereo.io._atomic import write_text_atomic
+    from cvstereo.io.atomic import write_text_atomic
 
     write_text_atomic(cell_path(out, key), json.dumps({**row, "key": key}, sort_keys=True))
 

@@ -38,7 +38,7 @@ def file_digest(path: str | os.PathLike) -> str:
     FileNotFoundError, IsADirectoryError, OSError
         As the readers do for what is no regular file: a FIFO would block, ``/dev/zero`` never end.
     """
-    from cvstereo.io._source import open_regular
+    from cvstereo.io.files import open_regular
 
     h = hashlib.sha256()
     with open_regular(path) as fh:

@@ -54,7 +54,7 @@ def read_grid_file(path: str | os.PathLike) -> tuple[list[Grid], list[str], dict
     ValueError
         Not UTF-8 TOML, an unknown key, or a key of the wrong type; the message names the file, table and key.
     """
-    from cvstereo.io._source import require_regular_file
+    from cvstereo.io.files import require_regular_file
     from cvstereo.sweep.report import check_figure
 
     path = require_regular_file(path)

@@ -64,7 +64,7 @@ def _source(spec: str) -> _Source:
 def check_recording_file(path: str | os.PathLike) -> None:
     """Refuse, as the readers do, a recording that is no regular file or whose format cannot be told."""
     from cvstereo.io import detect_format
-    from cvstereo.io._source import require_regular_file
+    from cvstereo.io.files import require_regular_file
 
     require_regular_file(path)
     detect_format(path)

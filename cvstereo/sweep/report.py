@@ -27,7 +27,7 @@ def write_table(rows: Sequence[dict], path: str | os.PathLike) -> None:
         import pyarrow.parquet as pq
     except ImportError:
         raise ImportError("writing the sweep table needs pyarrow: pip install 'cvstereo[sweep]'.") from None
-    from cvstereo.io._atomic import atomic_path
+    from cvstereo.io.atomic import atomic_path
 
     names = list(dict.fromkeys(k for r in rows for k in r))
     columns = {}

@@ -29,7 +29,7 @@ from cvstereo.viz._images import (
     match_window_slice,
     truth_image,
 )
-from cvstereo.viz._mpl import (
+from cvstereo.viz.mpl import (
     DISPARITY_CMAP,
     add_metres_axis,
     cmap_with_background,

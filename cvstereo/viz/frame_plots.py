@@ -22,7 +22,7 @@ from cvstereo.viz._images import (
     busiest_window,
     event_frame_rgb,
 )
-from cvstereo.viz._mpl import SIGNED_CMAP, cmap_with_background, new_figure, recording_name, show_sensor_image
+from cvstereo.viz.mpl import SIGNED_CMAP, cmap_with_background, new_figure, recording_name, show_sensor_image
 
 __all__ = ["THESIS_THRESHOLD", "dynamic_frame_values", "plot_dynamic_frames", "plot_event_frames",
            "plot_filtered_frames"]

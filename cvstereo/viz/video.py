@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 
 from cvstereo.geometry.depth import DepthModel
-from cvstereo.io._atomic import atomic_path, inspect_target
+from cvstereo.io.atomic import atomic_path, inspect_target
 from cvstereo.model.events import time_slice
 from cvstereo.model.recording import Recording
 from cvstereo.viz._images import (

@@ -17,9 +17,10 @@ computed where that bound is least, then only for candidates whose bound does no
 (times ``1 + uniqueness``; with a margin beyond float rounding; none at all when the least bound of the others
 already does, as for most events), so that the winner, its tie rule and the uniqueness check are the full
 search's. The other camera's column sums are not summed per event but kept with
-every splat (:func:`cvstereo.frames.dynamic.splat_summed`: one row of sums read instead of ``block`` rows of
+every splat (:func:`cvstereo.matchers._shared.frame_bounds.splat_summed`: one row of sums read instead of ``block``
+rows of
 the frame); they drift from the frames' by float rounding, which the margin covers ten times over
-(:func:`cvstereo.frames.dynamic.sum_drift`).
+(:func:`cvstereo.matchers._shared.frame_bounds.sum_drift`).
 
 Both cameras' events are processed in one merged order (by time, left first at equal times), see
 :mod:`cvstereo.matchers._shared.merge_order` and :mod:`cvstereo.matchers._shared.event_common`. The reference
@@ -59,8 +60,9 @@ from typing import ClassVar
 import numpy as np
 from numba import njit
 
-from cvstereo.frames.dynamic import SUM_REBUILD, advance_due_summed, column_sums, splat_summed, sum_drift, tick_due
+from cvstereo.frames.dynamic import tick_due
 from cvstereo.matchers._shared.event_common import MergedEventMatcher, emit_match
+from cvstereo.matchers._shared.frame_bounds import SUM_REBUILD, advance_due_summed, column_sums, splat_summed, sum_drift
 from cvstereo.matchers._shared.thesis_params import EventAreaParams
 
 __all__ = ["EventAreaMatcher"]
@@ -74,8 +76,9 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
     matched
     event; returns the count. ``all_frames``: the SAD sums over all of a camera's frames (``sad_frames="all"``),
     else it compares the event's own frame only. ``sums``, ``mass``, ``pending``: the frames' column sums of
-    ``block`` rows (:func:`cvstereo.frames.dynamic.column_sums`); ``drift``: the bound of their drift per unit of
-    mass of all the entries one lower bound sums (:func:`cvstereo.frames.dynamic.sum_drift`)."""
+    ``block`` rows (:func:`cvstereo.matchers._shared.frame_bounds.column_sums`); ``drift``: the bound of their drift
+    per unit of
+    mass of all the entries one lower bound sums (:func:`cvstereo.matchers._shared.frame_bounds.sum_drift`)."""
     n_frames = stored.shape[1]
     height = stored.shape[2]
     width = stored.shape[3]

@@ -27,6 +27,9 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+__all__ = ["ACTIVE_PLAN", "LEGACY_STALE_S", "Staged", "atomic_path", "discard", "inspect_target", "naming_target",
+           "publish", "remove_stale_temporaries", "stage", "write_text_atomic"]
+
 #: A temporary file without a process id (written by cvstereo 0.1) is stale once untouched this long:
 #: a live writer keeps appending to it.
 LEGACY_STALE_S = 600.0

@@ -118,3 +118,30 @@ def test_parse_param_strings_types_and_errors():
 def test_unknown_method_lists_the_known_ones():
     with pytest.raises(ValueError, match="unknown method 'sift'; choose one of: " + ", ".join(METHODS)):
         matcher_class("sift")
+
+
+def test_a_matcher_that_only_feeds_runs_through_match_with_the_protocols_defaults(monkeypatch):
+    """A plugin that defines neither uncertainty nor diagnostics: the protocol's defaults (None, {}) apply, so
+    match() stores no uncertainty array and only its own window counts as diagnostics."""
+    import importlib.metadata
+
+    from cvstereo.matchers import registry
+    from cvstereo.model.recording import Recording
+    from cvstereo.run import match
+
+    monkeypatch.setitem(globals(), "_WindowCounter", _WindowCounter)
+    plugin = importlib.metadata.EntryPoint("test-counter", f"{__name__}:_WindowCounter", registry.ENTRY_POINT_GROUP)
+    monkeypatch.setattr(registry.importlib.metadata, "entry_points", lambda **kw: [plugin])
+    monkeypatch.setattr(registry, "resolve", lambda method, variant, param_set: (variant, {}))
+    registry._methods.cache_clear()
+    try:
+        ev = _stream()
+        result = match(Recording(ev, ev), method="test-counter", variant="shared")
+    finally:
+        monkeypatch.undo()
+        registry._methods.cache_clear()
+    assert _WindowCounter(None).take_uncertainty() is None and _WindowCounter(None).diagnostics() == {}
+    assert result.arrays == {}
+    # Windows of 1000 us: [0,1000) holds 3 left events, [1000,2000) 1, [2000,3000) 2, [4000,5000) 1.
+    assert result.matches["disparity"].tolist() == [3, 1, 2, 1]
+    assert set(result.meta["diagnostics"]) == {"window_us", "windows_with_events", "windows_with_matches"}

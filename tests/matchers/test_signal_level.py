@@ -7,9 +7,11 @@ import pytest
 from _event_scenes import feed_cut
 
 from calibration_free import create_matcher
-from cvstereo.matchers._shared.signal_level import SignalLevel, SignalLevelParams, silence_warning
+from cvstereo.evaluation.diagnostics import silence_warning
+from cvstereo.matchers._shared.signal_level import SignalLevel, SignalLevelParams
 from cvstereo.matchers.frame.matcher import FrameClusterMatcher
 from cvstereo.model.matches import concat_matches
+from tests._paths import DATA
 
 REL = {"threshold_mode": "relative"}
 
@@ -80,11 +82,10 @@ def test_invalid_level_parameters_say_what_to_do():
 
 @pytest.fixture(scope="module")
 def clip():
-    from pathlib import Path
 
     from cvstereo.io.npz import read_recording_npz
 
-    return read_recording_npz(Path(__file__).resolve().parent / "data" / "thesis_clip.npz")
+    return read_recording_npz(DATA / "thesis_clip.npz")
 
 
 @pytest.mark.parametrize("method", ["frame", "frame-area", "event-time", "event-area", "event-vector"])

@@ -4,15 +4,14 @@ from __future__ import annotations
 
 import hashlib
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from calibration_free import match
 from cvstereo.io.npz import read_recording_npz
+from tests._paths import DATA
 
-DATA = Path(__file__).resolve().parent / "data"
 HASHES = json.loads((DATA / "thesis_hashes.json").read_text())["hashes"]
 
 

@@ -140,7 +140,7 @@ def test_fast_equals_reference(seed, mode, gaussian, decay, read_after, gap):
 
 def _splat_stream(seed, n, *, height=7, width=20, half=2, decay=0.99, gap=False):
     """Random events through :func:`splat_summed` (separate frames, 3x3 Gaussian); the state after them."""
-    from cvstereo.frames.dynamic import advance_due_summed, column_sums, splat_summed
+    from cvstereo.matchers._shared.frame_bounds import advance_due_summed, column_sums, splat_summed
 
     rng = np.random.default_rng(seed)
     t = np.sort(rng.integers(0, 200_000, n))
@@ -165,7 +165,7 @@ def _exact_column_sums(stored, half):
 @pytest.mark.parametrize("decay, gap", [(0.99, False), (0.5, False), (0.99, True)])
 def test_column_sums_follow_the_frames_within_their_drift_bound(half, decay, gap):
     # decay 0.5 renormalises (a rebuild); a gap beyond FORGET_TICKS clears the frames (a rebuild of zeros).
-    from cvstereo.frames.dynamic import sum_drift
+    from cvstereo.matchers._shared.frame_bounds import sum_drift
 
     stored, scale, sums, mass, pending = _splat_stream(3, 3000, half=half, decay=decay, gap=gap)
     exact = _exact_column_sums(stored, half)
@@ -179,7 +179,7 @@ def test_column_sums_follow_the_frames_within_their_drift_bound(half, decay, gap
 
 
 def test_column_sums_rebuild_when_due():
-    from cvstereo.frames.dynamic import SUM_REBUILD, advance_due_summed
+    from cvstereo.matchers._shared.frame_bounds import SUM_REBUILD, advance_due_summed
 
     stored, scale, sums, mass, pending = _splat_stream(5, 200)
     clock = np.array([[1 << 40, 1]])  # next tick far ahead: only the count can make the rebuild due
@@ -196,7 +196,8 @@ def test_splat_bounded_adds_as_splat_does_and_bounds_each_block_by_its_maximum()
     """ON events only (no cancellation, no rescale): every pixel only grows, so the bounds kept per splat row must
     equal the exact block maxima of |stored|; the frame must equal :func:`splat`'s bit for bit. A 5x5 kernel on a
     sensor of 3 blocks puts windows across block edges and the sensor border."""
-    from cvstereo.frames.dynamic import BOUND_SHIFT, block_bounds, splat, splat_bounded
+    from cvstereo.frames.dynamic import splat
+    from cvstereo.matchers._shared.frame_bounds import BOUND_SHIFT, block_bounds, splat_bounded
 
     rng = np.random.default_rng(7)
     kernel = update_kernel(DynamicFrameParams(kernel_size=5, kernel_sigma=1.5))
@@ -217,7 +218,7 @@ def test_splat_bounded_adds_as_splat_does_and_bounds_each_block_by_its_maximum()
 def test_skip_below_stops_at_an_end_inside_the_row():
     """The search's forward skips end at hi + 1, anywhere in a block: the first column at or above the threshold
     before ``end``, by brute force, or ``end``."""
-    from cvstereo.frames.dynamic import BOUND_SHIFT, skip_below
+    from cvstereo.matchers._shared.frame_bounds import BOUND_SHIFT, skip_below
 
     rng = np.random.default_rng(11)
     width = 70

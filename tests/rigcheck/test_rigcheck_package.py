@@ -13,7 +13,7 @@ import pytest
 from cvstereo.geometry.overlay import overlay_scores, overlay_shift, row_correlation, side_of_profile
 from cvstereo.model.recording import Recording
 from cvstereo.rigcheck import RigCheckParams, RigReport, check_rig
-from tests.test_rigcheck import textured_patches
+from tests.rigcheck.test_rigcheck import textured_patches
 
 
 @pytest.fixture(scope="module")

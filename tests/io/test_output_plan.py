@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from cvstereo.io._atomic import atomic_path, write_text_atomic
-from cvstereo.io._paths import OutputIsInputError
+from cvstereo.io.atomic import atomic_path, write_text_atomic
 from cvstereo.io.output_plan import ANY_FILE, FIGURE, MATCHES_FILE, OutputPlan
+from cvstereo.io.paths import OutputIsInputError
 from tests._hostile import leftovers, null_device
 
 

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 from _event_scenes import feed_cut
 
-from cvstereo.frames.dynamic import BOUND_SHIFT, FORGET_TICKS, skip_below
+from cvstereo.frames.dynamic import FORGET_TICKS
+from cvstereo.matchers._shared.frame_bounds import BOUND_SHIFT, skip_below
 from cvstereo.matchers.event_area.reference import event_area_reference
 from cvstereo.matchers.event_vector.reference import event_vector_reference
 from cvstereo.matchers.registry import matcher_class

@@ -7,8 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from cvstereo import _yaml
-from cvstereo.geometry.calibration import StereoCalibration, load_calibration
+from cvstereo.geometry.calibration import MAX_YAML_BYTES, StereoCalibration, load_calibration, parse_calibration_yaml
 from tests._calibration_fixtures import dsec_cam_to_cam, dump_yaml
 
 RES = (640, 480)
@@ -23,7 +22,7 @@ T = np.array([-0.599, 0.002, 0.011])
 def test_yaml_subset_reads_what_our_dumper_writes():
     data = {"a": {"b": [[1.0, -0.0], [2.5e-05, 3]], "name": "/davis/left/image_raw", "on": True, "none": None},
             "list": [{"k": 1, "v": [1, 2]}, {"k": 2}], "empty": []}
-    assert _yaml.loads(dump_yaml(data)) == data
+    assert parse_calibration_yaml(dump_yaml(data)) == data
 
 
 def test_yaml_flow_style_comments_and_opencv_tags():
@@ -39,13 +38,23 @@ M: !!opencv-matrix
    rows: 1
    data: [ 1., 2. ]
 """
-    assert _yaml.loads(text) == {"cam0": {"intrinsics": [226.38, 226.15, 173.64, 133.73],
+    assert parse_calibration_yaml(text) == {"cam0": {"intrinsics": [226.38, 226.15, 173.64, 133.73],
                                           "T_cn_cnm1": [[0.9999, -0.0011, 0.0123, -0.0998],
                                                         [0.0011, 1.0, 1e-05, float("inf")]],
                                           "label": "a # not a comment"},
                                  "M": {"rows": 1, "data": [1.0, 2.0]}}
-    with pytest.raises(ValueError, match="line 2: anchors, aliases"):
-        _yaml.loads("a: 1\nb: &x 2\n", source="f.yaml")
+    with pytest.raises(ValueError, match=r"^f.yaml: not valid YAML at line 3 "):
+        parse_calibration_yaml("a: 1\nb: [2, 3\nc: 4\n", source="f.yaml")
+
+
+def test_python_tags_are_refused_and_oversized_files_are_not_read(tmp_path):
+    # The safe loader builds no Python object: a tag that would run code is an error, not a call.
+    with pytest.raises(ValueError, match="not valid YAML"):
+        parse_calibration_yaml("a: !!python/object/apply:os.system ['true']\n", source="f.yaml")
+    big = tmp_path / "cam_to_cam.yaml"
+    big.write_bytes(b"a: 1\n" + b"#" * MAX_YAML_BYTES)
+    with pytest.raises(ValueError, match=rf"cam_to_cam.yaml: {MAX_YAML_BYTES + 5} bytes, more than a calibration"):
+        load_calibration(big)
 
 
 def test_dsec_cam_to_cam(tmp_path):

@@ -12,7 +12,7 @@ from cvstereo.model.events import make_events
 from cvstereo.model.recording import Recording
 from cvstereo.rigcheck import check_rig
 from cvstereo.rigcheck.time_offset import equal_peaks
-from tests.test_rigcheck import TIME_TOLERANCE_US, textured_patches, with_rig_errors
+from tests.rigcheck.test_rigcheck import TIME_TOLERANCE_US, textured_patches, with_rig_errors
 
 BLADE_PERIOD_US = 8_000
 

@@ -18,7 +18,7 @@ from cvstereo.model.events import make_events  # noqa: E402
 from cvstereo.model.matches import MatchResult, make_matches  # noqa: E402
 from cvstereo.model.recording import Recording  # noqa: E402
 from cvstereo.viz._images import disparity_range  # noqa: E402
-from cvstereo.viz._mpl import SIGNED_CMAP, cmap_with_background, figure_title, set_paper_width  # noqa: E402
+from cvstereo.viz.mpl import SIGNED_CMAP, cmap_with_background, figure_title, set_paper_width  # noqa: E402
 
 RES = (16, 12)
 

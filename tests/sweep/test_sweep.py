@@ -17,8 +17,7 @@ pytest.importorskip("dask.distributed")
 pytest.importorskip("pyarrow")
 
 from cvstereo.sweep import TIMING_COLUMNS, Cell, Grid, read_grid_file, run_sweep, summary_markdown, write_table
-
-REPO = Path(__file__).resolve().parents[1]
+from tests._paths import REPO
 
 
 @pytest.fixture(scope="module")

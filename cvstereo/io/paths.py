@@ -2,7 +2,7 @@
 
 :func:`refuse_output_over_input` stops a command whose output would replace one of its inputs (also through
 a symlink or a hard link). Inputs that are not regular files (a folder, a FIFO, a device) are refused by
-:func:`cvstereo.io._source.require_regular_file`, the one check every reader uses too.
+:func:`cvstereo.io.files.require_regular_file`, the one check every reader uses too.
 """
 
 from __future__ import annotations
@@ -10,6 +10,8 @@ from __future__ import annotations
 import os
 import stat
 from collections.abc import Iterable
+
+__all__ = ["OutputIsInputError", "refuse_output_over_input", "same_file"]
 
 
 class OutputIsInputError(ValueError):

@@ -13,6 +13,8 @@ import re
 import stat
 from pathlib import Path
 
+__all__ = ["open_regular", "printable", "require_regular_file"]
+
 _KINDS = ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
           (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
 
