@@ -81,3 +81,22 @@ def test_mkdocs_build_strict(tmp_path):
     assert "usage: cvstereo sweep" in cli and "event-vector:" in cli
     api = (site / "reference" / "api" / "index.html").read_text()
     assert "read_recording" in api and "Parameters" in api
+
+
+def test_changes_page_lists_every_moved_module_and_the_changelog(tmp_path):
+    """The changes page gets one row per entry of the table that keeps the old import paths working, and the
+    repository's CHANGELOG.md under its own heading (headings one level down)."""
+    from cvstereo._compat import MOVED
+
+    hooks = _hooks()
+    page = (ROOT / "docs" / hooks.CHANGES_PAGE).read_text()
+    assert hooks.MOVED_MARKER in page
+    changelog = tmp_path / "CHANGELOG.md"
+    changelog.write_text("# Changelog\n\n## 0.3.0\n\n- moved\n")
+    out = hooks.changes_markdown(page, changelog)
+    assert hooks.MOVED_MARKER not in out
+    for old, new in MOVED.items():
+        assert f"| `{old}` | `{new}` |" in out
+    assert out.endswith("## CHANGELOG.md\n\n## Changelog\n\n### 0.3.0\n\n- moved\n")
+    assert hooks.changes_markdown(page, tmp_path / "absent.md") == page.replace(
+        hooks.MOVED_MARKER, hooks.moved_modules_markdown())
