@@ -356,7 +356,7 @@ class StreamMatcher(abc.ABC):
         or None: this matcher does not rate its matches (the default).
 
         Part of the protocol so that the run loop asks every matcher the same way; a matcher that rates its
-        matches (formats.md's optional per-match array ``uncertainty``) overrides it.
+        matches (docs/formats.md's optional per-match array ``uncertainty``) overrides it.
         """
         return None
 
