@@ -11,7 +11,7 @@ __all__ = ["CorruptFileError", "EventFormatError", "MissingExtraError", "NoMatch
 
 
 class EventFormatError(ValueError):
-    """An event array or recording does not follow the contract of formats.md."""
+    """An event array or recording does not follow the contract of docs/formats.md."""
 
 
 class CorruptFileError(ValueError):

@@ -95,7 +95,7 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         A registered method (:data:`cvstereo.matchers.registry.METHODS`): ``frame``, ``frame-area``, ``event-time``,
         ``event-area``, ``event-vector``, ``stereobm``, ``sgbm``, ...
     variant : str, optional
-        Variant name (formats.md); default: the parameter set's default variant (``thesis``: the method's first).
+        Variant name (docs/formats.md); default: the parameter set's default variant (``thesis``: the method's first).
     packet_us : int
         Packet length for streaming.
     progress : bool
@@ -123,7 +123,7 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
     Returns
     -------
     MatchResult
-        Time-ordered matches and the meta of formats.md. ``meta["fingerprint"]`` identifies the events as read
+        Time-ordered matches and the meta of docs/formats.md. ``meta["fingerprint"]`` identifies the events as read
         (before rig correction or rectification: :mod:`cvstereo.model.fingerprint`), so that the matches can be told
         from those of another recording; ``elapsed_s`` leaves out the time it took. ``meta["diagnostics"]`` says
         how much of the recording answered (:func:`cvstereo.evaluation.diagnostics.silence_warning` turns it

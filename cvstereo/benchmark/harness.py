@@ -1,7 +1,7 @@
 """``cvstereo bench``: every matcher on the same recordings, with truth, speed, memory and distance.
 
 One run covers: every matcher and variant (and the OpenCV and dv-processing baselines where installed)
-on the thesis' six presets and the motorcycle scene, scored against ground truth (evaluation.md) beside
+on the thesis' six presets and the motorcycle scene, scored against ground truth (docs/evaluation.md) beside
 the thesis' published mean/std; speed (events per second, times real time, speed-up over the thesis'
 Matlab times on ``2arms-50cm``) and peak memory; the real TUM recordings where present (share of estimates
 within 1 px of their known disparity); and distance: d = a/Z - c fitted per matcher on the 50 and 150 cm
@@ -185,7 +185,7 @@ def bench_cell_figures(cell: Cell, recording: Recording, result: MatchResult) ->
     return figures
 
 
-#: Figures of an accuracy cell (evaluation.md's, without the speed figures: cells may share the machine).
+#: Figures of an accuracy cell (docs/evaluation.md's, without the speed figures: cells may share the machine).
 ACCURACY_FIGURES = tuple(f for f in FIGURES if f not in ("events_per_s", "realtime_x"))
 #: What :func:`bench_cell_figures` adds.
 _BENCH_FIGURES = ("median", "within_1px")
@@ -390,7 +390,7 @@ def bench_markdown(results: dict) -> str:
         "Rows are recordings; `thesis mean/std` are the thesis' published numbers (tables 4.2-4.14, real "
         "recordings of the same scenes), ours are on the simulated re-creations. MAE, bad>1px (share of "
         "errors above 1 px), false (share of matches on noise/background) and coverage are against the truth "
-        "(evaluation.md). The thesis reproduction is the `thesis` parameter set (the thesis' constants); each "
+        "(docs/evaluation.md). The thesis reproduction is the `thesis` parameter set (the thesis' constants); each "
         "method's `adaptive` default (thresholds relative to the recording's signal level) follows its thesis "
         "variants.",
     ]

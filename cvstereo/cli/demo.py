@@ -46,7 +46,7 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
 
 
 def shared_folder(arg: str | None) -> Path:
-    """The shared data folder: the argument, else $CVSTEREO_SHARED, else ../shared (design.md)."""
+    """The shared data folder: the argument, else $CVSTEREO_SHARED, else ../shared (docs/design.md)."""
     if arg:
         return Path(arg)
     if "CVSTEREO_SHARED" in os.environ:

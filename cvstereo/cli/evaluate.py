@@ -1,4 +1,4 @@
-"""``cvstereo evaluate RECORDING [RIGHT] MATCHES``: the figures of evaluation.md for one matches file."""
+"""``cvstereo evaluate RECORDING [RIGHT] MATCHES``: the figures of docs/evaluation.md for one matches file."""
 
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
         help="score a matches file against a recording's ground truth",
         description="Score a matches file (written by `cvstereo match`) against the recording it came from: "
         "mean and std of the disparities (the thesis' figures) and, where the recording has ground truth, "
-        "error, bad-pixel rates, false-match rate and coverage (evaluation.md).",
+        "error, bad-pixel rates, false-match rate and coverage (docs/evaluation.md).",
     )
     add_recording_arguments(p, matches="required")
     p.add_argument("--json", action="store_true", help="print a JSON object instead of a table")

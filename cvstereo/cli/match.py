@@ -1,7 +1,7 @@
 """``cvstereo match RECORDING [RIGHT] --method M [--variant V] [--param key=value ...] -o MATCHES.npz``.
 
 Runs one matcher over a recording (through :func:`cvstereo.run.match`, so the file holds exactly what
-``match()`` returns) and writes the matches file of formats.md. ``--list-methods`` prints every registered
+``match()`` returns) and writes the matches file of docs/formats.md. ``--list-methods`` prints every registered
 method with its variants and parameters. ``--param-set thesis|adaptive`` picks the parameter set
 (:mod:`cvstereo.matchers.sets`). A run that answers in less than 1 % of the 40 ms windows with events says why on
 one ``warning:`` line on stderr (and still exits 0). Where the geometry comes from (calibration, options, the
@@ -169,7 +169,7 @@ def _rig_check(recording):
 
 def _record_geometry(args: argparse.Namespace, result, geometry) -> None:
     """Store in the matches' meta what they were computed on and with: the inputs, the geometry and where it came
-    from, the depth of every match (formats.md: the match dtype is a contract, distances go beside it)."""
+    from, the depth of every match (docs/formats.md: the match dtype is a contract, distances go beside it)."""
     from cvstereo.model.fingerprint import swap_cameras
 
     meta = result.meta

@@ -1,4 +1,4 @@
-"""Scoring matches: the figures of evaluation.md (:mod:`.metrics`, also importable as ``cvstereo.evaluate``),
+"""Scoring matches: the figures of docs/evaluation.md (:mod:`.metrics`, also importable as ``cvstereo.evaluate``),
 the thesis' published tables (:mod:`.thesis`) and the experiment tables the demo prints (:mod:`.experiment`).
 """
 

@@ -1,4 +1,4 @@
-"""Scoring matches against a recording's ground truth (evaluation.md).
+"""Scoring matches against a recording's ground truth (docs/evaluation.md).
 
 Each match is anchored at pixel (x, y) of camera c at time t. Its true disparity is the mean of the
 finite ground truth of camera c's events at (x, y) inside the match's window: the anchoring event itself
@@ -119,7 +119,7 @@ def _match_keys(recording: Recording, matches: np.ndarray, *, anchor: str, windo
         i = int(off_grid[0])
         raise ValueError(
             f"window match {i} has t={int(matches['t'][i])}, not a window end on the absolute "
-            f"{window_us} us grid (formats.md: windows [k*W, (k+1)*W) stamped with their end)."
+            f"{window_us} us grid (docs/formats.md: windows [k*W, (k+1)*W) stamped with their end)."
         )
     return _cell_keys(matches["t"] // window_us - 1, matches["x"], matches["y"], None, recording.resolution)
 
@@ -137,7 +137,7 @@ def _truth_cells(recording: Recording, cam: int, *, anchor: str, window_us: int)
 
 
 def evaluate(recording: Recording, matches, meta: Mapping | None = None) -> dict:
-    """Every figure of evaluation.md for one matches array on one recording.
+    """Every figure of docs/evaluation.md for one matches array on one recording.
 
     Parameters
     ----------

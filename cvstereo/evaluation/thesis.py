@@ -1,6 +1,6 @@
 """The numbers the 2013 thesis published, for printing beside ours (never used to produce a result).
 
-Source: algorithms.md, "What the thesis measured" (thesis tables 4.1-4.14 and section 4.5).
+Source: docs/algorithms.md, "What the thesis measured" (thesis tables 4.1-4.14 and section 4.5).
 Recording names are the simulator's preset names that re-create the thesis' six recordings.
 """
 

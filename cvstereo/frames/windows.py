@@ -68,7 +68,7 @@ class WindowFrameParams(metaclass=AliasedParams):
 class Window(NamedTuple):
     """The events of both cameras in one complete window ``[t_start, t_end)``.
 
-    ``t_end`` is the stamp of the window's results (formats.md).
+    ``t_end`` is the stamp of the window's results (docs/formats.md).
     """
 
     index: int

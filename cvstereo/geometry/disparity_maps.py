@@ -54,7 +54,7 @@ def match_window_slice(matches: np.ndarray, t_start: int, t_stop: int, *, anchor
     """The matches that belong to the window ``[t_start, t_stop)``.
 
     Event-anchored matches carry their event's time, so they belong when ``t_start <= t < t_stop``. Window-anchored
-    matches carry their window's *end* (formats.md), so they belong when ``t_start < t <= t_stop``.
+    matches carry their window's *end* (docs/formats.md), so they belong when ``t_start < t <= t_stop``.
 
     Parameters
     ----------
@@ -119,7 +119,7 @@ def window_disparity_images(matches: np.ndarray, camera: int, *, resolution: tup
     if window_us <= 0:
         raise ValueError(f"window_us must be positive, got {window_us}.")
     if anchor not in ("event", "window"):
-        raise ValueError(f"anchor must be 'event' or 'window', got {anchor!r} (formats.md).")
+        raise ValueError(f"anchor must be 'event' or 'window', got {anchor!r} (docs/formats.md).")
     m = matches[matches["camera"] == camera]
     if not m.size:
         return

@@ -1,7 +1,7 @@
 """Validation of one camera's stream chunk by chunk, naming the file position of the first bad event.
 
 Every reader converts its raw columns to :data:`~cvstereo.model.events.EVENT_DTYPE` through one
-:class:`ChunkChecker` per camera, so that the contract of formats.md (integer fields, polarity, range,
+:class:`ChunkChecker` per camera, so that the contract of docs/formats.md (integer fields, polarity, range,
 time order across chunk boundaries) is enforced in one place and errors name where in the *file* the
 offending event is (a text line, a byte offset), not only its index in the camera's stream.
 """

@@ -2,7 +2,7 @@
 
 A file is ``#``-comment header lines (the first is ``#!AER-DAT2.0``, each ends in CRLF), then records of
 a big-endian uint32 address and a big-endian uint32 timestamp in microseconds. The DVS128 address
-(formats.md, after jAER's ``DVS128.Extractor`` and ``Stereopsis``):
+(docs/formats.md, after jAER's ``DVS128.Extractor`` and ``Stereopsis``):
 
 ======  =====================================================================================
 bit 0   raw polarity, 0 = ON (jAER flips it): ``p = 1 - raw``

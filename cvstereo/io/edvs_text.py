@@ -1,6 +1,6 @@
 """eDVS text recordings: one event per line, read in chunks with bounded memory, and written.
 
-Two layouts (formats.md):
+Two layouts (docs/formats.md):
 
 ``edvs-text``
     One file per camera, four columns ``t x y p``; a stereo recording is two files (left, right).

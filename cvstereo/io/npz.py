@@ -1,4 +1,4 @@
-"""The stereo recording ``.npz`` and the matches ``.npz`` of formats.md.
+"""The stereo recording ``.npz`` and the matches ``.npz`` of docs/formats.md.
 
 Recordings are read either whole (:func:`read_recording_npz`) or in chunks straight out of the zip
 archive (:func:`iter_npz_chunks`), so that a recording larger than memory streams with bounded memory.
@@ -301,7 +301,7 @@ def read_npz_header(path: str | os.PathLike) -> tuple[tuple[int, int], dict, boo
 
 
 def write_matches(path: str | os.PathLike, matches: np.ndarray, meta: dict, *, arrays: dict | None = None) -> None:
-    """Write a matches ``.npz`` (formats.md), atomically.
+    """Write a matches ``.npz`` (docs/formats.md), atomically.
 
     Parameters
     ----------
@@ -316,7 +316,7 @@ def write_matches(path: str | os.PathLike, matches: np.ndarray, meta: dict, *, a
     validate_matches(matches, source=str(path))
     missing = [k for k in REQUIRED_META if k not in meta]
     if missing:
-        raise ValueError(f"matches meta lacks {', '.join(missing)} (formats.md lists the required keys).")
+        raise ValueError(f"matches meta lacks {', '.join(missing)} (docs/formats.md lists the required keys).")
     extra = {}
     for name, values in (arrays or {}).items():
         values = np.asarray(values, np.float32)
@@ -348,7 +348,7 @@ def read_matches(path: str | os.PathLike) -> MatchResult:
             )
         matches = _load(npz, path, "matches")
         meta = _read_meta(npz, path)
-        # Optional per-match arrays (formats.md); keys of another shape are not ours to interpret: ignored.
+        # Optional per-match arrays (docs/formats.md); keys of another shape are not ours to interpret: ignored.
         arrays = {k: npz[k] for k in npz.files if k not in ("matches", "meta")}
     validate_matches(matches, source=str(path))
     arrays = {k: v.astype(np.float32) for k, v in arrays.items() if v.shape == matches.shape and v.dtype.kind == "f"}

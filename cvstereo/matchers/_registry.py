@@ -10,7 +10,7 @@ from __future__ import annotations
 
 __all__ = ["BUILTIN_METHODS"]
 
-#: method name (formats.md) -> "module:Class" of its matcher, in listing order. ``pyproject.toml`` registers
+#: method name (docs/formats.md) -> "module:Class" of its matcher, in listing order. ``pyproject.toml`` registers
 #: the same strings as entry points (test_matchers_registry checks that they agree).
 BUILTIN_METHODS: dict[str, str] = {
     "frame": "cvstereo.matchers.frame:FrameClusterMatcher",

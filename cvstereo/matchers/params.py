@@ -1,6 +1,6 @@
 """The vocabulary of matcher parameters shared across matchers, and old names kept as aliases.
 
-Every matcher's parameters are one frozen dataclass (formats.md); fields that mean the same in several
+Every matcher's parameters are one frozen dataclass (docs/formats.md); fields that mean the same in several
 matchers have one name, defined here once:
 
 ``polarity``
@@ -21,7 +21,7 @@ matchers have one name, defined here once:
     Which camera is scanned, event by event or pixel by pixel, for partners in the other; its events or
     pixels carry the results (event-time, frame-area; 1 = right, the thesis' eDVS1).
 
-When a field is renamed its old name stays accepted (formats.md), in ``--param``, as a Python keyword and in
+When a field is renamed its old name stays accepted (docs/formats.md), in ``--param``, as a Python keyword and in
 stored meta: a parameter class lists ``aliases = {old: new}`` (or ``{old: Alias(new, convert)}`` where the
 value changes too), and :class:`AliasedParams`, the metaclass of every parameter class, renames the keywords
 before the dataclass sees them.

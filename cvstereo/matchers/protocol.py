@@ -161,9 +161,9 @@ class StreamMatcher(abc.ABC):
     Params : type
         The frozen dataclass of parameters, with the thesis defaults.
     variants : dict[str, dict]
-        Variant name -> parameter values it sets (formats.md's variant names; the first is the default).
+        Variant name -> parameter values it sets (docs/formats.md's variant names; the first is the default).
     anchor : {"event", "window"}
-        Where matches are anchored (formats.md).
+        Where matches are anchored (docs/formats.md).
     """
 
     Params: ClassVar[type]
@@ -225,7 +225,7 @@ class StreamMatcher(abc.ABC):
 
     @classmethod
     def make_params(cls, variant: str | None = None, **overrides):
-        """Parameters of a variant (formats.md names) with ``overrides`` applied on top.
+        """Parameters of a variant (docs/formats.md names) with ``overrides`` applied on top.
 
         Raises
         ------
@@ -356,7 +356,7 @@ class StreamMatcher(abc.ABC):
         or None: this matcher does not rate its matches (the default).
 
         Part of the protocol so that the run loop asks every matcher the same way; a matcher that rates its
-        matches (formats.md's optional per-match array ``uncertainty``) overrides it.
+        matches (docs/formats.md's optional per-match array ``uncertainty``) overrides it.
         """
         return None
 

@@ -30,7 +30,7 @@ __all__ = ["DEFAULT_METHOD", "ENTRY_POINT_GROUP", "LISTING_ORDER", "METHODS", "a
            "check_param_item", "create_matcher", "matcher_class", "matcher_params", "params_from_meta",
            "parse_param_strings"]
 
-#: The entry-point group in which other distributions register matchers: name (formats.md) -> "module:Class".
+#: The entry-point group in which other distributions register matchers: name (docs/formats.md) -> "module:Class".
 ENTRY_POINT_GROUP = "cvstereo.matchers"
 
 #: The method run when none is named (`cvstereo match`, `cvstereo live`, :func:`cvstereo.match`): the thesis'
@@ -44,7 +44,7 @@ LISTING_ORDER = tuple(BUILTIN_METHODS)
 @functools.cache
 def _methods() -> dict[str, str]:
     """name -> "module:Class": the built-in table, then the plugins' entry points (a plugin cannot replace a
-    built-in name: the name would mean two matchers, and the thesis' names are fixed by formats.md)."""
+    built-in name: the name would mean two matchers, and the thesis' names are fixed by docs/formats.md)."""
     found = dict(BUILTIN_METHODS)
     plugins = {ep.name: ep.value for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)}
     for name in sorted(plugins):
@@ -77,7 +77,7 @@ class _Methods(Mapping):
         return f"METHODS({dict(self)!r})"
 
 
-#: method name (formats.md) -> "module:Class" of its StreamMatcher, in listing order.
+#: method name (docs/formats.md) -> "module:Class" of its StreamMatcher, in listing order.
 METHODS: Mapping[str, str] = _Methods()
 
 
@@ -113,7 +113,7 @@ def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 
     """Build a matcher by name, variant, parameter set and parameter overrides.
 
     ``param_set`` (:mod:`cvstereo.matchers.sets`): ``adaptive`` (default, thresholds relative to the recording's
-    signal level, each method's best variant) or ``thesis`` (algorithms.md's constants and default variants).
+    signal level, each method's best variant) or ``thesis`` (docs/algorithms.md's constants and default variants).
     An explicit ``variant`` wins over the set's default variant; ``params`` override the set's values.
 
     Examples

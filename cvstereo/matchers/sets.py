@@ -1,6 +1,6 @@
 """The two parameter sets of the thesis matchers: ``adaptive`` (the default) and ``thesis``.
 
-``thesis`` is algorithms.md's constants and the thesis' default variants (each method's first): the matches are
+``thesis`` is docs/algorithms.md's constants and the thesis' default variants (each method's first): the matches are
 those of the thesis' algorithms, bit for bit. ``adaptive`` keeps every step of each algorithm but expresses its
 decision thresholds relative to the recording's own signal level (:mod:`cvstereo.matchers._shared.signal_level`), and
 picks as

@@ -1,4 +1,4 @@
-"""Event arrays as users have them, turned into cvstereo's event array (formats.md).
+"""Event arrays as users have them, turned into cvstereo's event array (docs/formats.md).
 
 Event-camera code hands events around in several shapes: structured arrays with fields named ``t`` or
 ``timestamp``, ``p`` or ``polarity`` in any order (tonic's ``x, y, t, p``, dv-processing's ``timestamp, x, y,

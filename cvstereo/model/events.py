@@ -26,7 +26,7 @@ __all__ = ["EVENT_DTYPE", "StereoPacket", "as_events", "count_before", "distinct
            "events_from_columns", "is_time_ordered", "iter_stereo_packets", "make_events", "paired_window_segments",
            "time_slice", "validate_events", "window_segments"]
 
-#: The event dtype of formats.md: t (us), x (column, 0 = left), y (row, 0 = top), p (1 = ON, 0 = OFF).
+#: The event dtype of docs/formats.md: t (us), x (column, 0 = left), y (row, 0 = top), p (1 = ON, 0 = OFF).
 EVENT_DTYPE = np.dtype([("t", "<i8"), ("x", "<i2"), ("y", "<i2"), ("p", "i1")])
 
 _FIELDS = ("t", "x", "y", "p")

@@ -1,4 +1,4 @@
-"""Disparity estimates ("matches") as produced by every matcher, and their metadata (formats.md).
+"""Disparity estimates ("matches") as produced by every matcher, and their metadata (docs/formats.md).
 
 The data only; the matches ``.npz`` is read and written by :mod:`cvstereo.io.npz`.
 """
@@ -19,7 +19,7 @@ MATCH_DTYPE = np.dtype(
     [("t", "<i8"), ("x", "<i2"), ("y", "<i2"), ("p", "i1"), ("camera", "u1"), ("disparity", "<f4")]
 )
 
-#: Meta keys every matches file carries (formats.md); more may be added.
+#: Meta keys every matches file carries (docs/formats.md); more may be added.
 REQUIRED_META = ("method", "variant", "params", "anchor", "window_us")
 
 
@@ -108,9 +108,9 @@ class MatchResult:
     ----------
     matches : (N,) ndarray of MATCH_DTYPE
     meta : dict
-        method, variant, params, anchor, window_us, elapsed_s, input_events, ... (formats.md).
+        method, variant, params, anchor, window_us, elapsed_s, input_events, ... (docs/formats.md).
     arrays : dict of str to (N,) float32 ndarray
-        Optional per-match arrays, one value per match in the same order (formats.md: e.g. ``depth_m``).
+        Optional per-match arrays, one value per match in the same order (docs/formats.md: e.g. ``depth_m``).
     """
 
     matches: np.ndarray

@@ -6,7 +6,7 @@ sign +1) and ``p = 0`` (:data:`OFF`, sign -1), so ``counts[ON]`` are the ON coun
 polarity ``p``: the OFF frame is slot 0, the ON frame slot 1, in the frames of a window
 (:mod:`cvstereo.frames.accumulate`) and in the dynamic frames (:mod:`cvstereo.frames.dynamic`) alike.
 
-A matcher's ``polarity`` parameter (formats.md's variant names of ``frame`` and ``event-time``) says how ON and
+A matcher's ``polarity`` parameter (docs/formats.md's variant names of ``frame`` and ``event-time``) says how ON and
 OFF events enter its frames:
 
 - ``shared``: one frame, ON adds +1 and OFF -1 (the thesis' default);

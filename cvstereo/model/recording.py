@@ -25,7 +25,7 @@ CAMERAS = ("left", "right")
 
 @dataclass(frozen=True, eq=False)
 class Recording:
-    """Events of the left and right camera on one clock (formats.md, "Stereo recording file").
+    """Events of the left and right camera on one clock (docs/formats.md, "Stereo recording file").
 
     Parameters
     ----------

@@ -1,7 +1,7 @@
 """When the decoder's bytes arrived, and how many timestamp wraps that shows a pause hid.
 
 A 16-bit timestamp (E2) wraps every 65.536 ms, so a pause of about a wrap or more hides whole wraps: only the
-host's arrival time of the bytes tells how many passed (formats.md). This module keeps the pieces of bytes the
+host's arrival time of the bytes tells how many passed (docs/formats.md). This module keeps the pieces of bytes the
 decoder holds with what the reader knew of their arrival (:class:`Pieces`), and decides each event's wraps
 from them (:class:`WrapClock`).
 

@@ -10,7 +10,7 @@ pause (whose steps, up to a wrap and beyond, the arrival times decide). The last
 call are held back until more bytes confirm them (or :meth:`StreamDecoder.flush` releases them), so garbage
 cannot slip out before it is recognised.
 
-Hidden wraps (formats.md): a pause longer than one wrap of the timestamp (65.536 ms for E2) looks like a
+Hidden wraps (docs/formats.md): a pause longer than one wrap of the timestamp (65.536 ms for E2) looks like a
 short step. When the host's arrival time of the bytes is given (``host_t``, and ``after_t``, the reader's last
 look at an empty buffer), :class:`~cvstereo.sensors.arrival.WrapClock` counts the wraps a pause hid: from the
 offset between arrival and device time seen so far, each event's count is the one its arrival allows. With

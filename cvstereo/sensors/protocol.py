@@ -1,6 +1,6 @@
 """The eDVS128 serial protocol: commands, event formats and the settings on which public drivers disagree.
 
-Facts (formats.md, checked against public drivers; see the module notes below):
+Facts (docs/formats.md, checked against public drivers; see the module notes below):
 
 - UART 8N1, 4 Mbaud by default, RTS/CTS flow control; a byte costs 10 bit times, so 4 Mbaud carries
   400 kB/s.
@@ -21,7 +21,7 @@ Where drivers disagree (so these are settings, :class:`ProtocolSettings`):
 - format numbering: current firmware numbers the 16-bit format ``!E2``; the 2011 firmware and
   edvstools use ``!E1`` = 16 bit, ``!E2`` = 24 bit, ``!E3`` = 32 bit (no variable-length format).
 - line ending: most drivers send ``\\n``; jAER sends ``E+\\r\\n`` in one place.
-- timestamp reset: formats.md says ``!ET0``; the firmware help of a later board reads ``!ET[=t]``.
+- timestamp reset: docs/formats.md says ``!ET0``; the firmware help of a later board reads ``!ET[=t]``.
   The command text is a setting too.
 
 The variable-length ``E1`` layout used here (the delta to the previous event in 7-bit groups, most

@@ -1,7 +1,7 @@
 """The Middlebury motorcycle scene: the view panning over the real stereo pair that scikit-image ships.
 
 Its measured disparity map gives the ground truth, with real textures instead of drawn ones
-(evaluation.md, "Where the ground truth comes from").
+(docs/evaluation.md, "Where the ground truth comes from").
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ Coordinates
 -----------
 The rig frame has X to the right, Y down and Z forward (along both optical axes, which are parallel).
 The left camera sits at ``X = -B/2``, the right one at ``X = +B/2``, so that a scene point has the larger
-``x`` in the left camera (formats.md) and the disparity ``d = x_left - x_right`` is positive.
+``x`` in the left camera (docs/formats.md) and the disparity ``d = x_left - x_right`` is positive.
 
 A camera maps a point ``(X, Y, Z)`` of its own frame to raw sensor coordinates in three steps:
 

@@ -23,7 +23,7 @@ class Cell:
     recording : str
         Path of the recording file (workers read it themselves).
     method : str
-        Matcher name (formats.md).
+        Matcher name (docs/formats.md).
     variant : str or None
         Variant name; None: the method's default.
     params : tuple of (name, value)

@@ -91,7 +91,7 @@ def anchor_of(result: MatchResult) -> tuple[str, int]:
     """(anchor, window_us) from a matches file's meta; event anchors when the meta does not say."""
     anchor = str(result.meta.get("anchor", "event"))
     if anchor not in ("event", "window"):
-        raise ValueError(f"matches meta: anchor must be 'event' or 'window', got {anchor!r} (formats.md).")
+        raise ValueError(f"matches meta: anchor must be 'event' or 'window', got {anchor!r} (docs/formats.md).")
     return anchor, int(result.meta.get("window_us", 0) or 0)
 
 

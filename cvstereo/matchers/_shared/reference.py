@@ -1,4 +1,4 @@
-"""Reference implementations of every matcher: readable code that follows ``algorithms.md`` step by step.
+"""Reference implementations of every matcher: readable code that follows ``docs/algorithms.md`` step by step.
 
 One module per matcher (:mod:`.frame_clusters`, :mod:`.frame_area`, :mod:`.event_time`, :mod:`.event_area`,
 :mod:`.event_vector`), and the reference dynamic frames (:mod:`.dynamic_frames`). Each matcher's function

@@ -2,7 +2,7 @@
 
 They live apart from the matchers so that the fast kernels (:mod:`cvstereo.matchers.frame.matcher`, ...)
 and their reference twins (:mod:`calibration_free.reference`) both import them without the one importing
-the other. Variants (ON/OFF handling, Gaussian or not) are values of their fields (formats.md).
+the other. Variants (ON/OFF handling, Gaussian or not) are values of their fields (docs/formats.md).
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ WIDTH_EPS = 1e-9
 
 @dataclass(frozen=True, kw_only=True)
 class FrameClusterParams(SignalLevelParams, WindowFrameParams):
-    """Parameters of the frame-based cluster matcher (thesis defaults; algorithms.md section 1).
+    """Parameters of the frame-based cluster matcher (thesis defaults; docs/algorithms.md section 1).
 
     The window and Gaussian fields (window_us, gaussian, kernel_sigma, kernel_size) are those of
     :class:`~cvstereo.frames.windows.WindowFrameParams`, the relative-threshold fields (threshold_mode,
@@ -76,7 +76,7 @@ class FrameClusterParams(SignalLevelParams, WindowFrameParams):
 
 @dataclass(frozen=True, kw_only=True)
 class FrameAreaParams(SignalLevelParams, WindowFrameParams):
-    """Parameters of the frame-area SAD matcher (thesis defaults; algorithms.md section 3).
+    """Parameters of the frame-area SAD matcher (thesis defaults; docs/algorithms.md section 3).
 
     The window and Gaussian fields (window_us, gaussian, kernel_sigma, kernel_size) are those of
     :class:`~cvstereo.frames.windows.WindowFrameParams`, the relative-threshold fields (threshold_mode,

@@ -1,4 +1,4 @@
-"""Reference event-area matcher (algorithms.md section 4, thesis Algorithm 3)."""
+"""Reference event-area matcher (docs/algorithms.md section 4, thesis Algorithm 3)."""
 
 from __future__ import annotations
 

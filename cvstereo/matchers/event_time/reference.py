@@ -1,4 +1,4 @@
-"""Reference event-time matcher (algorithms.md section 2, thesis Algorithm 1)."""
+"""Reference event-time matcher (docs/algorithms.md section 2, thesis Algorithm 1)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Reference event-vector matcher (algorithms.md section 5, thesis Algorithm 4)."""
+"""Reference event-vector matcher (docs/algorithms.md section 5, thesis Algorithm 4)."""
 
 from __future__ import annotations
 

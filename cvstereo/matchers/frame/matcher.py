@@ -1,4 +1,4 @@
-"""The frame-based cluster matcher (thesis 3.3; algorithms.md section 1).
+"""The frame-based cluster matcher (thesis 3.3; docs/algorithms.md section 1).
 
 Per 40 ms window and camera: a signed frame (sum of event signs per pixel), a 5x5 Gaussian of sigma 1,
 a threshold on the magnitude. Each row then becomes a list of clusters, the maximal runs of kept pixels of one
@@ -257,7 +257,7 @@ def _emit_pixel(out_x, out_y, out_sign, out_d, n, x, y, sign, d):  # pragma: no 
 @numba.njit(cache=True, nogil=True)
 def _match_stacked_rows(stack, seen, n_channels, height, pitch, threshold_left, threshold_right, width_tolerance,
                         max_disparity, anchor_camera):  # pragma: no cover - compiled
-    """Steps 3-6 of algorithms.md section 1 for every frame of a window, in one pass over the rows.
+    """Steps 3-6 of docs/algorithms.md section 1 for every frame of a window, in one pass over the rows.
 
     ``stack`` holds the filtered frames one above the other, every ``pitch`` rows: the left camera's channels,
     then the right camera's. ``seen`` (channel * height + y, x) marks the anchor camera's pixels with events.

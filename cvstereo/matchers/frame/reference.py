@@ -1,4 +1,4 @@
-"""Reference frame-based cluster matcher (algorithms.md section 1, thesis 3.3): numpy over whole frames.
+"""Reference frame-based cluster matcher (docs/algorithms.md section 1, thesis 3.3): numpy over whole frames.
 
 Frame by frame, as the thesis describes it: per window and camera a signed frame per polarity frame
 (:func:`cvstereo.frames.accumulate.signed_frame`), the Gaussian, the threshold, the clusters of each row (the thesis'
@@ -85,7 +85,7 @@ class Pairs(NamedTuple):
 
 def match_runs(left: Runs, right: Runs, *, height: int, width_tolerance: float = 0.3,
                max_disparity: int = 64, anchor_camera: int = 0) -> Pairs:
-    """Pair the clusters of the left and right frame row by row (algorithms.md section 1, steps 5-6).
+    """Pair the clusters of the left and right frame row by row (docs/algorithms.md section 1, steps 5-6).
 
     Parameters
     ----------
@@ -129,7 +129,7 @@ def cluster_signs(frame: np.ndarray, *, threshold: float) -> np.ndarray:
 
 def match_frame_pair(left: np.ndarray, right: np.ndarray, *, threshold: float = 1.2, width_tolerance: float = 0.3,
                      max_disparity: float = 64, anchor_camera: int = 0, threshold_right: float | None = None) -> Pairs:
-    """Match the clusters of one pair of (filtered) frames: steps 3-5 of algorithms.md section 1.
+    """Match the clusters of one pair of (filtered) frames: steps 3-5 of docs/algorithms.md section 1.
 
     The readable form of what :class:`FrameClusterMatcher` does for all frames of a window at once.
 

@@ -1,4 +1,4 @@
-"""The frame-area SAD matcher (thesis 3.5.1, Algorithm 2; algorithms.md section 3).
+"""The frame-area SAD matcher (thesis 3.5.1, Algorithm 2; docs/algorithms.md section 3).
 
 Per 40 ms window: signed frames as for the cluster matcher (Gaussian-filtered, or not in the variant
 ``no-gaussian``). The reference frame (default: the right camera, the thesis' eDVS1) is scanned row by row,

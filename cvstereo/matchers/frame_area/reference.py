@@ -1,4 +1,4 @@
-"""Reference frame-area SAD matcher (algorithms.md section 3, thesis Algorithm 2): a full cost volume.
+"""Reference frame-area SAD matcher (docs/algorithms.md section 3, thesis Algorithm 2): a full cost volume.
 
 The SAD of every reference pixel and disparity from OpenCV kernels at once (a cost volume from ``cv2.absdiff``
 and an unnormalised ``cv2.boxFilter`` per disparity), then Algorithm 2's scan over it: row by row, x

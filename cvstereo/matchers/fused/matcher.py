@@ -311,7 +311,7 @@ class FusedMatcher(FrameMatcher):
         Returns
         -------
         (M,) float32 ndarray
-            One value per match that :meth:`feed` and :meth:`flush` returned since the last call (formats.md's
+            One value per match that :meth:`feed` and :meth:`flush` returned since the last call (docs/formats.md's
             optional per-match array ``uncertainty``).
         """
         parts, self._uncertainty = self._uncertainty, []

@@ -242,7 +242,7 @@ class _OpenCVMatcher(FrameMatcher):
 
 
 def matches_at_left_events(t_end: int, left_counts: np.ndarray, disparity: np.ndarray) -> np.ndarray:
-    """Sample a dense disparity map at the left camera's pixels that saw events (formats.md's window anchors).
+    """Sample a dense disparity map at the left camera's pixels that saw events (docs/formats.md's window anchors).
 
     Parameters
     ----------
