@@ -13,6 +13,7 @@ from typing import ClassVar, Literal
 
 import numpy as np
 
+from cvstereo.border import BorderParams
 from cvstereo.dynamic_frames import DynamicFrameParams
 from cvstereo.polarity import Polarity, check_polarity
 from cvstereo.signal_level import SignalLevelParams, level_params
@@ -25,12 +26,13 @@ WIDTH_EPS = 1e-9
 
 
 @dataclass(frozen=True, kw_only=True)
-class FrameClusterParams(SignalLevelParams, WindowFrameParams):
+class FrameClusterParams(BorderParams, SignalLevelParams, WindowFrameParams):
     """Parameters of the frame-based cluster matcher (thesis defaults; algorithms.md section 1).
 
     The window and Gaussian fields (window_us, gaussian, kernel_sigma, kernel_size) are those of
     :class:`~cvstereo.windows.WindowFrameParams`, the relative-threshold fields (threshold_mode,
-    threshold_scale, level_*) those of :class:`~cvstereo.signal_level.SignalLevelParams`.
+    threshold_scale, level_*) those of :class:`~cvstereo.signal_level.SignalLevelParams`, the border rule's
+    (border_horizon_us, border_rows) those of :class:`~cvstereo.border.BorderParams`.
 
     Attributes
     ----------
@@ -75,12 +77,13 @@ class FrameClusterParams(SignalLevelParams, WindowFrameParams):
 
 
 @dataclass(frozen=True, kw_only=True)
-class FrameAreaParams(SignalLevelParams, WindowFrameParams):
+class FrameAreaParams(BorderParams, SignalLevelParams, WindowFrameParams):
     """Parameters of the frame-area SAD matcher (thesis defaults; algorithms.md section 3).
 
     The window and Gaussian fields (window_us, gaussian, kernel_sigma, kernel_size) are those of
     :class:`~cvstereo.windows.WindowFrameParams`, the relative-threshold fields (threshold_mode,
-    threshold_scale, level_*) those of :class:`~cvstereo.signal_level.SignalLevelParams`.
+    threshold_scale, level_*) those of :class:`~cvstereo.signal_level.SignalLevelParams`, the border rule's
+    (border_horizon_us, border_rows) those of :class:`~cvstereo.border.BorderParams`.
 
     Attributes
     ----------
@@ -127,9 +130,10 @@ class FrameAreaParams(SignalLevelParams, WindowFrameParams):
 
 
 @dataclass(frozen=True, kw_only=True)
-class EventTimeParams(SignalLevelParams, DynamicFrameParams):
+class EventTimeParams(BorderParams, SignalLevelParams, DynamicFrameParams):
     """Parameters of the event-time matcher (thesis defaults), besides those of the dynamic frames and the
-    relative-threshold fields of :class:`~cvstereo.signal_level.SignalLevelParams`.
+    relative-threshold fields of :class:`~cvstereo.signal_level.SignalLevelParams` and the border rule's of
+    :class:`~cvstereo.border.BorderParams`.
 
     Attributes
     ----------
@@ -218,9 +222,10 @@ class EventTimeParams(SignalLevelParams, DynamicFrameParams):
 
 
 @dataclass(frozen=True, kw_only=True)
-class EventAreaParams(SignalLevelParams, DynamicFrameParams):
+class EventAreaParams(BorderParams, SignalLevelParams, DynamicFrameParams):
     """Parameters of the event-area matcher (thesis defaults), besides those of the dynamic frames and the
-    relative-threshold fields of :class:`~cvstereo.signal_level.SignalLevelParams`.
+    relative-threshold fields of :class:`~cvstereo.signal_level.SignalLevelParams` and the border rule's of
+    :class:`~cvstereo.border.BorderParams`.
 
     Attributes
     ----------
@@ -289,9 +294,10 @@ class EventAreaParams(SignalLevelParams, DynamicFrameParams):
 
 
 @dataclass(frozen=True, kw_only=True)
-class EventVectorParams(SignalLevelParams, DynamicFrameParams):
+class EventVectorParams(BorderParams, SignalLevelParams, DynamicFrameParams):
     """Parameters of the event-vector matcher (thesis defaults), besides those of the dynamic frames and the
-    relative-threshold fields of :class:`~cvstereo.signal_level.SignalLevelParams`.
+    relative-threshold fields of :class:`~cvstereo.signal_level.SignalLevelParams` and the border rule's of
+    :class:`~cvstereo.border.BorderParams`.
 
     Attributes
     ----------

@@ -28,6 +28,7 @@ from typing import ClassVar, Literal
 import cv2
 import numpy as np
 
+from cvstereo.border import BorderParams
 from cvstereo.frames import event_mask, gaussian_filter, polarity_counts, polarity_frames
 from cvstereo.matches import empty_matches, make_matches
 from cvstereo.params import Alias
@@ -41,11 +42,12 @@ MID_GREY = 128
 
 
 @dataclass(frozen=True, kw_only=True)
-class _OpenCVParams(WindowFrameParams):
+class _OpenCVParams(BorderParams, WindowFrameParams):
     """Parameters common to both baselines (see the module docstring for the image mapping).
 
     The window and Gaussian fields (window_us, gaussian, kernel_sigma, kernel_size) are those of
-    :class:`~cvstereo.windows.WindowFrameParams`.
+    :class:`~cvstereo.windows.WindowFrameParams`, the border rule's (border_horizon_us, border_rows) those of
+    :class:`~cvstereo.border.BorderParams`.
 
     Attributes
     ----------

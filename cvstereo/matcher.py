@@ -21,6 +21,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numba import njit
 
+from cvstereo.border import border_rule_for
 from cvstereo.errors import EventFormatError, StreamEndedError
 from cvstereo.events import DEFAULT_RESOLUTION, EVENT_DTYPE, MAX_RESOLUTION, check_resolution, validate_events
 from cvstereo.matches import empty_matches
@@ -182,6 +183,8 @@ class StreamMatcher(abc.ABC):
         self.input_events = 0
         #: Set by :meth:`flush`: the stream has ended, further packets are refused.
         self.ended = False
+        #: The border rule (:mod:`cvstereo.border`) every returned match passes, where the parameters switch it on.
+        self._border = border_rule_for(params, self.resolution)
 
     @classmethod
     def from_variant(cls, variant: str | None = None, *, resolution=DEFAULT_RESOLUTION, **params):
@@ -287,7 +290,10 @@ class StreamMatcher(abc.ABC):
         self.input_events += left.size + right.size
         if lasts:
             self.watermark = max(lasts) if self.watermark is None else max(self.watermark, *lasts)
-        return self._feed(left, right)
+        return self._bordered(self._feed(left, right))
+
+    def _bordered(self, matches: np.ndarray) -> np.ndarray:
+        return matches if self._border is None else self._border(matches)
 
     def _check_packet(self, name: str, ev) -> list[int]:
         """Refuse a packet the kernels cannot take; return its last timestamp (as a list, empty if none).
@@ -324,7 +330,7 @@ class StreamMatcher(abc.ABC):
         if self.ended:
             return empty_matches()
         self.ended = True
-        return self._flush()
+        return self._bordered(self._flush())
 
     @abc.abstractmethod
     def _feed(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:
