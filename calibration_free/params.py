@@ -177,6 +177,12 @@ class EventTimeParams(BorderParams, SignalLevelParams, DynamicFrameParams):
         How old a neighbour's last match may be to count (``consensus_radius``).
     consensus_min : int
         How many recent neighbour matches within 1 px of their median make a consensus (``consensus_radius``).
+    value_units : {"own", "reference"}
+        ``own`` (the thesis): D2 is compared with D1 as its camera gives it. ``reference``: in relative mode, once
+        both cameras have a signal level, D2 is first multiplied by the reference camera's level over the other's,
+        so that the value test compares the two cameras' events in one unit: sensors of different contrast
+        thresholds give one edge D values several times apart (a camera with 4x the events of the other), and
+        the test then passed look-alikes and refused the true partner.
     """
 
     threshold: float = 0.8
@@ -192,9 +198,12 @@ class EventTimeParams(BorderParams, SignalLevelParams, DynamicFrameParams):
     consensus_radius: int = 0
     consensus_window_us: int = 40_000
     consensus_min: int = 2
+    value_units: Literal["own", "reference"] = "own"
 
     def __post_init__(self):
         super().__post_init__()
+        if self.value_units not in ("own", "reference"):
+            raise ValueError(f"value_units must be 'own' or 'reference', got {self.value_units!r}.")
         if self.reference_read not in ("before", "after"):
             raise ValueError(f"reference_read must be 'before' or 'after', got {self.reference_read!r}.")
         if self.reference_camera not in (0, 1):
@@ -213,6 +222,15 @@ class EventTimeParams(BorderParams, SignalLevelParams, DynamicFrameParams):
     def pace_params(self) -> SignalLevelParams:
         """The estimator of the pace: the signal level's windows and warm-up, the median, no floor."""
         return dataclasses.replace(level_params(self), level_quantile=0.5, level_floor=0.0)
+
+    def value_gain(self, levels) -> float:
+        """The factor D2 is multiplied by before the value test (``value_units``), given the cameras' levels
+        in force (NaN while warming up): the reference camera's level over the other's, or 1."""
+        ref = self.reference_camera
+        if not (self.relative and self.value_units == "reference"):
+            return 1.0
+        mine, other = float(levels[ref]), float(levels[1 - ref])
+        return mine / other if np.isfinite(mine) and np.isfinite(other) and other > 0 else 1.0
 
     def max_time_window_us(self) -> int:
         """The longest window that can be in force: intervals longer than ``level_window_us`` are not counted."""

@@ -97,9 +97,12 @@ ADAPTIVE: dict[str, AdaptiveDefaults] = {
             "partner was a look-alike one texture period off in 10-12 % of the matches on 1arm-50cm; bad2 there "
             "0.15 -> 0.015, every second event dropped agreed on 88 -> 98 % of cells), which lets the threshold "
             "fall from 0.65 to 0.55 x the level: density sweep coverage 0.18/0.17/0.20/0.24 -> 0.22/0.23/0.28/0.30, "
-            "Fan_disp8 92.8 -> 98.4 % within 1 px of 8 (14146 estimates)",
+            "Fan_disp8 92.8 -> 98.4 % within 1 px of 8 (14146 estimates); it compares D2 with D1 in the reference "
+            "camera's units (value_units: the cameras' level ratio; sensors of different contrast thresholds gave "
+            "one edge D values several times apart): suite v2 tuning half at 346x260, objects coverage "
+            "0.004 -> 0.11 at bad2 0.70 -> 0.34",
         params={**_THESIS_METHODS, "threshold_scale": 0.55, "value_tolerance_scale": 0.4, "reference_read": "after",
-                "time_window_scale": 0.5, "consensus_radius": 4},
+                "time_window_scale": 0.5, "consensus_radius": 4, "value_units": "reference"},
     ),
     "event-area": AdaptiveDefaults(
         variant="gaussian",
