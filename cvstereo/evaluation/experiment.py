@@ -57,8 +57,9 @@ class ExperimentResult:
 
 def all_combos(methods: Iterable[str] | None = None, *, param_sets: Iterable[str] = ("thesis",)) -> list[Combo]:
     """Every variant of every importable method (or of ``methods``), in registry order, under ``thesis``;
-    with ``"adaptive"`` in ``param_sets`` also each thesis method's ``adaptive`` default, right after its
-    thesis variants."""
+    with ``"adaptive"`` in ``param_sets`` also the ``adaptive`` default of each method whose sets differ
+    (:data:`~cvstereo.matchers.sets.ADAPTIVE`: the thesis' five and the OpenCV baselines), right after its thesis
+    variants."""
     names = available_methods() if methods is None else list(methods)
     out = []
     for m in names:

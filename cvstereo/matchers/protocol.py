@@ -22,6 +22,7 @@ import numpy as np
 from numba import njit
 
 from cvstereo.errors import EventFormatError, StreamEndedError
+from cvstereo.matchers._shared.border import border_rule_for
 from cvstereo.matchers.params import canonical_params
 from cvstereo.model.events import DEFAULT_RESOLUTION, EVENT_DTYPE, MAX_RESOLUTION, check_resolution, validate_events
 from cvstereo.model.matches import empty_matches
@@ -184,6 +185,9 @@ class StreamMatcher(abc.ABC):
         self.input_events = 0
         #: Set by :meth:`flush`: the stream has ended, further packets are refused.
         self.ended = False
+        #: The border rule (:mod:`cvstereo.matchers._shared.border`) every returned match passes, where the
+        #: parameters switch it on.
+        self._border = border_rule_for(params, self.resolution)
 
     @classmethod
     def from_variant(cls, variant: str | None = None, *, resolution=DEFAULT_RESOLUTION, **params):
@@ -289,7 +293,10 @@ class StreamMatcher(abc.ABC):
         self.input_events += left.size + right.size
         if lasts:
             self.watermark = max(lasts) if self.watermark is None else max(self.watermark, *lasts)
-        return self._feed(left, right)
+        return self._bordered(self._feed(left, right))
+
+    def _bordered(self, matches: np.ndarray) -> np.ndarray:
+        return matches if self._border is None else self._border(matches)
 
     def _check_packet(self, name: str, ev) -> list[int]:
         """Refuse a packet the kernels cannot take; return its last timestamp (as a list, empty if none).
@@ -326,7 +333,7 @@ class StreamMatcher(abc.ABC):
         if self.ended:
             return empty_matches()
         self.ended = True
-        return self._flush()
+        return self._bordered(self._flush())
 
     @abc.abstractmethod
     def _feed(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:

@@ -149,7 +149,8 @@ class Grid:
 
 def _has_param_sets(method: str) -> bool:
     """Whether the parameter sets differ for a method: those :data:`cvstereo.matchers.sets.ADAPTIVE` lists (the
-    thesis' five); the others run the same under both, so once."""
+    thesis' five, and the OpenCV baselines, which ``adaptive`` gives the border rule); the others run the same
+    under both, so once."""
     from cvstereo.matchers.sets import ADAPTIVE
 
     return method in ADAPTIVE

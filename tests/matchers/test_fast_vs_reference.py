@@ -62,7 +62,8 @@ MODES = {
 }
 #: Relative mode: the scales drawn (event-time also scales its value tolerance, and its time window by the pace).
 SCALES = {"threshold_scale": [0.5, 0.8]}
-EVENT_TIME_SCALES = {"value_tolerance_scale": [0.3, 0.4], "time_window_scale": [0.4, 0.0, 2.0]}
+EVENT_TIME_SCALES = {"value_tolerance_scale": [0.3, 0.4], "time_window_scale": [0.4, 0.0, 2.0],
+                     "value_units": ["own", "reference"]}
 
 
 def mode_params(method: str, mode: str, draw) -> dict:

@@ -38,7 +38,9 @@ def test_sets_choose_variant_and_values_and_overrides_win(clip):
     assert thesis.params.polarity == "shared" and thesis.params.threshold_mode == "absolute"
     explicit = create_matcher("frame", "on", threshold_scale=0.9)  # explicit variant and --param win
     assert explicit.params.polarity == "on" and explicit.params.threshold_scale == 0.9
-    assert create_matcher("frame-area", "no-gaussian").params.threshold_scale == 1.6  # the set's per-variant value
+    # An explicit variant gets the set's values of the method: no-gaussian keeps the relative scale of 0.6.
+    ng = create_matcher("frame-area", "no-gaussian").params
+    assert ng.threshold_scale == 0.6 and not ng.gaussian and ng.threshold_mode == "relative"
     with pytest.raises(ValueError, match="unknown parameter set 'thesys'; choose one of: adaptive, thesis"):
         create_matcher("frame", param_set="thesys")
 

@@ -15,6 +15,7 @@ import numpy as np
 
 from cvstereo.frames.dynamic import DynamicFrameParams
 from cvstereo.frames.windows import WindowFrameParams
+from cvstereo.matchers._shared.border import BorderParams
 from cvstereo.matchers._shared.signal_level import SignalLevelParams, level_params
 from cvstereo.model.polarity import Polarity, check_polarity
 
@@ -25,12 +26,13 @@ WIDTH_EPS = 1e-9
 
 
 @dataclass(frozen=True, kw_only=True)
-class FrameClusterParams(SignalLevelParams, WindowFrameParams):
+class FrameClusterParams(BorderParams, SignalLevelParams, WindowFrameParams):
     """Parameters of the frame-based cluster matcher (thesis defaults; docs/algorithms.md section 1).
 
     The window and Gaussian fields (window_us, gaussian, kernel_sigma, kernel_size) are those of
     :class:`~cvstereo.frames.windows.WindowFrameParams`, the relative-threshold fields (threshold_mode,
-    threshold_scale, level_*) those of :class:`~cvstereo.matchers._shared.signal_level.SignalLevelParams`.
+    threshold_scale, level_*) those of :class:`~cvstereo.matchers._shared.signal_level.SignalLevelParams`, the
+    border rule's (border_horizon_us, border_rows) those of :class:`~cvstereo.matchers._shared.border.BorderParams`.
 
     Attributes
     ----------
@@ -75,12 +77,13 @@ class FrameClusterParams(SignalLevelParams, WindowFrameParams):
 
 
 @dataclass(frozen=True, kw_only=True)
-class FrameAreaParams(SignalLevelParams, WindowFrameParams):
+class FrameAreaParams(BorderParams, SignalLevelParams, WindowFrameParams):
     """Parameters of the frame-area SAD matcher (thesis defaults; docs/algorithms.md section 3).
 
     The window and Gaussian fields (window_us, gaussian, kernel_sigma, kernel_size) are those of
     :class:`~cvstereo.frames.windows.WindowFrameParams`, the relative-threshold fields (threshold_mode,
-    threshold_scale, level_*) those of :class:`~cvstereo.matchers._shared.signal_level.SignalLevelParams`.
+    threshold_scale, level_*) those of :class:`~cvstereo.matchers._shared.signal_level.SignalLevelParams`, the
+    border rule's (border_horizon_us, border_rows) those of :class:`~cvstereo.matchers._shared.border.BorderParams`.
 
     Attributes
     ----------
@@ -127,9 +130,10 @@ class FrameAreaParams(SignalLevelParams, WindowFrameParams):
 
 
 @dataclass(frozen=True, kw_only=True)
-class EventTimeParams(SignalLevelParams, DynamicFrameParams):
+class EventTimeParams(BorderParams, SignalLevelParams, DynamicFrameParams):
     """Parameters of the event-time matcher (thesis defaults), besides those of the dynamic frames and the
-    relative-threshold fields of :class:`~cvstereo.matchers._shared.signal_level.SignalLevelParams`.
+    relative-threshold fields of :class:`~cvstereo.matchers._shared.signal_level.SignalLevelParams` and the
+    border rule's of :class:`~cvstereo.matchers._shared.border.BorderParams`.
 
     Attributes
     ----------
@@ -173,6 +177,12 @@ class EventTimeParams(SignalLevelParams, DynamicFrameParams):
         How old a neighbour's last match may be to count (``consensus_radius``).
     consensus_min : int
         How many recent neighbour matches within 1 px of their median make a consensus (``consensus_radius``).
+    value_units : {"own", "reference"}
+        ``own`` (the thesis): D2 is compared with D1 as its camera gives it. ``reference``: in relative mode, once
+        both cameras have a signal level, D2 is first multiplied by the reference camera's level over the other's,
+        so that the value test compares the two cameras' events in one unit: sensors of different contrast
+        thresholds give one edge D values several times apart (a camera with 4x the events of the other), and
+        the test then passed look-alikes and refused the true partner.
     """
 
     threshold: float = 0.8
@@ -188,9 +198,12 @@ class EventTimeParams(SignalLevelParams, DynamicFrameParams):
     consensus_radius: int = 0
     consensus_window_us: int = 40_000
     consensus_min: int = 2
+    value_units: Literal["own", "reference"] = "own"
 
     def __post_init__(self):
         super().__post_init__()
+        if self.value_units not in ("own", "reference"):
+            raise ValueError(f"value_units must be 'own' or 'reference', got {self.value_units!r}.")
         if self.reference_read not in ("before", "after"):
             raise ValueError(f"reference_read must be 'before' or 'after', got {self.reference_read!r}.")
         if self.reference_camera not in (0, 1):
@@ -210,6 +223,15 @@ class EventTimeParams(SignalLevelParams, DynamicFrameParams):
         """The estimator of the pace: the signal level's windows and warm-up, the median, no floor."""
         return dataclasses.replace(level_params(self), level_quantile=0.5, level_floor=0.0)
 
+    def value_gain(self, levels) -> float:
+        """The factor D2 is multiplied by before the value test (``value_units``), given the cameras' levels
+        in force (NaN while warming up): the reference camera's level over the other's, or 1."""
+        ref = self.reference_camera
+        if not (self.relative and self.value_units == "reference"):
+            return 1.0
+        mine, other = float(levels[ref]), float(levels[1 - ref])
+        return mine / other if np.isfinite(mine) and np.isfinite(other) and other > 0 else 1.0
+
     def max_time_window_us(self) -> int:
         """The longest window that can be in force: intervals longer than ``level_window_us`` are not counted."""
         if not self.paced:
@@ -218,9 +240,10 @@ class EventTimeParams(SignalLevelParams, DynamicFrameParams):
 
 
 @dataclass(frozen=True, kw_only=True)
-class EventAreaParams(SignalLevelParams, DynamicFrameParams):
+class EventAreaParams(BorderParams, SignalLevelParams, DynamicFrameParams):
     """Parameters of the event-area matcher (thesis defaults), besides those of the dynamic frames and the
-    relative-threshold fields of :class:`~cvstereo.matchers._shared.signal_level.SignalLevelParams`.
+    relative-threshold fields of :class:`~cvstereo.matchers._shared.signal_level.SignalLevelParams` and the
+    border rule's of :class:`~cvstereo.matchers._shared.border.BorderParams`.
 
     Attributes
     ----------
@@ -289,9 +312,10 @@ class EventAreaParams(SignalLevelParams, DynamicFrameParams):
 
 
 @dataclass(frozen=True, kw_only=True)
-class EventVectorParams(SignalLevelParams, DynamicFrameParams):
+class EventVectorParams(BorderParams, SignalLevelParams, DynamicFrameParams):
     """Parameters of the event-vector matcher (thesis defaults), besides those of the dynamic frames and the
-    relative-threshold fields of :class:`~cvstereo.matchers._shared.signal_level.SignalLevelParams`.
+    relative-threshold fields of :class:`~cvstereo.matchers._shared.signal_level.SignalLevelParams` and the
+    border rule's of :class:`~cvstereo.matchers._shared.border.BorderParams`.
 
     Attributes
     ----------

@@ -340,10 +340,11 @@ class EventTimeMatcher(StreamMatcher):
             threshold = self._level.thresholds(k)
             tolerance = self._level.relative(k, absolute=prm.value_tolerance, scale=prm.value_tolerance_scale)[ref]
             window = self._window(k)
+            gain = prm.value_gain(self._level.levels(k))
             for cam in (ref, 1 - ref):
                 a, b = runs[cam]
                 if b > a:
-                    self._take(cam, packets[cam][a:b], k, threshold[cam], tolerance, window)
+                    self._take(cam, packets[cam][a:b], k, threshold[cam], tolerance, window, gain)
         if self.watermark is None:
             return empty_matches()
         # Every later event has t >= watermark: a pending event is final once watermark > t + its window; the
@@ -362,8 +363,10 @@ class EventTimeMatcher(StreamMatcher):
         return int(self._pace.relative(k, absolute=prm.time_window_us, scale=prm.time_window_scale,
                                        floor=prm.time_window_us)[other])
 
-    def _take(self, cam: int, events: np.ndarray, k: int, threshold: float, tolerance: float, window: int) -> None:
-        """Run one camera's events of level window ``k`` through its frame; keep the ones that pass."""
+    def _take(self, cam: int, events: np.ndarray, k: int, threshold: float, tolerance: float, window: int,
+              gain: float) -> None:
+        """Run one camera's events of level window ``k`` through its frame; keep the ones that pass (the other
+        camera's D2 in the reference camera's units: ``gain``, :meth:`EventTimeParams.value_gain`)."""
         cols = event_matrix(events)
         if cam == self.params.reference_camera:
             v1 = self._bank.process_columns(cam, cols, read=self.params.reference_read)
@@ -379,7 +382,7 @@ class EventTimeMatcher(StreamMatcher):
             v2 = self._bank.process_columns(cam, cols, read="after")
             keep = _passing(v2, cols[3], float(threshold), True)
             self._cands = np.concatenate([self._cands, cols[:, keep]], axis=1)
-            self._cand_value = np.concatenate([self._cand_value, v2[keep]])
+            self._cand_value = np.concatenate([self._cand_value, v2[keep] * gain])
             self._level.add(k, cam, v2)
 
     def _intervals(self, cols: np.ndarray) -> np.ndarray:

@@ -61,7 +61,8 @@ def _choose(disparities: list[int], consensus: int | None) -> int | None:
 
 
 def _in_force_by_window(prm: EventTimeParams, events, values) -> tuple[dict, dict, dict]:
-    """Window -> thresholds (per camera), value tolerance and time window in force, from the windows before.
+    """Window -> thresholds (per camera), value tolerance, time window and D2's gain (``value_units``) in force,
+    from the windows before.
 
     ``events`` and ``values`` are the reference camera's first, the other's second (D1, D2 after).
     """
@@ -73,9 +74,10 @@ def _in_force_by_window(prm: EventTimeParams, events, values) -> tuple[dict, dic
     intervals = ([np.nan] * events[0].size,
                  _neighbour_intervals(events[1], w) if prm.paced else [np.nan] * events[1].size)
     windows = sorted({int(t) // w for ev in events for t in ev["t"]})
-    threshold, tolerance, window = {}, {}, {}
+    threshold, tolerance, window, gain = {}, {}, {}, {}
     for k in windows:
         threshold[k] = level.thresholds(k)
+        gain[k] = prm.value_gain(level.levels(k))
         tolerance[k] = level.relative(k, absolute=prm.value_tolerance, scale=prm.value_tolerance_scale)[ref]
         # The other camera's pace: its events are the candidates.
         window[k] = int(pace.relative(k, absolute=prm.time_window_us, scale=prm.time_window_scale,
@@ -86,7 +88,7 @@ def _in_force_by_window(prm: EventTimeParams, events, values) -> tuple[dict, dic
             level.add(k, cam, np.array([np.nan if v is None else v for v, here in zip(vals, in_k, strict=True)
                                         if here]))
             pace.add(k, cam, np.array([v for v, here in zip(ivl, in_k, strict=True) if here]))
-    return threshold, tolerance, window
+    return threshold, tolerance, window, gain
 
 
 def event_time_reference(left: np.ndarray, right: np.ndarray, params: EventTimeParams | None = None, *,
@@ -113,7 +115,7 @@ def event_time_reference(left: np.ndarray, right: np.ndarray, params: EventTimeP
     # e2's own update.
     d1 = DynamicFrames(fp, resolution=resolution).process(ev1, after=prm.reference_read == "after")
     d2 = DynamicFrames(fp, resolution=resolution).process(ev2, after=True)
-    threshold, tolerance, window = _in_force_by_window(prm, (ev1, ev2), (d1, d2))
+    threshold, tolerance, window, gain = _in_force_by_window(prm, (ev1, ev2), (d1, d2))
     t2_all = ev2["t"]
     rows = []
     last = {}  # consensus_radius: (x, y) -> (time, disparity) of the pixel's last match
@@ -134,7 +136,7 @@ def event_time_reference(left: np.ndarray, right: np.ndarray, params: EventTimeP
                 continue
             k2 = int(e2["t"]) // prm.level_window_us
             if not (abs(v2) >= threshold[k2][1 - ref] and sign(v2) == s and s2 == s
-                    and abs(d1[i] - v2) <= tolerance[k]):
+                    and abs(d1[i] - v2 * gain[k2]) <= tolerance[k]):
                 continue
             x2, y2 = int(e2["x"]), int(e2["y"])
             if abs(y2 - y) > prm.row_tolerance:

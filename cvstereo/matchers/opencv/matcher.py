@@ -30,6 +30,7 @@ import numpy as np
 
 from cvstereo.frames.accumulate import event_mask, gaussian_filter, polarity_counts, polarity_frames
 from cvstereo.frames.windows import FrameMatcher, Window, WindowFrameParams
+from cvstereo.matchers._shared.border import BorderParams
 from cvstereo.matchers.params import Alias
 from cvstereo.model.matches import empty_matches, make_matches
 from cvstereo.model.polarity import OFF, ON
@@ -44,11 +45,12 @@ MID_GREY = 128
 
 
 @dataclass(frozen=True, kw_only=True)
-class _OpenCVParams(WindowFrameParams):
+class _OpenCVParams(BorderParams, WindowFrameParams):
     """Parameters common to both baselines (see the module docstring for the image mapping).
 
     The window and Gaussian fields (window_us, gaussian, kernel_sigma, kernel_size) are those of
-    :class:`~cvstereo.frames.windows.WindowFrameParams`.
+    :class:`~cvstereo.frames.windows.WindowFrameParams`, the border rule's (border_horizon_us, border_rows) those of
+    :class:`~cvstereo.matchers._shared.border.BorderParams`.
 
     Attributes
     ----------
