@@ -59,12 +59,12 @@ class AdaptiveDefaults:
     variant_params: dict = field(default_factory=dict)
 
 
-#: The border rule (:mod:`cvstereo.matchers._shared.border`) of every matcher under ``adaptive``: an accepted
-#: match stays evidence for one 40 ms window, and the nearest 3 rows within 16 that hold evidence vote (the frame
-#: matcher answers in a few rows a window: within 8 rows its 346x260 plane kept 2.6 % of its answers in the strip, within 16 0.9 %).
-#: On the border planes (a textured plane at an eighth of the width, 128x128 and 346x260, 1.5 s) it cut the
-#: answers whose partner lies outside the other image from 1-9 % to 0.05-0.9 % of each matcher's answers (event-time
-#: at 346x260: 1.1 %), costing 0.1-1.3 % of the correct ones.
+#: The border rule (:mod:`cvstereo.matchers._shared.border`) of every matcher under ``adaptive``: an accepted match
+#: stays evidence for one 40 ms window, and the nearest 3 rows within 16 that hold evidence vote (the frame matcher
+#: answers in a few rows a window: within 8 rows its 346x260 plane kept 2.6 % of its answers in the strip, within 16 0.9
+#: %). On the border planes (a textured plane at an eighth of the width, 128x128 and 346x260, 1.5 s) it cut the answers
+#: whose partner lies outside the other image from 1-9 % to 0.05-0.9 % of each matcher's answers (event-time at 346x260:
+#: 1.1 %), costing 0.1-1.3 % of the correct ones.
 _BORDER = {"border_horizon_us": 40_000, "border_rows": 16}
 
 _RELATIVE = {"threshold_mode": "relative"}
