@@ -62,8 +62,8 @@ def evt21_words(events: np.ndarray) -> np.ndarray:
 
 
 def evt3_words(events: np.ndarray, *, vectors: bool = True) -> np.ndarray:
-    """EVT 3.0: every TIME_HIGH step and TIME_LOW when it changes, ADDR_Y when the row changes; runs of x of one time, row
-    and polarity as VECT_BASE_X + VECT_12 / VECT_8 words (``vectors``), single events as ADDR_X."""
+    """EVT 3.0: every TIME_HIGH step and TIME_LOW when it changes, ADDR_Y when the row changes; runs of x of one
+    time, row and polarity as VECT_BASE_X + VECT_12 words (``vectors``), single events as ADDR_X."""
     words, high, low, row, i = [], None, None, None, 0
 
     def put(kind, payload):

@@ -8,7 +8,7 @@ so memory stays bounded.
 
 Told from the TUM lab's eDVS text files (``t x y p``, also comma-separated at times) by content
 (:func:`sniff_metavision_csv`): a ``%`` line or a names line first, or data whose third column is a polarity
-(0/1) and whose fourth is a clock (not only -1/0/1, never going back).
+(0/1) and whose fourth is a clock (not only -1/0/1, which would be eDVS text's polarity).
 """
 
 from __future__ import annotations
@@ -77,7 +77,7 @@ def sniff_metavision_csv(path: str | os.PathLike) -> bool:
     if rows.ndim != 2 or rows.shape[1] != 4:
         return False
     p, t = rows[:, 2], rows[:, 3]
-    return bool(np.isin(p, (0, 1)).all() and not np.isin(t, (-1, 0, 1)).all() and (np.diff(t) >= 0).all())
+    return bool(np.isin(p, (0, 1)).all() and not np.isin(t, (-1, 0, 1)).all())
 
 
 def _read_preamble(path, columns) -> tuple[tuple[int, int] | None, tuple[str, ...], int]:
@@ -101,11 +101,11 @@ def _read_preamble(path, columns) -> tuple[tuple[int, int] | None, tuple[str, ..
         try:
             named = parse_columns(line.decode("ascii"))
         except (ValueError, UnicodeDecodeError):
-            return size, parse_columns(columns), skip
-        if columns is not None and parse_columns(columns) != named:
+            return size, parse_columns(columns, source=f"{path}: columns"), skip
+        if columns is not None and parse_columns(columns, source=f"{path}: columns") != named:
             raise ValueError(f"{path}: the file's first line names the columns {','.join(named)}, not {columns}.")
         return size, named, skip + 1
-    return size, parse_columns(columns), skip
+    return size, parse_columns(columns, source=f"{path}: columns"), skip
 
 
 def _parse_block(path, lines: list[bytes], first_line: int) -> np.ndarray:

@@ -44,9 +44,13 @@ HEADER_LIMIT = 1 << 16
 #: `.dat` event type bytes of change-detection events (EventCD, and the generic Event2d of older files).
 DAT_CD_TYPES = (0x0C, 0x00)
 DAT_EVENT_BYTES = 8
-#: EVT 2.1 word types (bits 63..60): OFF and ON vectors, the time's high bits; the others carry no CD events.
+#: EVT 2.1 word types (bits 63..60): OFF and ON vectors, the time's high bits; the others (external trigger,
+#: extensions) carry no CD events. Every other type is reserved, so a word of one is damage.
 EVT21_OFF, EVT21_ON, EVT21_TIME_HIGH = 0x0, 0x1, 0x8
-EVT21_OTHER_TYPES = (0xA, 0xE, 0xF)
+EVT21_OTHER_TYPES = (0xA, 0xE)
+#: Bytes at the start of the data looked at for a fill (a zeroed or erased region): no event stream is one
+#: byte value repeated.
+FILL_PROBE = 4096
 #: 64-bit words decoded at a time (8 MB of file per chunk).
 CHUNK_WORDS = 1 << 20
 _PRINTABLE = re.compile(rb"^[\x20-\x7e\t]*$")
@@ -140,7 +144,8 @@ def read_prophesee_header(path: str | os.PathLike, expected: str | None = None) 
     CorruptFileError
         No Prophesee header, an unknown encoding, a header naming another format than ``expected``, a sensor
         size outside 1..2048, a ``.dat`` event type that is not CD or size that is not 8, or data that is not a
-        whole number of words (a truncated file). The message names the file and the format.
+        whole number of words (a truncated file), data that starts with one byte value repeated (zeroed or
+        erased). The message names the file and the format.
     """
     with open_regular(path) as fh:
         head = fh.read(HEADER_LIMIT)
@@ -148,7 +153,7 @@ def read_prophesee_header(path: str | os.PathLike, expected: str | None = None) 
     what = ENCODINGS.get(expected, "Prophesee")
     found = sniff_prophesee(head)
     if found is None:
-        raise CorruptFileError(f"{path}: not a {what} file (no Prophesee '% ' header naming the format); "
+        raise CorruptFileError(f"{path}: not {what} data (no Prophesee '% ' header naming the format); "
                                "give the --format the file is in.")
     if found.startswith("unknown"):
         raise CorruptFileError(f"{path}: the Prophesee header names an {found[8:]} encoding; cvstereo reads "
@@ -168,6 +173,10 @@ def read_prophesee_header(path: str | os.PathLike, expected: str | None = None) 
             raise CorruptFileError(f"{path}: Prophesee DAT event type 0x{kind:02x} of {event_bytes} bytes; cvstereo "
                                    f"reads CD events (type 0x0c, {DAT_EVENT_BYTES} bytes).")
         offset += 2
+    probe = head[offset:offset + FILL_PROBE]
+    if len(probe) >= 2 * WORD_BYTES[found] and probe.count(probe[:1]) == len(probe):
+        raise CorruptFileError(f"{path}: {ENCODINGS[found]} data starts with {len(probe)} bytes of 0x{probe[0]:02x} "
+                               "(a zeroed or erased region, no events); the file is damaged.")
     spare = (size - offset) % WORD_BYTES[found]
     if spare:
         raise CorruptFileError(f"{path}: {ENCODINGS[found]} data is not a whole number of "
@@ -227,8 +236,9 @@ def _registry_columns(path, header: PropheseeHeader, resolution) -> Iterator[tup
         decoder, field = module.evt.Decoder(path, resolution, "evt2"), "on"
     with decoder:
         for packet in decoder:
-            events = packet["events"] if isinstance(packet, dict) else packet
-            if events.size:
+            # faery's EVT packets are dicts whose "events" entry is missing when a packet holds triggers only.
+            events = packet.get("events") if isinstance(packet, dict) else packet
+            if events is not None and events.size:
                 yield events["t"], events["x"], events["y"], events[field]
 
 
