@@ -1,21 +1,26 @@
-"""Run a matcher over a whole recording: :func:`match`, streaming it packet by packet."""
+"""Run a matcher over a stream: :func:`run`, the one feed loop, and :func:`match`, a recording through it.
+
+:func:`run` feeds packets to a matcher and gathers its matches, meta and per-match arrays; :func:`match`
+adapts what the user gives (a Recording, a file, event arrays), builds the matcher and the stages between the
+events and the matcher (rig correction, rectification), and runs it, streaming the file packet by packet."""
 
 from __future__ import annotations
 
 import os
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterable, Iterator
 
 import numpy as np
 
 import cvstereo
+from cvstereo.matchers.protocol import StreamMatcher
 from cvstereo.matchers.registry import METHODS, create_matcher
 from cvstereo.model.events import StereoPacket, distinct_sorted, is_time_ordered
 from cvstereo.model.fingerprint import EventFingerprint
 from cvstereo.model.matches import MatchResult, concat_matches
 from cvstereo.model.recording import Recording
 
-__all__ = ["DEFAULT_PACKET_US", "DIAGNOSTICS_WINDOW_US", "match"]
+__all__ = ["DEFAULT_PACKET_US", "DIAGNOSTICS_WINDOW_US", "match", "run"]
 
 #: Windows of the diagnostics (:func:`cvstereo.evaluation.diagnostics.silence_warning`): 40 ms on the absolute
 # clock.
@@ -145,54 +150,98 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         source = [os.fspath(recording)] + ([os.fspath(right)] if right is not None else [])
         stream, total = open_recording(recording, right), None
     matcher = create_matcher(method, variant, resolution=stream.resolution, param_set=param_set, **params)
-    bar = _progress_bar(progress, total, method)
-    start = time.perf_counter()
-    packets = counted = _Counted(stream.packets(packet_us))
     correction = None
     if row_offset or time_offset_us:
         from cvstereo.geometry.rigcorrect import RigCorrection
 
         correction = RigCorrection(row_offset, int(time_offset_us), stream.resolution)
-        packets = correction.stream(packets)
-    parts = []
-    rectified = None
     if rectification is not None:
         if correction is not None:
             raise ValueError("give a calibration or row/time offsets, not both: rectification already aligns the rows.")
         if tuple(rectification.resolution) != tuple(stream.resolution):
             raise ValueError(f"the calibration is for {rectification.resolution[0]}x{rectification.resolution[1]}, "
                              f"the recording is {stream.resolution[0]}x{stream.resolution[1]}.")
-        packets = rectified = rectification.stream(packets)
+    stages = {}  # the stage objects of this run, for their counts of dropped events
 
-    def restored(found):
-        return found if rectified is None else rectified.restore(found, anchor=matcher.anchor)
+    def through(packets):
+        if correction is not None:
+            packets = stages["corrected"] = correction.stream(packets)
+        if rectification is not None:
+            packets = stages["rectified"] = rectification.stream(packets)
+        return packets
 
-    for packet in packets:
-        parts.append(restored(matcher.feed(packet.left, packet.right, until=packet.until)))
+    def restore(found):
+        if "rectified" in stages:
+            return stages["rectified"].restore(found, anchor=matcher.anchor)
+        return found if correction is None else correction.restore(found)
+
+    bar = _progress_bar(progress, total, method)
+    try:
+        result = run(matcher, stream.packets(packet_us), through=through, restore=restore,
+                     on_packet=None if bar is None else (lambda packet, found: bar.update(
+                         0 if packet is None else packet.left.size + packet.right.size)))
+    finally:
         if bar is not None:
-            bar.update(packet.left.size + packet.right.size)
-    parts.append(restored(matcher.flush()))
-    elapsed = time.perf_counter() - start - counted.fingerprint_s
-    if bar is not None:
-        bar.close()
-    meta = matcher.describe()
-    meta.update(
-        elapsed_s=elapsed,
-        input_events=int(counted.events),
-        duration_s=counted.duration_s,
-        resolution=list(stream.resolution),
-        version=cvstereo.__version__,
-        input=source,
-        fingerprint=counted.fingerprint.result(),
-    )
-    meta["param_set"] = param_set
-    matches = concat_matches(parts)
+            bar.close()
+    meta = result.meta
+    meta.update(resolution=list(stream.resolution), input=source, param_set=param_set)
     if correction is not None:
-        matches = correction.restore(matches)
-        meta["rig_correction"] = {**correction.describe(), "dropped_events": packets.dropped_rows +
-                                  packets.dropped_times}
-    if rectified is not None:
-        meta["rectification"] = {**rectification.describe(), "dropped_events": sum(rectified.dropped)}
+        corrected = stages["corrected"]
+        meta["rig_correction"] = {**correction.describe(),
+                                  "dropped_events": corrected.dropped_rows + corrected.dropped_times}
+    if rectification is not None:
+        meta["rectification"] = {**rectification.describe(), "dropped_events": sum(stages["rectified"].dropped)}
+    return result
+
+
+def run(matcher: StreamMatcher, packets: Iterable[StereoPacket], *,
+        through: Callable[[Iterator[StereoPacket]], Iterator[StereoPacket]] | None = None,
+        restore: Callable[[np.ndarray], np.ndarray] | None = None,
+        on_packet: Callable[[StereoPacket | None, np.ndarray], None] | None = None) -> MatchResult:
+    """The one feed loop: every packet through ``matcher``, then its flush, gathered into one result.
+
+    Parameters
+    ----------
+    matcher : StreamMatcher
+    packets : iterable of StereoPacket
+        The events as read, in time order (a recording's or a file's ``packets()``). They are counted and
+        fingerprinted (:mod:`cvstereo.model.fingerprint`) before any stage changes them.
+    through : callable, optional, keyword-only
+        The stages between the events as read and the matcher (rig correction, rectification): takes the
+        packets, returns the packets the matcher sees.
+    restore : callable, optional, keyword-only
+        Maps the matches of every packet back to the recording's pixels and clock (the stages' inverse).
+    on_packet : callable, optional, keyword-only
+        ``on_packet(packet, found)`` after every packet with its (restored) matches, and ``on_packet(None,
+        tail)`` after the flush: where a progress bar or a status line reads the run.
+
+    Returns
+    -------
+    MatchResult
+        The matches in time order; meta: the matcher's :meth:`~cvstereo.matchers.protocol.StreamMatcher.describe`,
+        ``elapsed_s`` (without the fingerprint's time), ``input_events``, ``duration_s``, ``version``,
+        ``fingerprint`` and ``diagnostics``; arrays: ``uncertainty`` when the matcher rates its matches.
+    """
+    counted = _Counted(iter(packets))
+    fed = counted if through is None else through(counted)
+    parts = []
+    start = time.perf_counter()
+    for packet in fed:
+        found = matcher.feed(packet.left, packet.right, until=packet.until)
+        found = found if restore is None else restore(found)
+        parts.append(found)
+        if on_packet is not None:
+            on_packet(packet, found)
+    tail = matcher.flush()
+    tail = tail if restore is None else restore(tail)
+    parts.append(tail)
+    if on_packet is not None:
+        on_packet(None, tail)
+    elapsed = time.perf_counter() - start - counted.fingerprint_s
+    meta = matcher.describe()
+    meta.update(elapsed_s=elapsed, input_events=int(counted.events), duration_s=counted.duration_s,
+                version=cvstereo.__version__, fingerprint=counted.fingerprint.result())
+    matches = concat_matches(parts)
     order = _time_order(matches["t"])  # sort_matches' order (None: already in it), for per-match arrays too
     if order is not None:
         matches = matches[order]

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,8 +12,9 @@ pytest.importorskip("h5py")
 plyfile = pytest.importorskip("plyfile")
 
 from tests._dsec_scene import DEPTHS, write_dsec_sequence  # noqa: E402
+from tests._paths import REPO  # noqa: E402
 
-SAMPLE = Path(__file__).resolve().parent.parent / "samples" / "dsec_point_cloud.py"
+SAMPLE = REPO / "samples" / "dsec_point_cloud.py"
 
 
 def _relative_error_to_nearest_plane(z: np.ndarray) -> np.ndarray:

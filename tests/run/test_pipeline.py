@@ -78,3 +78,21 @@ def test_without_any_entry_point_the_builtin_matchers_are_still_registered(monke
     finally:
         monkeypatch.undo()
         registry._methods.cache_clear()
+
+
+def test_run_is_the_loop_match_uses_and_reports_every_packet():
+    from cvstereo.matchers.registry import create_matcher
+    from cvstereo.run import run
+
+    rec = _recording(2)
+    seen = []
+    result = run(create_matcher("frame", resolution=rec.resolution), rec.packets(10_000),
+                 on_packet=lambda packet, found: seen.append((packet, found.size)))
+    expected = match(rec, method="frame", packet_us=10_000)
+    np.testing.assert_array_equal(result.matches, expected.matches)
+    assert result.meta["fingerprint"] == expected.meta["fingerprint"]
+    assert result.meta["input_events"] == rec.left.size + rec.right.size
+    # One call per packet, then one for the flush (packet None); together they hold every match.
+    assert seen[-1][0] is None and all(packet is not None for packet, _ in seen[:-1])
+    assert sum(n for _, n in seen) == result.matches.size
+    assert sum(p.left.size + p.right.size for p, _ in seen[:-1]) == rec.left.size + rec.right.size
