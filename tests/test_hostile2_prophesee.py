@@ -69,10 +69,10 @@ def base(tmp_path_factory) -> Path:
     data = (d / "cd.dat").read_bytes()
     (d / "trigger.dat").write_bytes(data.replace(bytes([0x0C, 8]), bytes([0x0E, 8]), 1))
     text = (d / "mv.csv").read_text().splitlines()
-    (d / "bad_line.csv").write_text("\n".join(text[:100] + ["12,7,1,abc"] + text[100:]) + "\n")
+    (d / "bad_line.csv").write_text("\n".join([*text[:100], "12,7,1,abc", *text[100:]]) + "\n")
     (d / "three.csv").write_text("\n".join(",".join(line.split(",")[:3]) for line in text) + "\n")
-    (d / "outside.csv").write_text("\n".join(text[:50] + ["200,3,1," + text[50].split(",")[3]] + text[51:]) + "\n")
-    (d / "back.csv").write_text("\n".join(text[:60] + [text[60].rsplit(",", 1)[0] + ",0"] + text[61:]) + "\n")
+    (d / "outside.csv").write_text("\n".join([*text[:50], "200,3,1," + text[50].split(",")[3], *text[51:]]) + "\n")
+    (d / "back.csv").write_text("\n".join([*text[:60], text[60].rsplit(",", 1)[0] + ",0", *text[61:]]) + "\n")
     return d
 
 
