@@ -274,7 +274,7 @@ def decode_evt21(words: np.ndarray, time_high: int | None) -> tuple[tuple[np.nda
     y = ((w >> np.uint64(32)) & np.uint64(0x7FF)).astype(np.int64)
     mask = (w & np.uint64(0xFFFFFFFF)).astype(np.int64)
     bits = np.unpackbits(mask.astype("<u4").view(np.uint8).reshape(-1, 4), axis=1, bitorder="little")
-    row, bit = np.nonzero(bits)
+    row, bit = np.divmod(np.flatnonzero(bits), 32)  # one flat scan: faster than nonzero on two axes
     columns = (t[row], base[row] + bit, y[row], kind[cd][row] == EVT21_ON)
     new_high = int(high_at[-1]) if words.size and high_at[-1] >= 0 else time_high
     return columns, new_high, bad
