@@ -113,3 +113,24 @@ def test_references_import_no_kernel():
     for name, deps in graph.items():
         if name.endswith(".reference") or name.startswith("cvstereo.matchers._shared.reference"):
             assert not deps & fast, f"{name} imports {sorted(deps & fast)}"
+
+
+def test_no_module_imports_a_private_module_of_another_package():
+    # A module or package whose name starts with "_" is its parent package's business; what other packages
+    # need is public. (cvstereo._compat and _numba_cache are the package's own start-up, run by its __init__.)
+    crossing = {}
+    for name, deps in import_graph().items():
+        for dep in deps:
+            parts = dep.split(".")
+            private = [k for k, part in enumerate(parts) if part.startswith("_") and not part.startswith("__")]
+            if not private or dep in ("cvstereo._compat", "cvstereo._numba_cache"):
+                continue
+            owner = ".".join(parts[:private[0]])
+            if not (name + ".").startswith(owner + "."):
+                crossing.setdefault(name, []).append(dep)
+    assert crossing == {}
+
+
+def test_every_module_has_at_most_450_lines():
+    long = {name: n for name, path in modules().items() if (n := len(path.read_text().splitlines())) > 450}
+    assert long == {}

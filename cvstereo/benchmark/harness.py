@@ -38,31 +38,10 @@ from cvstereo.model.recording import Recording
 from cvstereo.run import match
 from cvstereo.sweep import Cell
 
-__all__ = [
-    "ACCURACY_FIGURES",
-    "EXTRA_SECONDS",
-    "FIT_DISTANCES",
-    "QUICK_SECONDS",
-    "REAL_DISPARITIES",
-    "RESULT_FILES",
-    "TEST_DISTANCES",
-    "BenchConfig",
-    "PeakMemory",
-    "accuracy_cells",
-    "bench_cell_figures",
-    "bench_markdown",
-    "distance_recordings",
-    "distance_table",
-    "machine_info",
-    "real_recordings",
-    "run_bench",
-    "share_within",
-    "simulated_recordings",
-    "speed_cells",
-    "speed_table",
-    "warm_up",
-    "write_results",
-]
+__all__ = ["ACCURACY_FIGURES", "EXTRA_SECONDS", "FIT_DISTANCES", "QUICK_SECONDS", "REAL_DISPARITIES", "RESULT_FILES",
+           "TEST_DISTANCES", "BenchConfig", "PeakMemory", "accuracy_cells", "bench_cell_figures", "bench_markdown",
+           "distance_recordings", "distance_table", "machine_info", "real_recordings", "run_bench", "share_within",
+           "simulated_recordings", "speed_cells", "speed_table", "warm_up", "write_results"]
 
 #: The real recordings and the disparities known in them (README of tum-stereo): px.
 REAL_DISPARITIES: dict[str, tuple[float, ...]] = {
@@ -74,10 +53,8 @@ REAL_DISPARITIES: dict[str, tuple[float, ...]] = {
 #: Distances of the 1-arm recordings used to fit d = a/Z - c, and those the fit is tested on, metres.
 FIT_DISTANCES = (0.5, 1.5)
 TEST_DISTANCES = (0.75, 1.0, 1.25)
-
 #: Length of the extra recordings (motorcycle, distance set); the presets keep the thesis' 11 s.
 EXTRA_SECONDS = 4.0
-
 #: Length of every recording with --quick.
 QUICK_SECONDS = 1.5
 

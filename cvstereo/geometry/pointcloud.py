@@ -27,15 +27,8 @@ import numpy as np
 
 from cvstereo.geometry.depth import DepthModel
 
-__all__ = [
-    "POINT_DTYPE",
-    "THESIS_FOCAL_PX",
-    "Intrinsics",
-    "depth_per_match",
-    "point_cloud",
-    "window_point_clouds",
-    "write_ply",
-]
+__all__ = ["POINT_DTYPE", "THESIS_FOCAL_PX", "Intrinsics", "depth_per_match", "point_cloud", "window_point_clouds",
+           "write_ply"]
 
 #: The thesis rig's focal length, px (the simulator's ``Rig.focal_px``).
 THESIS_FOCAL_PX = 165.0

@@ -34,17 +34,8 @@ from dataclasses import dataclass, field
 from cvstereo.geometry.depth import DepthModel, depth_from_meta
 from cvstereo.model.recording import Recording
 
-__all__ = [
-    "ASPECTS",
-    "OPTION_NAMES",
-    "SOURCES",
-    "Geometry",
-    "GeometryConflict",
-    "GeometryOptions",
-    "as_matched",
-    "depth_for_matches",
-    "stored_depth",
-]
+__all__ = ["ASPECTS", "OPTION_NAMES", "SOURCES", "Geometry", "GeometryConflict", "GeometryOptions", "as_matched",
+           "depth_for_matches", "stored_depth"]
 
 #: The sources of geometry, first = strongest.
 SOURCES = ("calibration", "options", "recording", "rigcheck")

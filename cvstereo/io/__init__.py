@@ -340,18 +340,6 @@ def write_recording(path: str | os.PathLike, recording: Recording, *, format: st
     fmt.write(path, recording, **{k: options[k] for k in fmt.write_options})
 
 
-__all__ = [
-    "FORMATS",
-    "FORMAT_TABLE",
-    "Format",
-    "RecordingStream",
-    "detect_format",
-    "open_recording",
-    "output_format",
-    "read_matches",
-    "read_recording",
-    "read_recording_npz",
-    "write_matches",
-    "write_recording",
-    "write_recording_npz",
-]
+__all__ = ["FORMATS", "FORMAT_TABLE", "Format", "RecordingStream", "detect_format", "open_recording", "output_format",
+           "read_matches", "read_recording", "read_recording_npz", "write_matches", "write_recording",
+           "write_recording_npz"]

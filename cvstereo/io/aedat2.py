@@ -372,20 +372,6 @@ def _write(path, events: np.ndarray, eyes, *, resolution) -> None:
         fh.write(records.tobytes())
 
 
-__all__ = [
-    "MAGIC",
-    "RECORD_DTYPE",
-    "RESOLUTION",
-    "AedatHeader",
-    "AedatScan",
-    "decode_addresses",
-    "encode_addresses",
-    "iter_aedat2_chunks",
-    "open_aedat2",
-    "read_aedat2",
-    "read_aedat2_events",
-    "read_aedat2_header",
-    "scan_aedat2",
-    "write_aedat2",
-    "write_aedat2_events",
-]
+__all__ = ["MAGIC", "RECORD_DTYPE", "RESOLUTION", "AedatHeader", "AedatScan", "decode_addresses", "encode_addresses",
+           "iter_aedat2_chunks", "open_aedat2", "read_aedat2", "read_aedat2_events", "read_aedat2_header",
+           "scan_aedat2", "write_aedat2", "write_aedat2_events"]

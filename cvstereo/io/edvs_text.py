@@ -352,21 +352,6 @@ def iter_text_chunks(path: str | os.PathLike, *, retina: int | None = None, one_
         yield check(raw, locate=LineLocator(path, lines))
 
 
-__all__ = [
-    "CHUNK_LINES",
-    "TextHeader",
-    "TextScan",
-    "detect_left_retina",
-    "detect_one_based",
-    "iter_text_chunks",
-    "open_edvs_merged",
-    "open_edvs_text",
-    "overlay_shift",
-    "read_edvs_merged",
-    "read_edvs_text",
-    "read_text_header",
-    "scan_text",
-    "write_edvs_merged",
-    "write_edvs_pair",
-    "write_edvs_text",
-]
+__all__ = ["CHUNK_LINES", "TextHeader", "TextScan", "detect_left_retina", "detect_one_based", "iter_text_chunks",
+           "open_edvs_merged", "open_edvs_text", "overlay_shift", "read_edvs_merged", "read_edvs_text",
+           "read_text_header", "scan_text", "write_edvs_merged", "write_edvs_pair", "write_edvs_text"]

@@ -19,17 +19,8 @@ from cvstereo.errors import CorruptFileError, EventFormatError
 from cvstereo.io.files import open_regular, printable
 from cvstereo.model.events import DEFAULT_RESOLUTION, check_resolution
 
-__all__ = [
-    "CHUNK_LINES",
-    "RAW_DTYPE",
-    "LineLocator",
-    "TextHeader",
-    "check_retina_ids",
-    "iter_blocks",
-    "read_text_header",
-    "require_columns",
-    "resolve_resolution",
-]
+__all__ = ["CHUNK_LINES", "RAW_DTYPE", "LineLocator", "TextHeader", "check_retina_ids", "iter_blocks",
+           "read_text_header", "require_columns", "resolve_resolution"]
 
 CHUNK_LINES = 1 << 16
 

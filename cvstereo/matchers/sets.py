@@ -29,15 +29,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-__all__ = [
-    "ADAPTIVE",
-    "DEFAULT_PARAM_SET",
-    "PARAM_SETS",
-    "AdaptiveDefaults",
-    "check_param_set",
-    "default_variant",
-    "resolve",
-]
+__all__ = ["ADAPTIVE", "DEFAULT_PARAM_SET", "PARAM_SETS", "AdaptiveDefaults", "check_param_set", "default_variant",
+           "resolve"]
 
 #: The parameter sets, the default first.
 PARAM_SETS = ("adaptive", "thesis")

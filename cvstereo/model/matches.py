@@ -11,17 +11,8 @@ import numpy as np
 
 from cvstereo.errors import EventFormatError
 
-__all__ = [
-    "MATCH_DTYPE",
-    "REQUIRED_META",
-    "MatchResult",
-    "concat_matches",
-    "empty_matches",
-    "join_records",
-    "make_matches",
-    "sort_matches",
-    "validate_matches",
-]
+__all__ = ["MATCH_DTYPE", "REQUIRED_META", "MatchResult", "concat_matches", "empty_matches", "join_records",
+           "make_matches", "sort_matches", "validate_matches"]
 
 #: One disparity estimate anchored at pixel (x, y) of ``camera`` (0 = left, 1 = right) at time t.
 MATCH_DTYPE = np.dtype(

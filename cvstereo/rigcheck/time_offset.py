@@ -19,18 +19,8 @@ import numpy as np
 from cvstereo.rigcheck.params import RigCheckParams
 from cvstereo.rigcheck.peaks import contrast, fft_len, half_width, smooth_lags, subsample_peak, support
 
-__all__ = [
-    "PAIRS",
-    "REGRESSION",
-    "PairsEstimate",
-    "RowSpectra",
-    "SlopeFit",
-    "TimeOffset",
-    "equal_peaks",
-    "time_offset",
-    "time_offset_pairs",
-    "time_offset_regression",
-]
+__all__ = ["PAIRS", "REGRESSION", "PairsEstimate", "RowSpectra", "SlopeFit", "TimeOffset", "equal_peaks",
+           "time_offset", "time_offset_pairs", "time_offset_regression"]
 
 PAIRS = "pixel coincidences"
 REGRESSION = "shift-velocity regression"

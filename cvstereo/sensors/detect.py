@@ -19,19 +19,8 @@ from dataclasses import dataclass
 from cvstereo.errors import SensorError
 from cvstereo.sensors.protocol import FORMAT_NUMBERS, FORMATS, ProtocolSettings
 
-__all__ = [
-    "DETECT_BYTES",
-    "DETECT_MAX_BYTES",
-    "DETECT_MIN_BYTES",
-    "FIT_THRESHOLD",
-    "TIE_MARGIN",
-    "Detection",
-    "ProtocolMismatchError",
-    "check_protocol",
-    "detect_protocol",
-    "explained_share",
-    "rank_protocols",
-]
+__all__ = ["DETECT_BYTES", "DETECT_MAX_BYTES", "DETECT_MIN_BYTES", "FIT_THRESHOLD", "TIE_MARGIN", "Detection",
+           "ProtocolMismatchError", "check_protocol", "detect_protocol", "explained_share", "rank_protocols"]
 
 #: Bytes looked at before deciding (about 2.6 ms of a saturated 4 Mbaud link, 256 events of E2).
 DETECT_BYTES = 1024

@@ -21,15 +21,8 @@ from cvstereo.errors import CorruptFileError
 from cvstereo.model.events import EVENT_DTYPE
 from cvstereo.model.recording import Recording
 
-__all__ = [
-    "FLUSH_EVERY_S",
-    "MAGIC",
-    "MAX_HEADER_BYTES",
-    "Journal",
-    "is_journal",
-    "journal_exists_message",
-    "read_journal",
-]
+__all__ = ["FLUSH_EVERY_S", "MAGIC", "MAX_HEADER_BYTES", "Journal", "is_journal", "journal_exists_message",
+           "read_journal"]
 
 MAGIC = b"CVSJOURNAL1\n"
 _HEAD = struct.Struct("<BI")

@@ -36,20 +36,8 @@ from typing import Literal
 
 import numpy as np
 
-__all__ = [
-    "BITS_PER_BYTE",
-    "DEFAULT_BAUD",
-    "FORMATS",
-    "FORMAT_NUMBERS",
-    "MAX_DELTA_BYTES",
-    "Commands",
-    "EventFormat",
-    "ProtocolSettings",
-    "encode_events",
-    "event_format",
-    "format_from_number",
-    "link_event_rate",
-]
+__all__ = ["BITS_PER_BYTE", "DEFAULT_BAUD", "FORMATS", "FORMAT_NUMBERS", "MAX_DELTA_BYTES", "Commands", "EventFormat",
+           "ProtocolSettings", "encode_events", "event_format", "format_from_number", "link_event_rate"]
 
 #: Bits on the wire per byte with 8N1 framing (start + 8 data + stop).
 BITS_PER_BYTE = 10

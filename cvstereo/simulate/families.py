@@ -30,17 +30,8 @@ from cvstereo.simulate.motion import Motion
 from cvstereo.simulate.scenes import LayeredScene, PlaneLayer
 from cvstereo.simulate.surfaces import PERIODIC
 
-__all__ = [
-    "BASELINE_M",
-    "FAMILIES",
-    "GRAIN_FOCAL_PX",
-    "TEXELS_PER_PIXEL",
-    "Z_NEAR_M",
-    "FamilyScene",
-    "LayerSpec",
-    "Plan",
-    "View",
-]
+__all__ = ["BASELINE_M", "FAMILIES", "GRAIN_FOCAL_PX", "TEXELS_PER_PIXEL", "Z_NEAR_M", "FamilyScene", "LayerSpec",
+           "Plan", "View"]
 
 #: Texels per sensor pixel where a plane comes nearest: fine enough that sampling never shows the texel grid.
 TEXELS_PER_PIXEL = 2.0

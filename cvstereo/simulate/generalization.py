@@ -32,19 +32,8 @@ from cvstereo.simulate.recipe import Recipe, Suite
 from cvstereo.simulate.rig import SENSORS, Rig, SensorModel
 from cvstereo.simulate.surfaces import PHOTOS
 
-__all__ = [
-    "HALVES",
-    "RENDER_DRAWS",
-    "RENDER_HZ_RANGE",
-    "RIG_DRAWS",
-    "SENSOR_DRAWS",
-    "TRUTH",
-    "EvaluationRecordingError",
-    "FamilyRecording",
-    "FamilySuite",
-    "draw",
-    "parse_family_suite",
-]
+__all__ = ["HALVES", "RENDER_DRAWS", "RENDER_HZ_RANGE", "RIG_DRAWS", "SENSOR_DRAWS", "TRUTH",
+           "EvaluationRecordingError", "FamilyRecording", "FamilySuite", "draw", "parse_family_suite"]
 
 #: The two halves of every family: tuning may see the first only.
 HALVES = ("tune", "eval")

@@ -35,20 +35,8 @@ from cvstereo.simulate.rig import SENSORS, Rig
 from cvstereo.simulate.scenes import ArmsScene
 from cvstereo.simulate.textures import SLEEVE_PATTERNS
 
-__all__ = [
-    "FACTORS",
-    "JOINT_FACTORS",
-    "SUITES",
-    "SUITE_SCENES",
-    "Factor",
-    "SuiteRecording",
-    "draw_joint",
-    "load_suite",
-    "parse_suite",
-    "require_tuning",
-    "suite_recordings",
-    "tuning_recordings",
-]
+__all__ = ["FACTORS", "JOINT_FACTORS", "SUITES", "SUITE_SCENES", "Factor", "SuiteRecording", "draw_joint",
+           "load_suite", "parse_suite", "require_tuning", "suite_recordings", "tuning_recordings"]
 
 #: Suite name -> its file in ``cvstereo/simulate/suites``.
 SUITES: dict[str, str] = {"robustness": "robustness_v1.toml", "generalization": "generalization_v2.toml"}

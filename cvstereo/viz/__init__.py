@@ -24,17 +24,6 @@ from cvstereo.viz.frame_plots import plot_dynamic_frames, plot_event_frames, plo
 from cvstereo.viz.mpl import save_figure
 from cvstereo.viz.video import write_video
 
-__all__ = [
-    "busiest_window",
-    "colorize",
-    "depth_from_meta",
-    "event_frame_rgb",
-    "plot_disparity_map",
-    "plot_disparity_over_time",
-    "plot_dynamic_frames",
-    "plot_error_histogram",
-    "plot_event_frames",
-    "plot_filtered_frames",
-    "save_figure",
-    "write_video",
-]
+__all__ = ["busiest_window", "colorize", "depth_from_meta", "event_frame_rgb", "plot_disparity_map",
+           "plot_disparity_over_time", "plot_dynamic_frames", "plot_error_histogram", "plot_event_frames",
+           "plot_filtered_frames", "save_figure", "write_video"]

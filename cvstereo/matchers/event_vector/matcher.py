@@ -13,41 +13,34 @@ the threshold has an empty run of its own: its vector points to the nearest abov
 ``|a1 - a2| + |b1 - b2|``; the least cost below ``max_cost`` wins, ties to the smallest disparity.
 
 Beyond the thesis (each a field of :class:`~cvstereo.matchers._shared.thesis_params.EventVectorParams` whose default
-switches
-it off): ``run_ends`` extends each vector by how many pixels of the pixel's own run lie left and right of it,
-so that the cost also places a candidate within its run; ``cost_slack`` and ``cost_ratio`` bound the least
-cost by a slack plus a multiple of the event vector's length; ``tie_break="centre"`` reports the middle of
-the disparities of equal least cost (possibly half a pixel) instead of the smallest. The ``adaptive`` set
-(:mod:`cvstereo.matchers.sets`) turns all of them on, with separate OFF and ON frames and a wider splat (5x5,
-sigma 1.5 px): the runs are only as contiguous as the frame is smooth, and a 3x3 splat of a sparse stream
-leaves holes in an edge's run wherever no event fell within a pixel.
+switches it off): ``run_ends`` extends each vector by how many pixels of the pixel's own run lie left and right of it,
+so that the cost also places a candidate within its run; ``cost_slack`` and ``cost_ratio`` bound the least cost by a
+slack plus a multiple of the event vector's length; ``tie_break="centre"`` reports the middle of the disparities of
+equal least cost (possibly half a pixel) instead of the smallest. The ``adaptive`` set (:mod:`cvstereo.matchers.sets`)
+turns all of them on, with separate OFF and ON frames and a wider splat (5x5, sigma 1.5 px): the runs are only as
+contiguous as the frame is smooth, and a 3x3 splat of a sparse stream leaves holes in an edge's run wherever no event
+fell within a pixel.
 
-Search **[implementation, same result]**: rows are read as 64-pixel bit masks of the above-threshold pixels
-(and, for candidates, of those of the event's sign), built without a branch per pixel and skipping 16-column
-blocks whose magnitude bound says that they hold none (:mod:`cvstereo.frames.dynamic`); runs, their ends and the
-pixels beyond them are then found with bit operations (an edge's runs and gaps alternate every few pixels, and
-a test per pixel mispredicted at every change). The event's own vector comes from a mask of the 64 pixels around
-it; with ``require_candidate_threshold`` the other row's mask covers the candidate range, and only runs holding a
-candidate are visited (a run's pixels share the ends of their vectors; the least cost of a run's candidates is
-one branch-free loop). Where a run or gap reaches beyond a mask, a walk in the frame goes on, skipping blocks
-(:func:`cvstereo.matchers._shared.frame_bounds.skip_below`). Against the per-pixel walks this replaced (bench_speed
---quick,
-old and new interleaved, one core, load 0.8): the dense motorcycle scene 1.25x (thesis) and 1.01x (adaptive),
-640x480 with a 128 px range 1.05x / 0.99x; on sparse rows, where a walk met few pixels, the masks cost more than
-they save: the suite's 128x128 base 0.89x / 0.87x (still 4.8 / 3.6 M events/s), 346x260 0.98x / 0.93x.
+Search **[implementation, same result]**: rows are read as 64-pixel bit masks of the above-threshold pixels (and, for
+candidates, of those of the event's sign), built without a branch per pixel and skipping 16-column blocks whose
+magnitude bound says that they hold none (:mod:`cvstereo.frames.dynamic`); runs, their ends and the pixels beyond them
+are then found with bit operations (an edge's runs and gaps alternate every few pixels, and a test per pixel
+mispredicted at every change). The event's own vector comes from a mask of the 64 pixels around it; with
+``require_candidate_threshold`` the other row's mask covers the candidate range, and only runs holding a candidate are
+visited (a run's pixels share the ends of their vectors; the least cost of a run's candidates is one branch-free loop).
+Where a run or gap reaches beyond a mask, a walk in the frame goes on, skipping blocks
+(:func:`cvstereo.matchers._shared.frame_bounds.skip_below`).
 
 Both cameras' events are processed in one merged order (by time, left first at equal times), see
 :mod:`cvstereo.matchers._shared.merge_order` and :mod:`cvstereo.matchers._shared.event_common`. The reference
-implementation is
-:func:`cvstereo.matchers.event_vector.reference.event_vector_reference`.
+implementation is :func:`cvstereo.matchers.event_vector.reference.event_vector_reference`.
 
-Relative thresholds (``threshold_mode="relative"``, :mod:`cvstereo.matchers._shared.signal_level`): the threshold
-(0.8), which
-decides both which events are matched and which pixels form the accumulations, becomes ``threshold_scale``
-times each camera's signal level (the 0.9 quantile of the |D| its events read at their pixels over the last
-second): the event's own row uses its camera's, the candidate row the other camera's, since D grows with the
-events per edge. The cost is a distance in pixels and ``max_cost`` (1000) Algorithm 4's "no match yet" start
-value: both stay absolute, as do the disparity range (geometry) and the decay (time).
+Relative thresholds (``threshold_mode="relative"``, :mod:`cvstereo.matchers._shared.signal_level`): the threshold (0.8),
+which decides both which events are matched and which pixels form the accumulations, becomes ``threshold_scale`` times
+each camera's signal level (the 0.9 quantile of the |D| its events read at their pixels over the last second): the
+event's own row uses its camera's, the candidate row the other camera's, since D grows with the events per edge. The
+cost is a distance in pixels and ``max_cost`` (1000) Algorithm 4's "no match yet" start value: both stay absolute, as do
+the disparity range (geometry) and the decay (time).
 """
 
 from __future__ import annotations
