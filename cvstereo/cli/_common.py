@@ -126,7 +126,7 @@ def matcher_overrides(args: argparse.Namespace) -> dict:
 
 
 def add_format_options(parser: argparse.ArgumentParser) -> None:
-    """``--format``, ``--left-retina``, ``--one-based``, ``--resolution``."""
+    """``--format``, ``--left-retina``, ``--one-based``, ``--resolution``, ``--columns``."""
     from cvstereo.io import FORMATS
 
     g = parser.add_argument_group("input format (where the file cannot tell)")
@@ -137,6 +137,8 @@ def add_format_options(parser: argparse.ArgumentParser) -> None:
                    help="text files: coordinates count from 1 (default: detect)")
     g.add_argument("--resolution", type=_resolution, default=None, metavar="WxH",
                    help="sensor size (default: from the file, else 128x128)")
+    g.add_argument("--columns", default=None, metavar="ORDER",
+                   help="Metavision CSV: the column order, e.g. t,x,y,p (default: x,y,p,t, as Metavision writes)")
 
 
 def _resolution(text: str) -> tuple[int, int]:
@@ -157,7 +159,7 @@ def format_options(args: argparse.Namespace) -> dict:
     opts = {}
     if getattr(args, "format", None):
         opts["format"] = args.format
-    for key in ("left_retina", "one_based", "resolution"):
+    for key in ("left_retina", "one_based", "resolution", "columns"):
         if getattr(args, key, None) is not None:
             opts[key] = getattr(args, key)
     return opts

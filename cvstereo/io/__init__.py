@@ -3,8 +3,9 @@
 :func:`read_recording`, :func:`open_recording` (streaming) and :func:`write_recording` choose the format
 from ``format=`` or from the file (content, then extension; :func:`detect_format`). Per-format modules:
 :mod:`~cvstereo.io.npz`, :mod:`~cvstereo.io.edvs_text`, :mod:`~cvstereo.io.aedat2`, and with the extras
-:mod:`~cvstereo.io.aedat4` (``aedat4``) and :mod:`~cvstereo.io.hdf5` (``hdf5``: DSEC, MVSEC); the streaming object
-is :class:`~cvstereo.io.stream.RecordingStream`.
+:mod:`~cvstereo.io.aedat4` (``aedat4``), :mod:`~cvstereo.io.hdf5` (``hdf5``: DSEC, MVSEC) and
+:mod:`~cvstereo.io.prophesee` (``prophesee``: EVT 2.0 / 2.1 / 3.0 ``.raw``, Prophesee ``.dat``; EVT 2.1 needs no
+extra), and :mod:`~cvstereo.io.metavision_csv`; the streaming object is :class:`~cvstereo.io.stream.RecordingStream`.
 """
 
 from __future__ import annotations
@@ -17,7 +18,9 @@ from pathlib import Path
 from cvstereo.io.aedat2 import open_aedat2, write_aedat2
 from cvstereo.io.edvs_text import open_edvs_merged, open_edvs_text, read_text_header, write_edvs_merged, write_edvs_pair
 from cvstereo.io.files import require_regular_file
+from cvstereo.io.metavision_csv import open_metavision_csv, sniff_metavision_csv
 from cvstereo.io.npz import read_matches, read_recording_npz, write_matches, write_recording_npz
+from cvstereo.io.prophesee import ENCODINGS, HEADER_LIMIT, open_prophesee, read_prophesee_header, sniff_prophesee
 from cvstereo.io.stream import RecordingStream, open_npz
 from cvstereo.model.recording import Recording
 
@@ -39,7 +42,7 @@ class Format:
     write : callable or None
         ``write(path, recording, **write_options)``; None: the format is read-only.
     options : tuple of str
-        Reader options that apply (``right``, ``left_retina``, ``one_based``, ``resolution``); any other
+        Reader options that apply (``right``, ``left_retina``, ``one_based``, ``resolution``, ``columns``); any other
         option given is reported as a mistake.
     suffixes : tuple of str
         Extensions that imply the format (for writing, and for reading where the content need not be checked).
@@ -87,6 +90,14 @@ def _open_mvsec(path, *, resolution=None) -> RecordingStream:
     return open_mvsec(path, resolution=resolution)
 
 
+def _prophesee_opener(name: str) -> Callable[..., RecordingStream]:
+    """The opener of one Prophesee format: the header must name that format."""
+    def open_format(path, right=None, *, resolution=None) -> RecordingStream:
+        return open_prophesee(path, right, format=name, resolution=resolution)
+
+    return open_format
+
+
 #: Every recording format by its name (``format=``, the CLI's ``--format``). Adding a format is one entry.
 FORMAT_TABLE: dict[str, Format] = {
     "npz": Format(open_npz, write_recording_npz, (), (".npz",), read=read_recording_npz),
@@ -99,6 +110,9 @@ FORMAT_TABLE: dict[str, Format] = {
     # DSEC and MVSEC share .h5/.hdf5: detect_format tells them apart by the layout inside.
     "dsec": Format(_open_dsec, None, ("right", "resolution")),
     "mvsec": Format(_open_mvsec, None, ("resolution",)),
+    # Prophesee's files are told by their header (.raw holds any EVT encoding; .dat is also eDVS text's name).
+    **{name: Format(_prophesee_opener(name), None, ("right", "resolution")) for name in ENCODINGS},
+    "metavision-csv": Format(open_metavision_csv, None, ("right", "resolution", "columns")),
 }
 
 #: Format names accepted by ``format=`` and the CLI's ``--format``.
@@ -109,16 +123,20 @@ def detect_format(path: str | os.PathLike) -> str:
     """Tell a file's format from its content and extension.
 
     ``#!AER-DAT4.0`` at the start (or ``.aedat4``) means AEDAT4, other ``#!AER-DAT`` AEDAT 2.0 (jAER also
-    used ``.dat`` for it); ``.npz`` is a recording archive; ``.h5`` / ``.hdf5`` are DSEC or MVSEC (told by the
-    layout, :func:`cvstereo.io.hdf5.hdf5_layout`); ``.txt`` / ``.dat`` / ``.csv`` are eDVS text, ``edvs-text``
-    when the first event line has 4 columns and ``edvs-merged`` when it has 5.
+    used ``.dat`` for it); a Prophesee ``% `` header names its format (EVT 2.0 / 2.1 / 3.0 ``.raw``, Prophesee
+    ``.dat``) whatever the extension (:func:`cvstereo.io.prophesee.sniff_prophesee`); ``.npz`` is a recording
+    archive; ``.h5`` / ``.hdf5`` are DSEC or MVSEC (told by the layout, :func:`cvstereo.io.hdf5.hdf5_layout`);
+    ``.txt`` / ``.dat`` / ``.csv`` are Metavision CSV when their content says so
+    (:func:`cvstereo.io.metavision_csv.sniff_metavision_csv`), else eDVS text, ``edvs-text`` when the first
+    event line has 4 columns and ``edvs-merged`` when it has 5.
 
     Raises
     ------
     FileNotFoundError, IsADirectoryError, OSError
         A text or AEDAT file that does not exist, is a directory, or is not a regular file (FIFO, device).
     ValueError
-        Unknown extension or column count; the message lists the ``--format`` values.
+        Unknown extension or column count, or a Prophesee header naming an encoding cvstereo does not read; the
+        message lists the ``--format`` values.
     """
     path = Path(path)
     suffix = path.suffix.lower()
@@ -126,18 +144,32 @@ def detect_format(path: str | os.PathLike) -> str:
         from cvstereo.io.hdf5 import hdf5_layout
 
         return hdf5_layout(path)
-    if suffix not in TEXT_SUFFIXES + AEDAT_SUFFIXES + AEDAT4_SUFFIXES:
+    known = suffix in TEXT_SUFFIXES + AEDAT_SUFFIXES + AEDAT4_SUFFIXES
+    if not known:
         for name, fmt in FORMAT_TABLE.items():
             if suffix in fmt.suffixes:
                 return name
-        raise ValueError(f"{path}: cannot tell the format from '{suffix}'; give --format ({', '.join(FORMATS)}).")
     require_regular_file(path)
     with open(path, "rb") as fh:
-        magic = fh.read(12)
-    if magic == b"#!AER-DAT4.0" or suffix in AEDAT4_SUFFIXES:
+        head = fh.read(HEADER_LIMIT)
+    if head.startswith(b"#!AER-DAT4.0"):
         return "aedat4"
-    if magic[:9] == b"#!AER-DAT" or suffix in AEDAT_SUFFIXES:
+    if head.startswith(b"#!AER-DAT"):
         return "aedat2"
+    prophesee = sniff_prophesee(head)
+    if prophesee is not None:
+        if prophesee.startswith("unknown"):
+            read_prophesee_header(path)  # raises, naming the encoding
+        return prophesee
+    if suffix in AEDAT4_SUFFIXES:
+        return "aedat4"
+    if suffix in AEDAT_SUFFIXES:
+        return "aedat2"
+    if not known:
+        raise ValueError(f"{path}: cannot tell the format from '{suffix}' nor from the content (no Prophesee "
+                         f"'% ' header); give --format ({', '.join(FORMATS)}).")
+    if sniff_metavision_csv(path):
+        return "metavision-csv"
     columns = read_text_header(path).columns
     if columns in (4, 5):
         return "edvs-text" if columns == 4 else "edvs-merged"
@@ -150,7 +182,7 @@ def detect_format(path: str | os.PathLike) -> str:
 
 def open_recording(path: str | os.PathLike, right: str | os.PathLike | None = None, *, format: str | None = None,
                    left_retina: int | None = None, one_based: bool | None = None,
-                   resolution: tuple[int, int] | None = None) -> RecordingStream:
+                   resolution: tuple[int, int] | None = None, columns: str | None = None) -> RecordingStream:
     """Open a recording for streaming with bounded memory, in any supported format.
 
     Parameters
@@ -163,6 +195,8 @@ def open_recording(path: str | os.PathLike, right: str | os.PathLike | None = No
         One of :data:`FORMATS`; default: :func:`detect_format`.
     left_retina, one_based, resolution : keyword-only
         Options of the text formats (see :mod:`cvstereo.io.edvs_text`); None: from the file or detected.
+    columns : str, optional, keyword-only
+        ``metavision-csv``: the column order, e.g. ``"t,x,y,p"`` (default ``x,y,p,t``).
 
     Returns
     -------
@@ -177,14 +211,16 @@ def open_recording(path: str | os.PathLike, right: str | os.PathLike | None = No
     ...     matcher.feed(packet.left, packet.right)
     """
     name = format or detect_format(path)
-    fmt = _format(name, path, right=right, left_retina=left_retina, one_based=one_based, resolution=resolution)
-    given = {"right": right, "left_retina": left_retina, "one_based": one_based, "resolution": resolution}
+    fmt = _format(name, path, right=right, left_retina=left_retina, one_based=one_based, resolution=resolution,
+                  columns=columns)
+    given = {"right": right, "left_retina": left_retina, "one_based": one_based, "resolution": resolution,
+             "columns": columns}
     return fmt.open(path, **{k: given[k] for k in fmt.options})
 
 
 def read_recording(path: str | os.PathLike, right: str | os.PathLike | None = None, *, format: str | None = None,
                    left_retina: int | None = None, one_based: bool | None = None,
-                   resolution: tuple[int, int] | None = None) -> Recording:
+                   resolution: tuple[int, int] | None = None, columns: str | None = None) -> Recording:
     """Read a stereo recording whole, in any supported format.
 
     Parameters
@@ -195,7 +231,7 @@ def read_recording(path: str | os.PathLike, right: str | os.PathLike | None = No
         The right camera's file.
     format : str, optional
         One of :data:`FORMATS`; default: :func:`detect_format`.
-    left_retina, one_based, resolution
+    left_retina, one_based, resolution, columns
         Format options (see :func:`open_recording`).
 
     Returns
@@ -204,11 +240,12 @@ def read_recording(path: str | os.PathLike, right: str | os.PathLike | None = No
         For text and AEDAT input, ``meta`` says how undetermined properties were decided.
     """
     name = format or detect_format(path)
-    fmt = _format(name, path, right=right, left_retina=left_retina, one_based=one_based, resolution=resolution)
+    fmt = _format(name, path, right=right, left_retina=left_retina, one_based=one_based, resolution=resolution,
+                  columns=columns)
     if fmt.read is not None:
         return fmt.read(path)
     return open_recording(path, right, format=name, left_retina=left_retina, one_based=one_based,
-                          resolution=resolution).read()
+                          resolution=resolution, columns=columns).read()
 
 
 def _format(name: str, path, **given) -> Format:

@@ -13,7 +13,8 @@ from cvstereo.model.recording import Recording
 
 def test_formats_are_the_table():
     assert cio.FORMATS == tuple(cio.FORMAT_TABLE) == ("npz", "edvs-text", "edvs-merged", "aedat2", "aedat4", "dsec",
-                                                      "mvsec")
+                                                      "mvsec", "evt2", "evt21", "evt3", "prophesee-dat",
+                                                      "metavision-csv")
 
 
 def test_a_new_format_is_one_table_entry(tmp_path, monkeypatch):
