@@ -10,6 +10,7 @@ import subprocess
 import sys
 import sysconfig
 import tomllib
+import types
 from pathlib import Path
 
 import numpy as np
@@ -47,7 +48,13 @@ def _run(code: str, **kwargs) -> str:
 
 def test_every_front_door_name_resolves_to_the_object_of_its_module():
     for name, module in cvstereo._EXPORTS.items():
-        assert getattr(cvstereo, name) is getattr(importlib.import_module(module), name), name
+        value, defined = getattr(cvstereo, name), getattr(importlib.import_module(module), name)
+        if name == "evaluate" and isinstance(value, types.ModuleType):
+            # Once anything imported the 0.2 path `cvstereo.evaluate`, the import system binds that module to the
+            # package's attribute; the module is callable and holds the same function, so both spellings work.
+            assert value.evaluate is defined and callable(value), name
+            continue
+        assert value is defined, name
     assert set(cvstereo._EXPORTS) | {"__version__"} == set(cvstereo.__all__)
     assert cvstereo.__version__ == tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["version"]
 
