@@ -154,10 +154,8 @@ def unpartnered(x, y, disparity, uncertainty, rows):
 
     Parameters
     ----------
-    x, y : (M,) int ndarrays
-        Answers in raster order (row, then column), as :func:`~calibration_free._fused_kernel.match_features`
-        returns them.
-    disparity, uncertainty : (M,) float64 ndarrays
+    x, y, disparity, uncertainty
+        The answers, as for :func:`occluded`.
     rows : int
         ``border_rows``: the band of rows ``y - rows .. y + rows`` whose answers give a row's disparity.
 
