@@ -68,6 +68,7 @@ ABLATION = {
     "no left-right check": {"lr_tolerance": -1},
     "no filling of left-right failures": {"fill_radius": 0},
     "no occlusion test": {"occlusion_margin": -1},
+    "no partner test": {"border_rows": -1},
     "no row tolerance": {"row_tolerance": 0},
     "no sub-pixel": {"subpixel": False},
     "no noise filter": {"min_neighbours": 1},

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from calibration_free import create_matcher
-from cvstereo.matchers.registry import available_methods
+from cvstereo.matchers.registry import available_methods, matcher_class
 from cvstereo.model.events import make_events
 
 pytest.importorskip("dv_processing", reason="dv-processing (extra 'compare') is not installed")
@@ -14,9 +14,9 @@ pytest.importorskip("dv_processing", reason="dv-processing (extra 'compare') is 
 W = 40_000
 
 
-def _shifted_texture(rng, k, *, n=20_000, windows=2):
+def _shifted_texture(rng, k, *, n=20_000, windows=2, size=(128, 128)):
     # The same random texture in both cameras, k px further left in the right camera.
-    x, y, p = rng.integers(0, 128, n), rng.integers(0, 128, n), rng.integers(0, 2, n)
+    x, y, p = rng.integers(0, size[0], n), rng.integers(0, size[1], n), rng.integers(0, 2, n)
     t = np.sort(rng.integers(0, windows * W, n))
     keep = x >= k
     return make_events(t, x, y, p), make_events(t[keep], x[keep] - k, y[keep], p[keep])
@@ -45,3 +45,27 @@ def test_anchors_are_left_pixels_with_events(rng):
     out = np.concatenate([m.feed(left, right), m.flush()])
     seen = set(zip(left["x"].tolist(), left["y"].tolist(), strict=True))
     assert out.size and all((x, y) in seen for x, y in zip(out["x"].tolist(), out["y"].tolist(), strict=True))
+
+
+@pytest.mark.parametrize(("width", "expected"), [(128, 47), (240, 95), (346, 143), (640, 239)])
+def test_range_follows_the_opencv_baselines_rule(width, expected):
+    # dv-processing's 48 disparities at 128 px, times width / 128, rounded up to a multiple of 16 (as SGBM's 64).
+    cls = matcher_class("dv-semidense")
+    assert cls.params_for(resolution=(width, 96)).max_disparity == expected
+    assert cls.params_for(resolution=(width, 96), max_disparity=31).max_disparity == 31  # given wins
+
+
+def test_a_wide_sensor_finds_disparities_beyond_dv_processings_48(rng):
+    # 256 px wide: 96 disparities (0 .. 95); a texture at 70 px, out of dv-processing's own reach.
+    left, right = _shifted_texture(rng, 70, n=60_000, size=(256, 64))
+    m = create_matcher("dv-semidense", resolution=(256, 64))
+    assert m.params.max_disparity == 95
+    out = np.concatenate([m.feed(left, right), m.flush()])
+    inner = out[out["x"] >= 96 + 6]  # OpenCV leaves the left strip of its disparity count empty
+    assert inner.size > 1000
+    assert np.mean(np.abs(inner["disparity"] - 70) <= 1.0) > 0.9
+
+
+def test_bad_range_says_which():
+    with pytest.raises(ValueError, match=r"max_disparity \+ 1 must be a positive multiple of 16.*got max_disparity 50"):
+        create_matcher("dv-semidense", max_disparity=50)

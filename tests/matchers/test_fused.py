@@ -59,7 +59,7 @@ PARAM_AXES = {
     "support_radius": [0, 1, 2], "path_radius": [0, 1, 3], "fill_radius": [0, 2, 12], "row_tolerance": [0, 1],
     "min_neighbours": [1, 3], "max_uncertainty": [1.0, 0.5, 0.3], "fill_confirms": [True, False],
     "isolated_max_uncertainty": [0.0, 0.1, 0.3], "occlusion_margin": [-1, 0.0, 1.0, 2.5],
-    "occlusion_support": [1, 2, 3],
+    "occlusion_support": [1, 2, 3], "border_rows": [-1, 0, 2],
     "max_disparity": [12, 20],
 }
 
@@ -111,7 +111,7 @@ def test_left_right_failures_rank_behind_consistent_matches():
     runs = {}
     for tol in (-1, 1):
         m = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0, lr_tolerance=tol, fill_radius=0,
-                                     occlusion_margin=-1), resolution=resolution)
+                                     occlusion_margin=-1, border_rows=-1), resolution=resolution)
         runs[tol] = (feed_cut(m, left, right, []), m.take_uncertainty())
     # Same winners; the check only adds 0.5 to the uncertainty of the inconsistent ones, and some fail it.
     np.testing.assert_array_equal(runs[1][0], runs[-1][0])
@@ -123,8 +123,8 @@ def test_left_right_failures_rank_behind_consistent_matches():
 
 def test_inconsistent_matches_take_the_median_of_consistent_neighbours():
     left, right, resolution = textured_pair(4, windows=6)
-    m = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0, fill_radius=2, fill_confirms=False),
-                     resolution=resolution)
+    m = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0, fill_radius=2, fill_confirms=False,
+                                 border_rows=-1), resolution=resolution)
     got = feed_cut(m, left, right, [])
     u = m.take_uncertainty()
     ok = u <= 0.5
@@ -142,8 +142,8 @@ def test_a_failed_winner_that_agrees_with_its_fill_is_confirmed():
     left, right, resolution = textured_pair(4, windows=6)
     runs = {}
     for confirm in (False, True):
-        m = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0, fill_radius=2, fill_confirms=confirm),
-                         resolution=resolution)
+        m = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0, fill_radius=2, fill_confirms=confirm,
+                                     border_rows=-1), resolution=resolution)
         runs[confirm] = (feed_cut(m, left, right, []), m.take_uncertainty().astype(np.float64))
     (filled, u_filled), (confirmed, u_confirmed) = runs[False], runs[True]
     for key in ("t", "x", "y", "p"):
@@ -246,6 +246,31 @@ def test_occlusion_test_penalises_exactly_the_crossed_answers(support):
     assert 0 < hidden.sum() < ok.sum()
     np.testing.assert_array_equal(u_on - u_off > 0.25, hidden)
     np.testing.assert_allclose(u_on, np.where(hidden, u_off + 0.5, u_off), atol=1e-6)  # float32 uncertainties
+
+
+@pytest.mark.parametrize("rows", [0, 2])
+def test_partner_test_penalises_exactly_the_answers_left_of_their_band(rows):
+    # The texture is seen 9 px further left by the right camera: left columns 0..8 have no partner there.
+    left, right, resolution = textured_pair(5, windows=6, shift=9)
+    runs = {}
+    for border in (-1, rows):
+        m = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0, occlusion_margin=-1, border_rows=border),
+                         resolution=resolution)
+        runs[border] = (feed_cut(m, left, right, []), m.take_uncertainty().astype(np.float64))
+    (got, u_off), (got_on, u_on) = runs[-1], runs[rows]
+    np.testing.assert_array_equal(got_on, got)  # uncertainties only (no prior: temporal_weight 0)
+    # The rule by hand: the median disparity of the band's answers of uncertainty <= 0.5 (at least 8 of them).
+    ok = u_off <= 0.5
+    outside = np.zeros(got.size, bool)
+    for i in range(got.size):
+        band = ok & (got["t"] == got["t"][i]) & (np.abs(got["y"].astype(int) - got["y"][i]) <= rows)
+        if band.sum() >= 8:
+            outside[i] = got["x"][i] < np.median(got["disparity"][band].astype(np.float64))
+    outside &= ok
+    assert 0 < outside.sum() and np.all(got["x"][outside] < 12)  # the strip, and nothing far from it
+    np.testing.assert_allclose(u_on, np.where(outside, u_off + 0.5, u_off), atol=1e-6)  # float32 uncertainties
+    # The strip's answers cannot be right (their partner is not in the right image): they rank last.
+    assert np.mean(u_on[got["x"] < 9] > 0.5) > 0.95
 
 
 def test_isolated_noise_gets_no_answer():

@@ -9,6 +9,14 @@ from cvstereo.frames.windows import check_window_us
 
 __all__ = ["FusedParams"]
 
+#: The next window's prior is the answers of uncertainty at most this (the consistent ones) whatever
+#: ``max_uncertainty`` keeps: a run with ``max_uncertainty=1`` (every answer, ranked) then gives the default run's
+#: matches as its answers of uncertainty at most 0.5, and its ranking is that of the default output.
+PRIOR_MAX_UNCERTAINTY = 0.5
+#: The partner test (``border_rows``) judges a band of rows only when it has at least this many consistent answers:
+#: the median of fewer is too often that of a few wrong ones.
+BORDER_MIN_ANSWERS = 8
+
 
 @dataclass(frozen=True)
 class FusedParams:
@@ -71,10 +79,16 @@ class FusedParams:
         How many answers must cross an answer for the occlusion test to hide it: a surface has more than one,
         while a single crossing answer is often an outlier (a noise event's) that would hide a whole run of
         its row.
+    border_rows : int
+        Partner test, rows: an answer at column ``x`` left of ``D``, the median disparity of the consistent answers
+        (uncertainty at most 0.5) in rows ``y - border_rows .. y + border_rows`` of its window, has its true partner
+        outside the right image (``x - D < 0``): its uncertainty gets the left-right penalty 0.5, and it is not the
+        next window's prior. Bands with fewer than :data:`BORDER_MIN_ANSWERS` consistent answers are not judged.
+        -1 disables.
     max_uncertainty : float
         Matches whose uncertainty exceeds this are dropped. Uncertainty = half the ratio of the best to the
-        second-best aggregated cost more than 1 px away (0..0.5), plus 0.5 where the left-right check or the
-        occlusion test fails; the default 0.5 keeps the consistent matches, 1 keeps all.
+        second-best aggregated cost more than 1 px away (0..0.5), plus 0.5 where the left-right check, the
+        occlusion test or the partner test fails; the default 0.5 keeps the consistent matches, 1 keeps all.
     """
 
     window_us: int = 40_000
@@ -95,6 +109,7 @@ class FusedParams:
     isolated_max_uncertainty: float = 0.1
     occlusion_margin: float = 1.0
     occlusion_support: int = 2
+    border_rows: int = 2
     max_uncertainty: float = 0.5
 
     def __post_init__(self):
@@ -134,6 +149,9 @@ class FusedParams:
         if int(self.occlusion_support) != self.occlusion_support or not 1 <= self.occlusion_support <= 8:
             raise ValueError(f"{where}: occlusion_support must be a whole number in 1..8 (e.g. 2), "
                              f"got {self.occlusion_support}.")
+        if int(self.border_rows) != self.border_rows or not -1 <= self.border_rows <= 16:
+            raise ValueError(f"{where}: border_rows must be a whole number in -1..16 (-1: off; e.g. 2), "
+                             f"got {self.border_rows}.")
         if not 0 < self.max_uncertainty <= 1:
             raise ValueError(f"{where}: max_uncertainty must be in (0, 1] (0.5: consistent matches, 1: all), "
                              f"got {self.max_uncertainty}.")

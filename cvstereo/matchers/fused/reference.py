@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cvstereo.matchers.fused.params import FusedParams
+from cvstereo.matchers.fused.params import BORDER_MIN_ANSWERS, PRIOR_MAX_UNCERTAINTY, FusedParams
 from cvstereo.matchers.fused.signal import signal_level
 from cvstereo.model.events import DEFAULT_RESOLUTION
 from cvstereo.model.matches import concat_matches, make_matches
@@ -121,7 +121,8 @@ def aggregate(cost: np.ndarray, active: np.ndarray, prm: FusedParams) -> np.ndar
 
 
 def choose(total, active, counts, recent, prm: FusedParams):
-    """Winner, uncertainty, noise filter, left-right check, sub-pixel and occlusion test at every left event pixel:
+    """Winner, uncertainty, noise filter, left-right check, sub-pixel, partner and occlusion tests at every left
+    event pixel:
     the answers kept, and the answers before the occlusion test (the next window's prior)."""
     h, w, nd = total.shape
     out = []
@@ -147,7 +148,7 @@ def choose(total, active, counts, recent, prm: FusedParams):
         # Inconsistent winners rank behind every consistent one (design part 7).
         u = 0.5 * ratio if consistent else 0.5 * ratio + 0.5
         if isolated and not u < prm.isolated_max_uncertainty:
-            continue  # the noise filter (design part 11): an isolated pixel answers only with a clear match
+            continue  # the noise filter (design part 12): an isolated pixel answers only with a clear match
         disp = float(best)
         if prm.subpixel and 0 < best < nd - 1:
             a, b, c = float(s[best - 1]), float(s[best]), float(s[best + 1])
@@ -175,17 +176,27 @@ def choose(total, active, counts, recent, prm: FusedParams):
                 row[4] = row[4] - 0.5  # confirmed by the consistent answers around it: no left-right penalty
             else:
                 row[3] = med
+    # Partner test: an answer left of the median disparity of the consistent answers in its band of rows has its
+    # true partner outside the right image (design part 10).
+    outside = [False] * len(out)
+    if prm.border_rows >= 0:
+        for i, row in enumerate(out):
+            band = np.sort([r[3] for r in out if abs(r[1] - row[1]) <= prm.border_rows and r[4] <= 0.5])
+            c = band.size
+            if c >= BORDER_MIN_ANSWERS:
+                d = band[c // 2] if c % 2 else (band[c // 2 - 1] + band[c // 2]) / 2.0
+                outside[i] = row[0] < d
     # Occlusion test: an answer that nearer answers further right in its row hide from the right camera gets the
     # left-right penalty; both sides of the test are the answers of uncertainty at most 0.5 before it.
-    # The next window's prior is the answers before the test (design part 9).
-    prior = [tuple(row[:5]) for row in out if row[4] <= prm.max_uncertainty]
-    if prm.occlusion_margin >= 0:
-        hides = [(row[1], row[0], row[0] - row[3]) for row in out if row[4] <= 0.5]
-        for row in out:
-            x, y, r = row[0], row[1], row[0] - row[3]
-            crossing = sum(y2 == y and x2 > x and r2 <= r - prm.occlusion_margin for y2, x2, r2 in hides)
-            if row[4] <= 0.5 and crossing >= prm.occlusion_support:
-                row[4] = row[4] + 0.5
+    # The next window's prior is the answers before the test (design part 9) that have a partner.
+    prior = [tuple(row[:5]) for row, off in zip(out, outside, strict=True)
+             if row[4] <= min(prm.max_uncertainty, PRIOR_MAX_UNCERTAINTY) and not off]
+    hides = [(row[1], row[0], row[0] - row[3]) for row in out if row[4] <= 0.5]
+    for row, off in zip(out, outside, strict=True):
+        x, y, r = row[0], row[1], row[0] - row[3]
+        crossing = sum(y2 == y and x2 > x and r2 <= r - prm.occlusion_margin for y2, x2, r2 in hides)
+        if row[4] <= 0.5 and (off or (prm.occlusion_margin >= 0 and crossing >= prm.occlusion_support)):
+            row[4] = row[4] + 0.5
     return [tuple(row[:5]) for row in out if row[4] <= prm.max_uncertainty], prior
 
 

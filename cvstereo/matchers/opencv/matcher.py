@@ -36,12 +36,28 @@ from cvstereo.model.matches import empty_matches, make_matches
 from cvstereo.model.polarity import OFF, ON
 
 __all__ = ["DISP_SCALE", "MID_GREY", "StereoBMMatcher", "StereoBMParams", "StereoSGBMMatcher", "StereoSGBMParams",
-           "matches_at_left_events"]
+           "matches_at_left_events", "opencv_range"]
 
 #: OpenCV's fixed-point disparity scale (4 fractional bits).
 DISP_SCALE = 16
 #: Grey value of "no events" in the ``filtered`` image mapping.
 MID_GREY = 128
+
+
+def opencv_range(default: int, width: int, low: int = 0) -> int:
+    """The largest disparity an OpenCV block matcher searches on a sensor ``width`` px wide, given its range
+    ``low .. default`` on a 128 px wide one: the count ``default - low + 1`` scaled by ``width / 128`` and rounded up
+    to a multiple of 16 (OpenCV's rule for numDisparities). The one range rule of every matcher built on OpenCV's
+    block matchers (the baselines here and dv-processing's, :mod:`cvstereo.matchers.dv.matcher`), so that they search
+    the same disparities on every sensor.
+
+    Examples
+    --------
+    >>> opencv_range(63, 128), opencv_range(63, 346), opencv_range(47, 128), opencv_range(47, 640)
+    (63, 175, 47, 239)
+    """
+    count = 16 * math.ceil((default - low + 1) * width / 128 / 16)
+    return low + count - 1
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -169,10 +185,10 @@ class _OpenCVMatcher(FrameMatcher):
 
     @classmethod
     def max_disparity_for(cls, default: int, width: int, given: dict) -> int:
-        """The scaled range, rounded up so that OpenCV's disparity count stays a multiple of 16."""
+        """The scaled range, rounded up so that OpenCV's disparity count stays a multiple of 16
+        (:func:`opencv_range`)."""
         low = int(given.get("min_disparity", cls.Params.__dataclass_fields__["min_disparity"].default))
-        count = 16 * math.ceil((default - low + 1) * width / 128 / 16)
-        return low + count - 1
+        return opencv_range(default, width, low)
 
     def __init__(self, params=None, *, resolution=(128, 128)):
         super().__init__(params, resolution=resolution)
