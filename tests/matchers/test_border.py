@@ -117,13 +117,7 @@ def _strip_share(m) -> float:
     return float(strip.mean())
 
 
-def _registered():
-    # fused's border rule is its own (another change); its parametrisation is expected to fail until it lands.
-    return [pytest.param(m, marks=pytest.mark.xfail(strict=True, reason="fusedgen")) if m == "fused" else m
-            for m in available_methods()]
-
-
-@pytest.mark.parametrize("method", _registered())
+@pytest.mark.parametrize("method", available_methods())
 def test_no_answers_where_the_partner_is_outside_the_other_image(plane, method):
     with_rule = match(plane, method=method).matches       # the default set and the method's default variant
     assert with_rule.size > 100, f"{method} answered {with_rule.size} times on the plane"
