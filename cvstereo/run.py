@@ -28,7 +28,7 @@ DIAGNOSTICS_WINDOW_US = 40_000
 
 #: Packet length used to stream a recording through a matcher. The result does not depend on it; the speed
 #: does: one frame window per packet saves the frame matchers from joining partial windows, and the event
-#: matchers pay a fixed cost per call (on 2arms-50cm event-time ran 3x faster with 40 ms than with 10 ms).
+#: matchers pay a fixed cost per call, which longer packets spread over more events.
 DEFAULT_PACKET_US = 40_000
 
 

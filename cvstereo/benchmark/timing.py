@@ -71,7 +71,7 @@ class Timing:
                 "load_after": self.load_after}
 
     def note(self) -> str:
-        """``3 runs, load 1.2 -> 1.4`` (plus ``, no two within 10 %`` when none agreed), for tables."""
+        """``N runs, load BEFORE -> AFTER`` (plus ``, no two within 10 %`` when none agreed), for tables."""
         flag = "" if self.agreed else f", no two within {TOLERANCE * 100:g} %"
         return f"{self.runs} runs, load {self.load_before:.1f} -> {self.load_after:.1f}{flag}"
 

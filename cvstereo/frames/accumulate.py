@@ -175,7 +175,7 @@ def event_channel(x, y, p, i, channel_of, width, height):  # pragma: no cover - 
     """The frame channel of event ``i`` (``channel_of[p]``: -1 where the polarity mode drops it), or
     :data:`OFF_SENSOR` where it lies outside the ``width`` x ``height`` sensor."""
     # Compared as int64: numba's code for the int16 fields against the int64 sizes made the callers' loops
-    # some 10 times slower (60 instead of 5 ns an event at 640x480).
+    # many times slower.
     xi, yi = np.int64(x[i]), np.int64(y[i])
     if xi < 0 or xi >= width or yi < 0 or yi >= height:
         return OFF_SENSOR

@@ -15,7 +15,7 @@ thesis value switches it off), chosen so that its median bad2 over the robustnes
 thesis' while it covers more. Which fields and values, and why, is said once per method, in :data:`ADAPTIVE`
 (its ``params`` and ``why``; ``cvstereo match --list-methods`` prints them). The rig check's time offset is NOT applied
 by default: on Fan_disp8 it finds +0.01 ms at confidence 0.25 (no offset to apply), and forcing -3 ms or +3 ms
-made every matcher worse under ``adaptive`` (event-area 59 % -> 28 % within 1 px of 8); what cancelled the
+made every matcher worse under ``adaptive``; what cancelled the
 fan's blades was ON and OFF events sharing one frame. A set gives the defaults; ``--param key=value`` overrides
 any field, and a variant given explicitly wins over the set's default variant.
 
@@ -46,7 +46,8 @@ class AdaptiveDefaults:
     variant : str
         The default variant under ``adaptive``.
     why : str
-        Printed by ``--list-methods``: why that variant and those values, with the measurements behind them.
+        Printed by ``--list-methods``: why that variant and those values (the before/after figures behind them are
+        in bench/results/docstring-figures.md).
     params : dict
         Parameter values of the set (relative thresholds and their scales).
     variant_params : dict
@@ -86,7 +87,7 @@ ADAPTIVE: dict[str, AdaptiveDefaults] = {
         variant="gaussian",
         why="filtered frames give the SAD smooth blocks; unfiltered ones covered a third as much of the density "
             "sweep (0.09 vs 0.42 at x1) and were half as often right on Fan_disp8; adaptive matches OFF and ON "
-            "frames apart (a fan's blades cancel in one frame: Fan_disp8 42 % -> 99.6 % within 1 px of 8) and "
+            "frames apart (a fan's blades cancel in one frame) and "
             "keeps disparities the left-right check confirms; the no-gaussian variant has the same scale (the level "
             "is that of its own unfiltered values; at 1.6 x it kept 556 estimates on movingPersons against the thesis "
             "set's 4613, now 3720, of which 3670 within 1 px of 13: 111 % of the thesis set's 3320)",
@@ -101,13 +102,12 @@ ADAPTIVE: dict[str, AdaptiveDefaults] = {
             "NSTlogo gave nothing) and lets the time window follow the events' pace (a fixed 300 us kept 20 % of "
             "the true partners at thresholds x1, 6 % at x3); where the recent matches within 4 px agree on "
             "another disparity it takes the candidate nearest theirs or none (consensus_radius: the nearest "
-            "partner was a look-alike one texture period off in 10-12 % of the matches on 1arm-50cm; bad2 there "
-            "0.15 -> 0.015, every second event dropped agreed on 88 -> 98 % of cells), which lets the threshold "
-            "fall from 0.65 to 0.55 x the level: density sweep coverage 0.18/0.17/0.20/0.24 -> 0.22/0.23/0.28/0.30, "
-            "Fan_disp8 92.8 -> 98.4 % within 1 px of 8 (14146 estimates); it compares D2 with D1 in the reference "
-            "camera's units (value_units: the cameras' level ratio; sensors of different contrast thresholds gave "
-            "one edge D values several times apart): suite v2 tuning half at 346x260, objects coverage "
-            "0.004 -> 0.11 at bad2 0.70 -> 0.34",
+            "partner was a look-alike one texture period off in 10-12 % of the matches on 1arm-50cm; it cut bad2 "
+            "there and made more cells agree when every second event is dropped), which lets the threshold fall "
+            "from 0.65 to 0.55 x the level, covering more of the density sweep and Fan_disp8; it compares D2 with "
+            "D1 in the reference camera's units (value_units: the cameras' level ratio; sensors of different "
+            "contrast thresholds gave one edge D values several times apart), which raised coverage and lowered "
+            "bad2 on the objects of suite v2's tuning half at 346x260",
         params={**_THESIS_METHODS, "threshold_scale": 0.55, "value_tolerance_scale": 0.4, "reference_read": "after",
                 "time_window_scale": 0.5, "consensus_radius": 4, "value_units": "reference"},
     ),
@@ -115,10 +115,10 @@ ADAPTIVE: dict[str, AdaptiveDefaults] = {
         variant="gaussian",
         why="the 3x3 update spreads each event over its neighbours, so a 5x5 block holds a signal after a few "
             "events; with single-pixel updates the density sweep and Fan_disp8 gave (almost) nothing; adaptive "
-            "sums the SAD over separate OFF and ON frames (one shared frame cancels a fan's blades: Fan_disp8 "
-            "61 % -> 99.8 % within 1 px of 8; the own polarity's frame alone confuses a bar's edge with the next "
-            "bar's) and drops matches that explain little of the patch or have a rival (density sweep bad2 at "
-            "thresholds x3 0.08 -> 0.01); the no-gaussian variant has the same scale (at 1.5 x it kept 288 "
+            "sums the SAD over separate OFF and ON frames (one shared frame cancels a fan's blades; the own "
+            "polarity's frame alone confuses a bar's edge with the next bar's) and drops matches that explain "
+            "little of the patch or have a rival (they made most of the density sweep's bad2 at thresholds x3); "
+            "the no-gaussian variant has the same scale (at 1.5 x it kept 288 "
             "estimates on movingPersons, now 1471, of which 1467 within 1 px of 13: 71 % of the thesis set's 2079)",
         params={**_THESIS_METHODS, "threshold_scale": 0.5, "level_floor": 0.5, "cost_scale": 0.6,
                 "polarity": "separate", "sad_frames": "all", "own_ratio": 0.6, "uniqueness": 0.2},
@@ -128,12 +128,12 @@ ADAPTIVE: dict[str, AdaptiveDefaults] = {
         why="its only variant; adaptive matches OFF and ON frames apart (a fan's blades cancel in one frame), "
             "places each candidate within its own run (run_ends: a row with one run per camera then still "
             "has something to compare), reports the middle of equally good disparities (the smallest sat at "
-            "the low end of a flat cost) and bounds the cost by 2 px + 0.3 x the vector's length: Fan_disp8 "
-            "56 % -> 98 % within 1 px of 8, density sweep bad2 at thresholds x3 0.35 -> 0.03; it splats each event "
-            "with a 5x5 Gaussian of sigma 1.5 px (thesis 3x3, sigma 1): with fewer events per edge a 3x3 splat "
-            "leaves holes where no event fell within a pixel, which split the runs the vectors measure, so every "
-            "second event dropped kept 74 % of the coverage (now 89 %, cells agreeing 94 -> 96 %); density sweep "
-            "coverage 0.34/0.42/0.48/0.33 -> 0.41/0.51/0.60/0.41, Fan_disp8 98.1 -> 99.1 % within 1 px of 8",
+            "the low end of a flat cost) and bounds the cost by 2 px + 0.3 x the vector's length, which made it "
+            "right far more often on Fan_disp8 and cut the density sweep's bad2 at thresholds x3; it splats each "
+            "event with a 5x5 Gaussian of sigma 1.5 px (thesis 3x3, sigma 1): with fewer events per edge a 3x3 "
+            "splat leaves holes where no event fell within a pixel, which split the runs the vectors measure, so "
+            "dropping every second event lost a quarter of the coverage; the 5x5 splat keeps more of it and "
+            "covers more of the density sweep",
         params={**_THESIS_METHODS, "threshold_scale": 0.5, "level_floor": 0.5, "polarity": "separate", "run_ends": True,
                 "tie_break": "centre", "cost_ratio": 0.3, "cost_slack": 2.0, "kernel_size": 5, "kernel_sigma": 1.5},
     ),

@@ -68,7 +68,8 @@ class SparseFrames:
     Attributes
     ----------
     exact : bool
-        The sparse frames equal the dense ones bit for bit on this machine (always without the Gaussian).
+        The sparse frames equal the dense ones bit for bit: always without the Gaussian; with it, when
+        :func:`cv2_layout` found the OpenCV build's layout for this CPU and frame width.
     values : (n_planes, height, width) float32 ndarray
         The (filtered) frames after :meth:`fill`; zero outside ``support``.
     touched, support : (n_planes, height, words) uint64 ndarray

@@ -5,13 +5,9 @@ semi-global aggregation, winner, left-right check, sub-pixel, uncertainty). Ever
 is evaluated in the same order as in :mod:`cvstereo.matchers.fused.reference`, so that both give bit-identical
 matches (tests/test_fused.py).
 
-Where the time goes, and why the kernels are shaped as they are (2arms-50cm, 128x128, 64 disparities: about
-6000 active pixels a window; a 346x260 recording at 1 M ev/s: 26000 and 171 disparities). On 2arms-50cm a window
-took about 1.53 ms of kernel (one CPU, load 0.7, by stopping it early) before the paths' steps, sums and minima
-became one vectorised loop (below; the kernel alone then took 0.83 of its time): setup 0.02, cost 0.33, forward
-paths 0.36, backward pass 0.45, winners 0.19, left-right check 0.05, fill 0.17 (about 200 filled pixels, a few
-hundred values each); outside it surfaces 0.135, level 0.065, division 0.036, masks 0.06 (1.83 ms a window in
-all; :mod:`cvstereo.matchers.fused.matcher` and :mod:`cvstereo.matchers.fused._features` have cut the outside since).
+Why the kernels are shaped as they are (the figures that led here are in bench/results/docstring-figures.md).
+Typical windows: 2arms-50cm, 128x128, 64 disparities, about 6000 active pixels; a 346x260 recording at a
+million events a second, about 26000 active pixels and 171 disparities.
 
 * Memory traffic, not arithmetic, set the pace when the cost and the four paths were stored as (active
   pixels x disparities) arrays of several MB. Now a window keeps two such arrays, in float32 (half the
@@ -19,32 +15,24 @@ all; :mod:`cvstereo.matchers.fused.matcher` and :mod:`cvstereo.matchers.fused._f
   row path in a vector and its column path in two sensor rows; the forward pass computes the cost, stores it
   and writes left + above, the backward pass reads the cost back and adds right and below.
   Cost, paths and sums are float32 in the reference too, in the same order. Keeping the paths out of memory
-  paid where the arrays outgrow the caches: the 346x260 recording's windows 62-71 -> 36-38 ms of CPU (load
-  1.8-2.8); on 2arms-50cm (64 disparities, compute-bound) about 1.1x. Storing the cost (rather than computing
-  it again in the backward pass, half a millisecond of the ~3 ms a 2arms-50cm window took) is about 1.1x there
-  (kernel alone, same inputs, one CPU, load 4: 3.00 -> 2.68 ms a window) and 1.03x on the 346x260 windows.
+  pays most where the arrays outgrow the caches (the 346x260 windows); storing the cost saves computing it
+  again in the backward pass.
 * Each pixel's semi-global step is one plain loop over the disparities, which the compiler vectorises: it steps
   the row and the column path, adds them to the sums and takes their minima (a reduction the compiler vectorises
   too, :func:`_least`: numba's ``min`` kept it scalar, one instruction per value, in a pass of its own). The
   path vectors carry a column of inf at either end, so that the first and last disparity need no case of their
-  own outside the loop. Kernel alone, same 50 2arms-50cm windows, one CPU, load 0.5-0.7: 1.83-1.85 ms a window
-  with the minima in passes of their own, 1.78-1.79 with vectorised minima in the loop that summed, 1.52-1.53
-  with everything in one loop.
+  own outside the loop.
 * No array is sliced or passed to an inlined helper inside the per-pixel loops: each such view or binding is a
   new array whose reference count numba updates with two atomic instructions, and with a dozen a pixel those
-  took about 45 % of the kernel's time (perf: NRT_incref/NRT_decref). The loops are written out in
-  :func:`_row_pass` and index rows of 2-D arrays in place; :func:`_step` takes scalars only. 2arms-50cm, kernel
-  alone on the same 50 windows, one CPU, load 2.3: 2.76-2.79 ms a window before this and the stored cost, 2.16-2.19
-  after.
+  dominated the kernel's time (perf: NRT_incref/NRT_decref). The loops are written out in
+  :func:`_row_pass` and index rows of 2-D arrays in place; :func:`_step` takes scalars only.
 * The left-right check needs the right pixels' winners of a row, each one disparity of many different left
   pixels: they are found in one sweep over the row's sums (contiguous, branch-free, mirrored like the cost)
   as soon as the backward pass has finished the row, while its sums are in the cache, instead of a scattered
-  walk per anchor (kernel alone, same 50 captured 2arms-50cm windows, one CPU, load 1.1: 1.73-1.76 -> 1.64-1.73
-  ms a window).
+  walk per anchor.
 * The cost reads the right camera's row backwards (disparity 0, 1, ... is column x, x - 1, ...): a mirrored
   copy of the right features makes those loops contiguous and branch-free, so they vectorise. Its index is
-  unsigned: numba wraps negative indices around, and testing a signed one kept the loop scalar (the cost took
-  0.69 instead of 0.38 ms a window).
+  unsigned: numba wraps negative indices around, and testing a signed one kept the loop scalar.
 * The fill's median and the level's percentile select in place (:func:`~cvstereo.matchers.fused._features.select`)
   rather than sort; the median first counts its values in bins and selects within one (:func:`median_of`), and the
   fill reads the consistent answers from per-row runs rather than scanning its square (2arms-50cm: about 200
@@ -141,7 +129,7 @@ def _row_pass(fl, right_rev, prior, index, ax, yy, k_first, k_stop, step, row_to
             for y2 in range(max(yy - row_tol, 0), min(yy + row_tol + 1, h)):
                 for d in range(nd):
                     # An unsigned index: numba wraps negative indices around, and the test of a signed one kept
-                    # this loop from vectorising (the forward pass's cost took 0.69 instead of 0.38 ms a window).
+                    # this loop from vectorising.
                     j = np.uint64(j0 + d)
                     costs[k, d] = min(costs[k, d], abs(l0 - right_rev[y2, 0, j]) + abs(l1 - right_rev[y2, 1, j]))
             pr = prior[yy, xx]

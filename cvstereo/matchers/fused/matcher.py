@@ -20,9 +20,8 @@ Design, part by part, with the reason for each (bench/results/fused.md measures 
    matcher compares (``p1``, ``p2``, ``temporal_weight``) is thus in units of the level: it has no absolute
    threshold for :mod:`cvstereo.matchers._shared.signal_level` to replace. That module's causal one-second level would
    steady the
-   level of sparse windows, but its quantile over 25 windows' values cost 1.5 ms a window (2arms-50cm, the
-   anchors' values only, load 10), about as much as a whole window's matching takes now (~1.5 ms); it is worth
-   adopting once that estimate is incremental.
+   level of sparse windows, but its quantile over 25 windows' values costs about as much as a whole window's
+   matching; it is worth adopting once that estimate is incremental.
 4. **Cost**: the L1 distance of the two cameras' feature vectors at ``(x, y)`` and ``(x - d, y + dy)``, the
    least over ``|dy| <= row_tolerance``: the thesis' event-time matcher's row tolerance, because real rigs
    are off by about a row (thesis 3.2; the simulator's rig by one); :mod:`cvstereo.geometry.rigcorrect` corrects
@@ -50,8 +49,8 @@ Design, part by part, with the reason for each (bench/results/fused.md measures 
    to the event pixels; it keeps its high uncertainty, so it only counts when a user asks for high coverage.
    A winner that agrees with that median (within ``lr_tolerance``) is *confirmed* instead (``fill_confirms``):
    it keeps its own disparity and loses the penalty, since a failed check is then more often the right pixel's
-   near-tie than a wrong left winner (Fan_disp8: 99.4 % of them right; robustness suite base: coverage 88 ->
-   95 % at bad2 0.7 -> 0.8 %).
+   near-tie than a wrong left winner (Fan_disp8: 99.4 % of them right; on the robustness suite it raised the
+   coverage at almost the same bad2).
 9. **Occlusion test** (``occlusion_margin``, ``occlusion_support``): the left view's half-occlusion, the
    background just left of a nearer surface's left edge, often passes the left-right check, and where it fails
    it (the right pixel prefers the nearer surface's larger disparity, Hirschmüller's sign of an occlusion) it is
@@ -60,16 +59,15 @@ Design, part by part, with the reason for each (bench/results/fused.md measures 
    (``x' - d' <= x - d - margin``, so they are nearer), their rays cross this answer's in front of the right
    camera and its point is hidden; it gets the left-right penalty 0.5. A surface crosses with several answers,
    an outlier with one (a noise event's, at a random disparity, would hide a run of its row as long as its
-   disparity): ``occlusion_support`` (2) answers must cross (robustness suite joint-1, noise 0.56 Hz at
-   640x480: coverage 84.7 -> 77.6 % with one, 83.6 % with two). Both sides of the test are the answers of
+   disparity): ``occlusion_support`` (2) answers must cross (with one, noise cost coverage on the robustness
+   suite; with two, little). Both sides of the test are the answers of
    uncertainty at most 0.5; the next window's prior is the answers before the test (a hidden pixel's
    disparity is still the best guess there: taking the prior after it, the motorcycle's bad2 is 16.9 % instead
    of 16.2 %). Motorcycle (2 s clip of bench_fused): 3.1 % of the answers flagged, 39 % of them left-right
    consistent and 61 % confirmed; 26 % of them on pixels without truth (all answers: 10.3 %) and 45 % of the
-   rest off by more than 2 px (17 %); false rate 10.3 -> 9.8 %, bad2 16.9 -> 16.2 %, coverage 94.7 -> 92.3 %.
-   The false-rate gain is that clip's: most pixels without truth are surfaces the Middlebury scanner did not
-   measure, not occlusions, and with other pan phases (MotorcycleScene and simulate seeds 1, 2) the false rate
-   goes 10.9 -> 11.0 % and 13.3 -> 13.3 %, while bad2 falls 16.9 -> 13.3 % and 21.6 -> 19.5 %.
+   rest off by more than 2 px (17 %); the test lowers bad2 at some cost in coverage. A false-rate gain on that
+   clip is the clip's: most pixels without truth are surfaces the Middlebury scanner did not measure, not
+   occlusions, and with other pan phases the false rate stays about the same while bad2 falls.
 10. **Partner test** (``border_rows``): a left pixel at column ``x`` whose surface lies at disparity ``D > x`` has
     its true partner outside the right image (``x - D < 0``), yet the search only offers partners inside it (or
     the zeros beyond its edge), so such a pixel answers with the best of the wrong ones, often 0 px, and
@@ -79,16 +77,16 @@ Design, part by part, with the reason for each (bench/results/fused.md measures 
     of the window, where it has at least 8 (a median of fewer is too often that of a few wrong ones); an answer
     left of it gets the left-right penalty 0.5 and is not the next window's prior. The median, not a lower
     quantile: the strip's own wrong answers (smaller disparities) are in the band too. Tuning half, ground plane
-    at 346x260: 91 % of the answers without a partner caught, 99 % of the flagged ones without one; bad2 of the
-    default output 0.192 -> 0.111 at coverage 0.77 -> 0.71.
+    at 346x260: 91 % of the answers without a partner caught, 99 % of the flagged ones without one; the default
+    output's bad2 falls at a small cost in coverage.
 11. **Sub-pixel refinement** (``subpixel``): a parabola through the aggregated costs at ``d - 1, d, d + 1``.
 12. **Noise filter** (``min_neighbours``): a pixel answers only if another pixel of its 3x3 neighbourhood saw
     an event in the last two windows, or if its match is clear (uncertainty below
     ``isolated_max_uncertainty``, 0.1). Isolated events are mostly noise; the thesis' event matchers owe
     their low false rate to the same kind of local support. But a sparse real sensor has isolated signal too
     (Fan_disp8: 99 % of the isolated pixels' matches are right), and a clear, left-right consistent match is
-    evidence of its own; the cost is a higher false rate on simulated noise (robustness suite noise-1hz:
-    30.5 -> 31.1 %, threshold-x3 1.7 -> 5.7 %, still below SGBM's and dv-semidense's).
+    evidence of its own; the cost is a higher false rate on simulated noise (robustness suite noise-1hz and
+    threshold-x3, still below SGBM's and dv-semidense's).
 
 The numba kernels are in :mod:`cvstereo.matchers.fused._features` and :mod:`cvstereo.matchers.fused._kernels`;
 the plain reference in :mod:`cvstereo.matchers.fused.reference` gives identical matches (tests/test_fused.py).
@@ -202,7 +200,7 @@ def finish_window(t_end, x, y, pol, disparity, uncertainty, max_uncertainty, mar
     """What follows the kernel, in loops over its answers: the next window's prior (the answers of uncertainty at
     most ``min(max_uncertainty, PRIOR_MAX_UNCERTAINTY)`` before the occlusion test, design part 9), the occlusion
     test (when ``margin >= 0``) and the matches kept. Numpy's dozen calls for the same (masks, fancy indexing, a
-    structured array filled column by column) took about 85 us a window on 2arms-50cm, 4 % of the window's time.
+    structured array filled column by column) were a visible share of a small window's time.
 
     Parameters
     ----------
