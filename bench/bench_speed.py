@@ -77,8 +77,8 @@ import cv2
 cv2.setNumThreads(1)
 import cvstereo
 from cvstereo.io import read_recording
-from cvstereo.run import match
-from cvstereo.matchers.registry import available_methods, matcher_class
+from cvstereo.pipeline import match  # the 0.2 names: older trees have them, 0.3 answers them (cvstereo._compat)
+from cvstereo.registry import available_methods, matcher_class
 
 recordings, warm = {}, set()
 print(json.dumps({"ready": True, "cvstereo": os.path.dirname(cvstereo.__file__),
