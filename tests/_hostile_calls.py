@@ -29,7 +29,7 @@ def refused(call, *fragments: str, absent: tuple[str, ...] = (), errors: tuple =
         raise AssertionError(f"TRACEBACK: {type(exc).__name__}: {exc}") from None
     else:
         raise AssertionError(f"SILENT: returned {_brief(got)} instead of refusing")
-    assert "\n" not in message.strip(), f"MESSAGE: not one line: {message!r}"
+    assert "\n" not in message, f"MESSAGE: not one line: {message!r}"
     for fragment in fragments:
         assert fragment in message, f"MESSAGE: {fragment!r} not in {message!r}"
     for fragment in absent:

@@ -13,6 +13,8 @@ that is no ValueError, which a caller catching bad input would not catch).
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 from cvstereo.matches import concat_matches
@@ -20,6 +22,7 @@ from cvstereo.pipeline import match
 from cvstereo.recording import Recording
 from cvstereo.registry import DEFAULT_METHOD, METHODS, available_methods, create_matcher, matcher_class
 
+from tests._hostile_calls import refused as refused_by
 from tests._io_helpers import textured_blobs
 
 pytestmark = pytest.mark.timeout(120)
@@ -39,19 +42,9 @@ def _slice(rec: Recording, t0: int, t1: int) -> tuple[np.ndarray, np.ndarray]:
     return tuple(ev[(ev["t"] >= t0) & (ev["t"] < t1)] for ev in (rec.left, rec.right))
 
 
-def refused(call, *fragments: str) -> str:
-    """Assert that ``call()`` raises a ValueError whose one-line message holds every fragment; return it."""
-    try:
-        value = call()
-    except ValueError as exc:
-        text = str(exc)
-        missing = [f for f in fragments if f not in text]
-        assert not missing, f"MESSAGE: {missing} not in {text!r}"
-        assert "\n" not in text, f"MESSAGE: not one line: {text!r}"
-        return text
-    except Exception as exc:  # the point is to see what escapes
-        raise AssertionError(f"TRACEBACK: {type(exc).__name__}: {exc}") from None
-    raise AssertionError(f"SILENT: accepted (returned {type(value).__name__})")
+#: Every refusal here is a ValueError (StreamEndedError, the until check), as a bad packet is: anything else escaping
+#: is a TRACEBACK.
+refused = functools.partial(refused_by, errors=(ValueError,))
 
 
 # ------------------------------------------------------------------------------------------- after flush
