@@ -70,9 +70,22 @@ WARM_UP_US = 200_000
 #: older commits have too (match, read_recording, matcher_class), since it also runs their code.
 _CHILD = r"""
 import json, os, sys, time
-cpu, warm_up_us = int(sys.argv[1]), int(sys.argv[2])
+cpu, warm_up_us, tree = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3]
 if hasattr(os, "sched_setaffinity"):
     os.sched_setaffinity(0, {cpu})
+# The matchers by name come from the measured tree's own pyproject.toml, not from the installed distribution's
+# metadata: the venv's cvstereo names this tree's classes, which an older tree does not have (0.2 found its
+# matchers only through entry points; 0.3 has a built-in table and merges entry points into it).
+import importlib.metadata, tomllib
+with open(os.path.join(tree, "pyproject.toml"), "rb") as f:
+    _own = (tomllib.load(f)["project"].get("entry-points") or {}).get("cvstereo.matchers", {})
+_own = importlib.metadata.EntryPoints(importlib.metadata.EntryPoint(n, v, "cvstereo.matchers") for n, v in _own.items())
+_installed_entry_points = importlib.metadata.entry_points
+def _tree_entry_points(**selection):
+    if selection.get("group") == "cvstereo.matchers":
+        return _own
+    return _installed_entry_points(**selection)
+importlib.metadata.entry_points = _tree_entry_points
 import cv2
 cv2.setNumThreads(1)
 import cvstereo
@@ -120,8 +133,9 @@ class Child:
         env = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
                "PYTHONPATH": os.pathsep.join([str(code_dir), os.environ.get("PYTHONPATH", "")])}
         # cwd outside any tree, so that only PYTHONPATH decides which code is imported.
-        self.proc = subprocess.Popen([sys.executable, "-c", _CHILD, str(cpu), str(WARM_UP_US)], stdin=subprocess.PIPE,
-                                     stdout=subprocess.PIPE, text=True, env=env, cwd=tempfile.gettempdir())
+        self.proc = subprocess.Popen([sys.executable, "-c", _CHILD, str(cpu), str(WARM_UP_US), str(code_dir)],
+                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env,
+                                     cwd=tempfile.gettempdir())
         hello = self._read()
         self.code = hello["cvstereo"]
         self.methods = set(hello["methods"])
