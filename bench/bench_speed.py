@@ -28,7 +28,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -192,15 +194,21 @@ def case_paths(names: list[str]) -> dict[str, str]:
     return out
 
 
-def measure_cell(children: dict[str, Child], request: dict) -> dict:
-    """One cell on every code version, one run of each in turn, until each has two runs within 10 %."""
+def measure_cell(children: dict[str, Child], request: dict, rounds: int = 0) -> dict:
+    """One cell on every code version, one run of each in turn, until each has two runs within 10 % and at
+    least ``rounds`` runs: then round ``i`` is run ``i`` of every version, taken back to back, so that
+    ``old / new`` per round compares the two under the same load (``ratios``)."""
     agreements = {v: Agreement() for v in children}
     last = {}
     for a in agreements.values():
         a.start()
-    while not all(a.done for a in agreements.values()):
+
+    def wanted(version: str) -> bool:
+        return not agreements[version].done or len(agreements[version].seconds) < rounds
+
+    while any(wanted(v) for v in children):
         for version, child in children.items():
-            if not agreements[version].done:
+            if wanted(version):
                 last[version] = child.run(**request)
                 agreements[version].add(last[version]["seconds"])
     out = {}
@@ -211,6 +219,9 @@ def measure_cell(children: dict[str, Child], request: dict) -> dict:
                         "realtime_x": info["duration_s"] / t.seconds, "input_events": info["input_events"],
                         "duration_s": info["duration_s"], "matches": info["matches"],
                         "max_disparity": info["max_disparity"]}
+    if rounds and {"new", "old"} <= set(out):
+        paired = zip(agreements["old"].seconds[:rounds], agreements["new"].seconds[:rounds], strict=True)
+        out["ratios"] = [old_s / new_s for old_s, new_s in paired]
     return out
 
 
@@ -227,7 +238,7 @@ def run(args, save) -> dict:
         else 0
     results = {"date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "cpu": cpu, "nice": os.nice(0),
                "quick": args.quick, "clock": args.clock,
-               "baseline": args.baseline, "cells": []}
+               "baseline": args.baseline, "rounds": args.rounds if args.baseline else 0, "cells": []}
     with baseline_tree(args.baseline) as base:
         children = {"new": Child(ROOT, cpu)}
         if base is not None:
@@ -242,7 +253,7 @@ def run(args, save) -> dict:
                                "method": method, "param_set": param_set, "range_width": CASES[case][1],
                                "clock": args.clock}
                     cell = {"case": case, "method": method, "param_set": param_set,
-                            **measure_cell(children, request)}
+                            **measure_cell(children, request, args.rounds if base is not None else 0)}
                     results["cells"].append(cell)
                     print(cell_line(cell), flush=True)
                     save(results)
@@ -275,7 +286,7 @@ def cell_line(cell: dict) -> str:
 
 
 def markdown(results: dict) -> str:
-    base, nice = results["baseline"], results.get("nice")
+    base, nice, rounds = results["baseline"], results.get("nice"), results.get("rounds", 0)
     cpu_clock = results.get("clock") == "cpu"
     clock = "the measuring process's CPU time" if cpu_clock else "the matcher's own clock"
     lines = ["# Matcher speed at three sensor sizes, one core", "",
@@ -288,7 +299,10 @@ def markdown(results: dict) -> str:
              f"within {TOLERANCE * 100:g} % of each other (at most 6 runs); `runs` gives their number (`*`: no "
              "two agreed, the fastest shown) and the 1-minute load average before -> after. "
              + (f"`old` is commit `{base}` measured in the same run, one run of old and new in turn per cell; "
-                "`new/old` is the speed ratio." if base else ""), ""]
+                "`new/old` is the speed ratio." if base else "")
+             + (f" Each version also ran at least {rounds} times, in turn; round i is run i of old and of new, back "
+                "to back, and the last column gives the median and the least of old/new time per round." if rounds
+                else ""), ""]
     if results.get("missing"):
         lines += [f"Not installed here, not measured: {', '.join(results['missing'])}.", ""]
     for case in dict.fromkeys(c["case"] for c in results["cells"]):
@@ -296,8 +310,9 @@ def markdown(results: dict) -> str:
         first = cells[0]["new"]
         lines += [f"## {case}: {first['input_events']:,} events, {first['duration_s']:.2f} s", "",
                   "| matcher | range px | events/s | x real time | runs, load |"
-                  + (" old events/s | old runs, load | new/old |" if base else ""),
-                  "|---|---:|---:|---:|---|" + ("---:|---|---:|" if base else "")]
+                  + (" old events/s | old runs, load | new/old |" if base else "")
+                  + (" median, least new/old per round |" if rounds else ""),
+                  "|---|---:|---:|---:|---|" + ("---:|---|---:|" if base else "") + ("---:|" if rounds else "")]
         for c in cells:
             new = c["new"]
             row = (f"| {label(c['method'], c['param_set'])} | {new['max_disparity'] or 'default'} | "
@@ -305,6 +320,9 @@ def markdown(results: dict) -> str:
             if base:
                 old = c["old"]
                 row += f" {_mev(old['events_per_s'])} | {_note(old)} | {old['seconds'] / new['seconds']:.2f}x |"
+            if rounds:
+                ratios = c.get("ratios") or [math.nan]
+                row += f" {statistics.median(ratios):.2f}x, {min(ratios):.2f}x |"
             lines.append(row)
         lines.append("")
     target_rows = [c for c in results["cells"] if (c["case"], c["method"]) in TARGETS]
@@ -330,6 +348,9 @@ def main() -> None:
                         help="only these cases (default: all)")
     parser.add_argument("--baseline", metavar="COMMIT", default=None,
                         help="also measure this commit (a temporary git worktree), interleaved with this tree")
+    parser.add_argument("--rounds", type=int, default=3, metavar="N",
+                        help="with --baseline: at least N runs of each version per cell, in turn, and the median and "
+                             "least new/old per round in the table (default 3)")
     parser.add_argument("--clock", choices=("wall", "cpu"), default="wall",
                         help="time match() by the wall clock (its own elapsed_s, default) or by the child's CPU time "
                              "(on a shared machine: time taken by others is not counted, cache contention still is)")
