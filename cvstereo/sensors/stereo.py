@@ -7,6 +7,16 @@ Clock strategies (:class:`StereoSettings.clock`):
 - ``"align"``: for firmware without it: ``!ET0`` to both boards back to back. The residual offset is
   estimated from arrival times (the smallest ``host arrival - device time`` per board bounds its clock
   offset plus transport delay) and reported; ``correct_offset`` subtracts it from the right camera.
+
+Merging (:meth:`StereoEDVS.packet`): a packet closes at the *watermark*, the time before which both readers
+have delivered every event. Each camera's events come in time order, so a camera holds the watermark at its
+latest delivered event's time: a reader that runs late (a loaded machine) delays the packets, and loses
+nothing. A camera that delivers nothing for :attr:`StereoSettings.silent_wait_us` of host time while the other
+delivers (or whose reader reports it silent) holds the other back no longer: the watermark may then pass its
+device time that long ago. Its events that arrive behind the watermark after all (a reader stalled for longer
+than the bound) are dropped and counted (:attr:`StereoEDVS.late_events`), never merged silently: a matcher
+cannot take an event older than one it has matched. The trade-off is the bound: longer, and a stalled reader
+loses less; shorter, and a silent camera delays the other's matches less (docs/guide/live.md).
 """
 
 from __future__ import annotations
@@ -21,9 +31,13 @@ from cvstereo.model.events import EVENT_DTYPE, StereoPacket, count_before
 from cvstereo.sensors.edvs import EDVS, Chunk, host_us
 from cvstereo.sensors.protocol import DEFAULT_BAUD, ProtocolSettings
 
-__all__ = ["CAMERAS", "StereoEDVS", "StereoSettings"]
+__all__ = ["CAMERAS", "SILENT_WAIT_US", "StereoEDVS", "StereoSettings"]
 
 CAMERAS = ("left", "right")
+
+#: Host time a camera may deliver nothing, while the other delivers, before it no longer holds the other
+#: back, us (the default of :attr:`StereoSettings.silent_wait_us`).
+SILENT_WAIT_US = 100_000
 
 
 @dataclass(frozen=True)
@@ -36,26 +50,42 @@ class StereoSettings:
         Timestamp synchronisation (see the module docstring).
     correct_offset : bool
         ``align`` only: shift the right camera by the estimated residual offset.
-    margin_us : int
-        Transport latency allowed for: a packet closes this long (host time) after its end, so that
-        events still in flight from the slower board are not late.
+    silent_wait_us : int
+        The bounded wait (see the module docstring): a camera that has delivered nothing for this long (host
+        time, us) while the other delivered, or whose reader reports it silent, no longer holds the other
+        back; the watermark may then pass its device time this long ago. A reader stalled for longer loses
+        the events it delivers behind the watermark (counted); a silent camera delays the other this long.
     silence_s : float
         A board silent this long is reported.
     """
 
     clock: Literal["master-slave", "align"] = "master-slave"
     correct_offset: bool = False
-    margin_us: int = 30_000
+    silent_wait_us: int = SILENT_WAIT_US
     silence_s: float = 1.0
+
+    def __post_init__(self):
+        if isinstance(self.silent_wait_us, bool) or not isinstance(self.silent_wait_us, int) \
+                or self.silent_wait_us < 0:
+            raise ValueError(f"silent_wait_us={self.silent_wait_us!r}: must be a whole number of microseconds "
+                             ">= 0 (the host time a silent camera holds the other back).")
+
+
+def _host_now(now_us: int | None) -> int:
+    """``now_us`` if given (a test's clock), else the host clock's time."""
+    return host_us() if now_us is None else now_us
 
 
 class _Side:
+    """One camera's delivered events not yet in a packet, each chunk with the host time it arrived."""
+
     def __init__(self, cam: EDVS):
         self.cam = cam
-        self.buf: list[np.ndarray] = []
+        self.buf: list[Chunk] = []
         self.last_t: int | None = None
         self.min_offset: int | None = None  # min(host arrival - device time), us
         self.events = 0
+        self.late_events = 0
         self.last_arrival: int | None = None
 
     def take(self, chunk: Chunk, shift: int = 0) -> None:
@@ -63,12 +93,31 @@ class _Side:
         if shift:
             ev = ev.copy()
             ev["t"] -= shift
-        self.buf.append(ev)
+        self.buf.append(Chunk(ev, chunk.arrival_us))
         self.events += ev.size
         self.last_t = int(ev["t"][-1])
         self.last_arrival = chunk.arrival_us
         off = chunk.arrival_us - int(chunk.events["t"][-1])
         self.min_offset = off if self.min_offset is None else min(self.min_offset, off)
+
+    def split(self, watermark: int | None, until: int) -> tuple[np.ndarray, int | None]:
+        """Take the events before ``until`` out of the buffer; drop (and count) those before ``watermark``,
+        which arrived after a packet that should have held them was closed. Return the events taken and the
+        latest arrival among them (None if none)."""
+        out, arrival, rest = [], None, []
+        for ev, arr in self.buf:
+            if watermark is not None and ev.size and ev["t"][0] < watermark:
+                late = ev["t"] < watermark
+                self.late_events += int(late.sum())
+                ev = ev[~late]
+            k = count_before(ev["t"], until)
+            if k:
+                out.append(ev[:k])
+                arrival = arr if arrival is None else max(arrival, arr)
+            if k < ev.size:
+                rest.append(Chunk(ev[k:], arr))
+        self.buf = rest
+        return (np.concatenate(out) if out else np.zeros(0, EVENT_DTYPE)), arrival
 
 
 class StereoEDVS:
@@ -95,7 +144,12 @@ class StereoEDVS:
                      for n, p in zip(CAMERAS, (left_port, right_port), strict=True)]
         self.sides = [_Side(c) for c in self.cams]
         self.watermark: int | None = None
-        self.late_events = 0
+        #: Packets closed past a camera that held nothing back because it was silent (the bounded wait).
+        self.waited_out = 0
+        #: Host time (us) at which the latest event of the last packet arrived (None: the packet is empty).
+        self.packet_arrival_us: int | None = None
+        self._looked_us: int | None = None  # host time the last packet() call ended
+        self._watched_since: int | None = None  # host time since which packet() calls came often
         self.residual_offset_us: int | None = None
 
     def open(self) -> StereoEDVS:
@@ -175,40 +229,67 @@ class StereoEDVS:
         return got
 
     def complete_until(self, now_us: int | None = None) -> int | None:
-        """The time before which both cameras' events have arrived (see StereoSettings.margin_us)."""
-        now = host_us() if now_us is None else now_us
+        """The watermark: the time before which both cameras have delivered every event (see the module
+        docstring); None before both have delivered anything.
+
+        A camera holds it at its latest delivered event's time (later events are not earlier). A camera that
+        delivered nothing for ``silent_wait_us`` holds it at its device time ``silent_wait_us`` before the
+        evidence instead (its clock offset known from its arrivals), where that is later. The evidence: a
+        delivery of the other camera that long after its last; or host time ``now_us`` that long after it
+        while this merger looked often (:meth:`packet` calls never ``silent_wait_us / 2`` apart: a process
+        that did not run, its readers neither, proves no silence); or its reader reporting it silent.
+        """
+        if any(side.min_offset is None for side in self.sides):
+            return None
+        now = _host_now(now_us)
+        wait = self.stereo.silent_wait_us
+        watched = now if self._watched_since is None else self._watched_since
         bounds = []
-        for side in self.sides:
-            if side.min_offset is None:
-                return None
-            # Device time now, minus the allowance for bytes still in flight.
-            bounds.append(max(side.last_t + 1, now - side.min_offset - self.stereo.margin_us))
+        for side, other in ((self.sides[0], self.sides[1]), (self.sides[1], self.sides[0])):
+            seen = None
+            if side.cam.silent or now - max(side.last_arrival, watched) > wait:
+                seen = now
+            elif other.last_arrival - side.last_arrival > wait:
+                seen = other.last_arrival
+            bounds.append(side.last_t if seen is None else max(side.last_t, seen - wait - side.min_offset))
         return min(bounds)
 
-    def packet(self, timeout_s: float = 0.05) -> StereoPacket | None:
+    def packet(self, timeout_s: float = 0.05, *, now_us: int | None = None) -> StereoPacket | None:
         """The next time slice of both cameras (possibly empty), or None before both have sent anything.
 
         Events arriving after the watermark passed them are dropped and counted in :attr:`late_events`.
+        :attr:`packet_arrival_us` tells when the packet's latest event arrived. ``now_us``: the host time
+        (default: the clock's), for tests.
         """
+        # Taken before the queues are read: whatever a reader delivered before it is in them.
+        now = _host_now(now_us)
+        if self._looked_us is None or now - self._looked_us > self.stereo.silent_wait_us // 2:
+            self._watched_since = now  # not looking meanwhile (the matcher ran long): silence not seen
         self.poll(timeout_s)
-        until = self.complete_until()
+        until = self.complete_until(now)
         if until is None:
+            self._looked_us = _host_now(now_us)
             return None
+        if until > min(side.last_t for side in self.sides):
+            self.waited_out += 1
         if self.watermark is not None:
             until = max(until, self.watermark)
-        out = []
-        for side in self.sides:
-            ev = np.concatenate(side.buf) if side.buf else np.zeros(0, EVENT_DTYPE)
-            if self.watermark is not None:
-                late = ev["t"] < self.watermark
-                if late.any():
-                    self.late_events += int(late.sum())
-                    ev = ev[~late]
-            k = count_before(ev["t"], until)
-            out.append(ev[:k])
-            side.buf = [ev[k:]] if k < ev.size else []
+        parts = [side.split(self.watermark, until) for side in self.sides]
+        arrivals = [a for _, a in parts if a is not None]
+        self.packet_arrival_us = max(arrivals) if arrivals else None
         self.watermark = until
-        return StereoPacket(out[0], out[1], until)
+        self._looked_us = _host_now(now_us)
+        return StereoPacket(parts[0][0], parts[1][0], until)
+
+    @property
+    def late_events(self) -> int:
+        """Events dropped because they arrived behind the watermark (both cameras)."""
+        return sum(side.late_events for side in self.sides)
+
+    @property
+    def pending(self) -> bool:
+        """Events delivered or queued that no packet has taken yet."""
+        return any(side.buf or not side.cam.queue.empty() for side in self.sides)
 
     def status(self) -> dict:
         """Per-board counters, the clock strategy and the residual offset estimate."""
@@ -218,4 +299,7 @@ class StereoEDVS:
             "clock": self.stereo.clock,
             "residual_offset_us": self.residual_offset_us,
             "late_events": self.late_events,
+            "late_events_by_camera": [side.late_events for side in self.sides],
+            "silent_wait_us": self.stereo.silent_wait_us,
+            "packets_past_a_silent_camera": self.waited_out,
         }
