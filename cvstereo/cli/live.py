@@ -50,7 +50,10 @@ def run(args: argparse.Namespace) -> int:
         def done() -> bool:
             if any(isinstance(c.error, ProtocolMismatchError) for c in rig.cams):
                 return True  # the protocol settings were refused: stop and say why
-            return bool(devices) and all(d.done for d in devices) and all(c.silent for c in rig.cams)
+            # Done once the recording is sent, read and matched: events the rig still holds are fed first
+            # (the watermark passes them once both readers report silence).
+            return (bool(devices) and all(d.done for d in devices) and all(c.silent for c in rig.cams)
+                    and not rig.pending)
 
         try:
             stats = run_live(rig, matcher, depth=depth, seconds=args.seconds, stop=stop, done=done)
@@ -65,6 +68,9 @@ def run(args: argparse.Namespace) -> int:
         s = stats.summary()
         print(f"behind real time: mean {s['lag_ms_mean']:.1f} ms, max {s['lag_ms_max']:.1f} ms; "
               f"{s['matches']} matches from {s['events_left']} + {s['events_right']} events; "
-              f"{status['late_events']} late events dropped", file=sys.stderr)
+              f"{status['late_events']} late events dropped (left {status['late_events_by_camera'][0]}, right "
+              f"{status['late_events_by_camera'][1]}: delivered behind the watermark after a camera silent for "
+              f"{status['silent_wait_us'] / 1e3:g} ms stopped holding the other back)", file=sys.stderr)
+        print(stats.lag.line(), file=sys.stderr)
         print(json.dumps({"summary": s, "status": status}, default=str), file=sys.stderr)
     return 0

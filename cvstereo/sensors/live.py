@@ -12,6 +12,7 @@ import numpy as np
 from cvstereo.geometry.depth import DepthModel
 from cvstereo.matchers.protocol import StreamMatcher
 from cvstereo.sensors.edvs import host_us
+from cvstereo.sensors.lag import LagMeter
 from cvstereo.sensors.stereo import StereoEDVS
 
 __all__ = ["UPDATE_S", "LiveStats", "run_live"]
@@ -29,6 +30,7 @@ class LiveStats:
     events: list[int] = field(default_factory=lambda: [0, 0])
     lags_ms: list[float] = field(default_factory=list)
     latencies_ms: list[float] = field(default_factory=list)
+    lag: LagMeter = field(default_factory=LagMeter)
 
     def summary(self) -> dict:
         lag = np.asarray(self.lags_ms) if self.lags_ms else np.zeros(1)
@@ -36,7 +38,8 @@ class LiveStats:
         return {"updates": self.updates, "matches": self.matches, "events_left": self.events[0],
                 "events_right": self.events[1], "lag_ms_mean": float(lag.mean()), "lag_ms_max": float(lag.max()),
                 "latency_ms_median": float(np.median(lat)) if lat.size else None,
-                "latency_ms_p95": float(np.percentile(lat, 95)) if lat.size else None}
+                "latency_ms_p95": float(np.percentile(lat, 95)) if lat.size else None,
+                "lag_per_packet": self.lag.percentiles()}
 
 
 def _num(value: float, width: int, digits: int) -> str:
@@ -70,6 +73,7 @@ def run_live(rig: StereoEDVS, matcher: StreamMatcher, *, depth: DepthModel | Non
             counts[i] += ev.size
             stats.events[i] += ev.size
         m = matcher.feed(pkt.left, pkt.right, until=pkt.until)
+        stats.lag.record(rig.packet_arrival_us, host_us())
         if m.size:
             recent.append(m["disparity"])
             stats.matches += m.size

@@ -209,3 +209,28 @@ def test_slave_board_started_before_the_master_clock_runs_still_counts_on_it(rng
     assert slave._due_events(time.monotonic() + 0.1, 1 << 20)
     assert master._due_events(time.monotonic() + 0.1, 1 << 20)
     assert slave.lead_us == master.lead_us  # one clock and one scene start, whatever the order
+
+
+def test_live_simulate_matches_every_event_and_prints_its_lag(tmp_path, rng, capsys):
+    # To the recording's end (no --seconds): every event is fed before `live` ends, none dropped, and the summary
+    # gives the lag percentiles over the packets it fed.
+    import json
+
+    from cvstereo.cli import main
+
+    left = camera(rng, 0.8, 4000)
+    right = left.copy()
+    right["x"] = np.clip(right["x"].astype(int) - 6, 0, 127)
+    src = tmp_path / "src.npz"
+    write_recording_npz(src, Recording(left, right))
+    assert main(["live", "--simulate", str(src), "-m", "frame"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    report = json.loads(err[-1])
+    summary, status = report["summary"], report["status"]
+    assert (summary["events_left"], summary["events_right"]) == (left.size, right.size)
+    assert status["late_events"] == 0 and status["late_events_by_camera"] == [0, 0]
+    lag = summary["lag_per_packet"]
+    assert lag["packets"] > 10 and 0 <= lag["p50_ms"] <= lag["p90_ms"] <= lag["p99_ms"] <= lag["max_ms"]
+    assert any(line.startswith(f"lag per packet (delivery -> matches out), all {lag['packets']} packets")
+               for line in err)
+    assert "0 late events dropped" in err[-3]
