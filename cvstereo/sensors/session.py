@@ -13,7 +13,8 @@ from typing import TYPE_CHECKING
 
 from cvstereo.sensors.protocol import DEFAULT_BAUD, FORMATS, ProtocolSettings
 
-__all__ = ["Stop", "add_rig_arguments", "open_rig", "positive_number", "protocol_settings", "stop_on_signals"]
+__all__ = ["Stop", "add_rig_arguments", "end_finished_streams", "open_rig", "positive_number", "protocol_settings",
+           "stop_on_signals"]
 
 if TYPE_CHECKING:  # the boards' modules load numba; the CLI imports them only when it runs
     from cvstereo.sensors.stereo import StereoEDVS
@@ -108,6 +109,16 @@ def open_rig(args: argparse.Namespace) -> Iterator[tuple[StereoEDVS, list[Virtua
                          auto_format=args.event_format == "auto", auto_sync=args.sync_bit == "auto")
         stack.enter_context(rig)
         yield rig, devices
+
+
+def end_finished_streams(rig: StereoEDVS, devices: list[VirtualEDVS]) -> None:
+    """Tell the rig which simulated cameras have played their recording to the end and had every event they
+    sent delivered (:meth:`StereoEDVS.end_stream`): the last events of the other camera then need not wait for
+    the bounded wait of a silent camera. Real boards (``devices`` empty) never end."""
+    for camera, device in enumerate(devices):
+        side = rig.sides[camera]
+        if not side.ended and device.done and side.events >= device.sent_events:
+            rig.end_stream(camera)
 
 
 class Stop(threading.Event):

@@ -8,15 +8,15 @@ Clock strategies (:class:`StereoSettings.clock`):
   estimated from arrival times (the smallest ``host arrival - device time`` per board bounds its clock
   offset plus transport delay) and reported; ``correct_offset`` subtracts it from the right camera.
 
-Merging (:meth:`StereoEDVS.packet`): a packet closes at the *watermark*, the time before which both readers
-have delivered every event. Each camera's events come in time order, so a camera holds the watermark at its
-latest delivered event's time: a reader that runs late (a loaded machine) delays the packets, and loses
-nothing. A camera that delivers nothing for :attr:`StereoSettings.silent_wait_us` of host time while the other
-delivers (or whose reader reports it silent) holds the other back no longer: the watermark may then pass its
-device time that long ago. Its events that arrive behind the watermark after all (a reader stalled for longer
-than the bound) are dropped and counted (:attr:`StereoEDVS.late_events`), never merged silently: a matcher
-cannot take an event older than one it has matched. The trade-off is the bound: longer, and a stalled reader
-loses less; shorter, and a silent camera delays the other's matches less (docs/guide/live.md).
+Merging (:meth:`StereoEDVS.packet`): a packet closes at the *watermark*, the time before which both readers have
+delivered every event. Each camera's events come in time order, so a camera holds the watermark at its latest
+delivered event's time: a reader that runs late (a loaded machine) delays the packets, and loses nothing. A
+camera that delivers nothing, and whose reader reads no byte, for :attr:`StereoSettings.silent_wait_us` of host
+time while the other delivers (or whose reader reports it silent) holds the other back no longer: the watermark
+may then pass its device time that long ago. Its events that arrive behind the watermark after all (a reader
+stalled for longer than the bound) are dropped and counted (:attr:`StereoEDVS.late_events`), never merged
+silently: a matcher cannot take an event older than one it has matched. The trade-off is the bound: longer, and
+a stalled reader loses less; shorter, and a silent camera delays the other's matches less (docs/guide/live.md).
 """
 
 from __future__ import annotations
@@ -87,6 +87,7 @@ class _Side:
         self.events = 0
         self.late_events = 0
         self.last_arrival: int | None = None
+        self.ended = False  # see StereoEDVS.end_stream
 
     def take(self, chunk: Chunk, shift: int = 0) -> None:
         ev = chunk.events
@@ -144,7 +145,7 @@ class StereoEDVS:
                      for n, p in zip(CAMERAS, (left_port, right_port), strict=True)]
         self.sides = [_Side(c) for c in self.cams]
         self.watermark: int | None = None
-        #: Packets closed past a camera that held nothing back because it was silent (the bounded wait).
+        #: Packets closed past a camera that held nothing back: silent (the bounded wait), or its stream ended.
         self.waited_out = 0
         #: Host time (us) at which the latest event of the last packet arrived (None: the packet is empty).
         self.packet_arrival_us: int | None = None
@@ -233,26 +234,35 @@ class StereoEDVS:
         docstring); None before both have delivered anything.
 
         A camera holds it at its latest delivered event's time (later events are not earlier). A camera that
-        delivered nothing for ``silent_wait_us`` holds it at its device time ``silent_wait_us`` before the
-        evidence instead (its clock offset known from its arrivals), where that is later. The evidence: a
-        delivery of the other camera that long after its last; or host time ``now_us`` that long after it
-        while this merger looked often (:meth:`packet` calls never ``silent_wait_us / 2`` apart: a process
-        that did not run, its readers neither, proves no silence); or its reader reporting it silent.
+        delivered nothing and whose reader read no byte for ``silent_wait_us`` holds it at its device time
+        ``silent_wait_us`` before the evidence instead (its clock offset known from its arrivals), where that
+        is later. The evidence: a delivery of the other camera that long after; or host time ``now_us`` that
+        long after while this merger looked often (:meth:`packet` calls never ``silent_wait_us / 2`` apart: a
+        process that did not run, its readers neither, proves no silence); or its reader reporting it silent.
+        A camera whose stream has ended (:meth:`end_stream`) holds nothing.
         """
-        if any(side.min_offset is None for side in self.sides):
+        if any(side.min_offset is None and not side.ended for side in self.sides):
             return None
         now = _host_now(now_us)
         wait = self.stereo.silent_wait_us
         watched = now if self._watched_since is None else self._watched_since
         bounds = []
         for side, other in ((self.sides[0], self.sides[1]), (self.sides[1], self.sides[0])):
+            if side.ended:
+                continue
+            # Bytes read but not delivered yet (held while the protocol is detected or a wrap is decided) show
+            # a camera that sends: silence counts from the later of its last delivery and its last byte.
+            heard = max(side.last_arrival, side.cam.last_byte_us or side.last_arrival)
             seen = None
-            if side.cam.silent or now - max(side.last_arrival, watched) > wait:
+            if side.cam.silent or now - max(heard, watched) > wait:
                 seen = now
-            elif other.last_arrival - side.last_arrival > wait:
+            elif other.last_arrival is not None and other.last_arrival - heard > wait:
                 seen = other.last_arrival
             bounds.append(side.last_t if seen is None else max(side.last_t, seen - wait - side.min_offset))
-        return min(bounds)
+        if bounds:
+            return min(bounds)
+        lasts = [side.last_t for side in self.sides if side.last_t is not None]
+        return max(lasts) + 1 if lasts else None
 
     def packet(self, timeout_s: float = 0.05, *, now_us: int | None = None) -> StereoPacket | None:
         """The next time slice of both cameras (possibly empty), or None before both have sent anything.
@@ -270,7 +280,7 @@ class StereoEDVS:
         if until is None:
             self._looked_us = _host_now(now_us)
             return None
-        if until > min(side.last_t for side in self.sides):
+        if until > min(side.last_t for side in self.sides if side.last_t is not None):
             self.waited_out += 1
         if self.watermark is not None:
             until = max(until, self.watermark)
@@ -280,6 +290,11 @@ class StereoEDVS:
         self.watermark = until
         self._looked_us = _host_now(now_us)
         return StereoPacket(parts[0][0], parts[1][0], until)
+
+    def end_stream(self, camera: int) -> None:
+        """Camera ``camera`` (0 left, 1 right) will send nothing more and every event it sent was delivered
+        (a simulated recording played to its end): it no longer holds the other back."""
+        self.sides[camera].ended = True
 
     @property
     def late_events(self) -> int:

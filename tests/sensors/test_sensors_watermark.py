@@ -223,3 +223,59 @@ def test_lag_meter_percentiles_over_every_packet():
     assert p == pytest.approx({"packets": 100, "p50_ms": 50.5, "p90_ms": 90.1, "p99_ms": 99.01, "max_ms": 100.0})
     assert meter.line().endswith("p50 50.5, p90 90.1, p99 99.0, max 100.0 ms")
     assert LagMeter().percentiles()["max_ms"] is None
+
+
+def test_a_camera_whose_reader_reads_bytes_is_not_silent_while_they_are_held():
+    # The right reader reads bytes all along but delivers nothing from host 205 to 354.5 ms (it holds them while
+    # it detects the protocol, say): its last byte's time shows the camera sends, so nothing is dropped.
+    left, right = camera(400, 40), camera(400, 30)
+    held = deliveries(right, 1, lambda k: 354_500 if 200 <= k < 349 else (k + 1) * 1_000 + D)
+    rig = unopened_rig()
+    script = sorted(deliveries(left, 0) + held, key=lambda d: (d[0], d[1]))
+    packets, i = [], 0
+    for now in range(1_000, 600_001, 1_000):
+        rig.cams[1].last_byte_us = now - 500 if now < 400_000 else rig.cams[1].last_byte_us
+        while i < len(script) and script[i][0] <= now:
+            rig.cams[script[i][1]].queue.put(Chunk(script[i][2], script[i][0]))
+            i += 1
+        if now >= 500_000:
+            for c in rig.cams:
+                c.silent = True
+        pkt = rig.packet(0, now_us=now)
+        if pkt is not None:
+            packets.append(pkt)
+    assert rig.late_events == 0
+    np.testing.assert_array_equal(np.concatenate([p.right for p in packets]), right)
+
+
+def test_an_ended_stream_holds_nothing():
+    left, right = camera(300, 40), camera(250, 30)
+    rig = unopened_rig()
+    script = sorted(deliveries(left, 0) + deliveries(right, 1), key=lambda d: (d[0], d[1]))
+    for arrival, cam, chunk in script:
+        rig.cams[cam].queue.put(Chunk(chunk, arrival))
+    pkt = rig.packet(0, now_us=306_000)
+    assert pkt.until == 249_750  # held at the right camera's last event
+    rig.end_stream(1)
+    pkt = rig.packet(0, now_us=306_000)
+    assert pkt.until == 299_750 and pkt.left["t"][-1] == 299_500  # now at the left camera's own last event
+    rig.end_stream(0)
+    pkt = rig.packet(0, now_us=306_000)
+    assert pkt.until == 299_751 and pkt.left["t"].tolist() == [299_750] and not rig.pending
+
+
+def test_simulated_streams_end_once_every_event_sent_was_delivered():
+    from types import SimpleNamespace
+
+    from cvstereo.sensors.session import end_finished_streams
+
+    rig = unopened_rig()
+    ev = camera(3, 40)
+    rig.cams[0].queue.put(Chunk(ev, 4_000))
+    rig.cams[1].queue.put(Chunk(ev[:5], 4_000))
+    rig.packet(0, now_us=4_000)
+    devices = [SimpleNamespace(done=True, sent_events=ev.size), SimpleNamespace(done=True, sent_events=ev.size)]
+    end_finished_streams(rig, devices)
+    assert [s.ended for s in rig.sides] == [True, False]  # the right camera's last events are still on their way
+    end_finished_streams(rig, [SimpleNamespace(done=False, sent_events=0)] * 2)
+    assert [s.ended for s in rig.sides] == [True, False]
