@@ -12,9 +12,9 @@ import json
 import sys
 
 from cvstereo.cli._common import add_matcher_options, matcher_overrides
-from cvstereo.sensors.session import add_rig_arguments, open_rig, stop_on_signals
+from cvstereo.sensors.session import add_rig_arguments, end_finished_streams, open_rig, stop_on_signals
 
-__all__ = ["add_parser", "run"]
+__all__ = ["WARM_UP_EVENTS", "WARM_UP_SPAN_US", "add_parser", "compile_before_streaming", "run"]
 
 
 def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
@@ -31,6 +31,30 @@ def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
     return p
 
 
+#: Synthetic events a copy of the matcher runs on before the boards stream, and their time span, us.
+WARM_UP_EVENTS = 2_000
+WARM_UP_SPAN_US = 100_000
+
+
+def compile_before_streaming(matcher) -> None:
+    """Run a copy of ``matcher`` on a few synthetic events (both cameras) before the boards stream, so that its
+    compiled kernels are built or loaded from numba's cache then: otherwise the first packets wait for that
+    and the readers' queues fill meanwhile. ``matcher`` itself is left untouched."""
+    import copy
+
+    import numpy as np
+
+    from cvstereo.model.events import make_events
+
+    rng = np.random.default_rng(0)
+    width, height = matcher.resolution
+    t = np.sort(rng.integers(0, WARM_UP_SPAN_US, WARM_UP_EVENTS))
+    ev = make_events(t, rng.integers(0, width, t.size), rng.integers(0, height, t.size), rng.integers(0, 2, t.size))
+    twin = copy.deepcopy(matcher)
+    twin.feed(ev, ev, until=WARM_UP_SPAN_US)
+    twin.flush()
+
+
 def run(args: argparse.Namespace) -> int:
     from cvstereo.cli._common import parse_depth_option
     from cvstereo.geometry.depth import DepthModel
@@ -43,6 +67,7 @@ def run(args: argparse.Namespace) -> int:
              DepthModel.from_rig(focal_px=args.focal_px, baseline_m=args.baseline_m, offset_px=args.offset_px))
     from cvstereo.sensors.detect import ProtocolMismatchError
 
+    compile_before_streaming(matcher)
     with stop_on_signals() as stop, open_rig(args) as (rig, devices):
         stop.raise_if_set()  # stopped while the boards were opened: nothing to show
         rig.start()
@@ -50,8 +75,8 @@ def run(args: argparse.Namespace) -> int:
         def done() -> bool:
             if any(isinstance(c.error, ProtocolMismatchError) for c in rig.cams):
                 return True  # the protocol settings were refused: stop and say why
-            # Done once the recording is sent, read and matched: events the rig still holds are fed first
-            # (the watermark passes them once both readers report silence).
+            end_finished_streams(rig, devices)
+            # Done once the recording is sent, read and matched: events the rig still holds are fed first.
             return (bool(devices) and all(d.done for d in devices) and all(c.silent for c in rig.cams)
                     and not rig.pending)
 
