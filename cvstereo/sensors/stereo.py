@@ -12,7 +12,7 @@ Merging (:meth:`StereoEDVS.packet`): a packet closes at the *watermark*, the tim
 delivered every event. Each camera's events come in time order, so a camera holds the watermark at its latest
 delivered event's time: a reader that runs late (a loaded machine) delays the packets, and loses nothing. A
 camera that delivers nothing, and whose reader reads no byte, for :attr:`StereoSettings.silent_wait_us` of host
-time while the other delivers (or whose reader reports it silent) holds the other back no longer: the watermark
+time while the merger watches (or whose reader reports it silent) holds the other back no longer: the watermark
 may then pass its device time that long ago. Its events that arrive behind the watermark after all (a reader
 stalled for longer than the bound) are dropped and counted (:attr:`StereoEDVS.late_events`), never merged
 silently: a matcher cannot take an event older than one it has matched. The trade-off is the bound: longer, and
@@ -51,10 +51,11 @@ class StereoSettings:
     correct_offset : bool
         ``align`` only: shift the right camera by the estimated residual offset.
     silent_wait_us : int
-        The bounded wait (see the module docstring): a camera that has delivered nothing for this long (host
-        time, us) while the other delivered, or whose reader reports it silent, no longer holds the other
-        back; the watermark may then pass its device time this long ago. A reader stalled for longer loses
-        the events it delivers behind the watermark (counted); a silent camera delays the other this long.
+        The bounded wait (see the module docstring): a camera that has delivered nothing, its reader read no
+        byte, for this long (host time, us, while the merger watched), or whose reader reports it silent, no
+        longer holds the other back; the watermark may then pass its device time this long ago. A reader
+        stalled for longer loses the events it delivers behind the watermark (counted); a silent camera delays
+        the other this long.
     silence_s : float
         A board silent this long is reported.
     """
@@ -235,11 +236,10 @@ class StereoEDVS:
 
         A camera holds it at its latest delivered event's time (later events are not earlier). A camera that
         delivered nothing and whose reader read no byte for ``silent_wait_us`` holds it at its device time
-        ``silent_wait_us`` before the evidence instead (its clock offset known from its arrivals), where that
-        is later. The evidence: a delivery of the other camera that long after; or host time ``now_us`` that
-        long after while this merger looked often (:meth:`packet` calls never ``silent_wait_us / 2`` apart: a
-        process that did not run, its readers neither, proves no silence); or its reader reporting it silent.
-        A camera whose stream has ended (:meth:`end_stream`) holds nothing.
+        ``silent_wait_us`` before now (``now_us``) instead, its clock offset known from its arrivals. Silence
+        counts only while this merger looked often (:meth:`packet` calls never ``silent_wait_us / 2`` apart: a
+        process that did not run, its readers neither, proves no silence), or once its reader reports it
+        silent. A camera whose stream has ended (:meth:`end_stream`) holds nothing.
         """
         if any(side.min_offset is None and not side.ended for side in self.sides):
             return None
@@ -247,18 +247,15 @@ class StereoEDVS:
         wait = self.stereo.silent_wait_us
         watched = now if self._watched_since is None else self._watched_since
         bounds = []
-        for side, other in ((self.sides[0], self.sides[1]), (self.sides[1], self.sides[0])):
+        for side in self.sides:
             if side.ended:
                 continue
             # Bytes read but not delivered yet (held while the protocol is detected or a wrap is decided) show
-            # a camera that sends: silence counts from the later of its last delivery and its last byte.
+            # a camera that sends: silence counts from the later of its last delivery and its last byte, and
+            # only over time this merger watched (a stalled process stalls the readers too).
             heard = max(side.last_arrival, side.cam.last_byte_us or side.last_arrival)
-            seen = None
-            if side.cam.silent or now - max(heard, watched) > wait:
-                seen = now
-            elif other.last_arrival is not None and other.last_arrival - heard > wait:
-                seen = other.last_arrival
-            bounds.append(side.last_t if seen is None else max(side.last_t, seen - wait - side.min_offset))
+            silent = side.cam.silent or now - max(heard, watched) > wait
+            bounds.append(max(side.last_t, now - wait - side.min_offset) if silent else side.last_t)
         if bounds:
             return min(bounds)
         lasts = [side.last_t for side in self.sides if side.last_t is not None]

@@ -44,12 +44,16 @@ def deliveries(events: np.ndarray, cam: int, arrival_of=lambda k: (k + 1) * 1_00
     return out
 
 
-def drive(rig: StereoEDVS, script, until_host_us: int, *, silent_after: int | None = None):
-    """Deliver ``script`` on time and ask for a packet every host millisecond; ``silent_after``: from that host
-    time on both readers report their cameras silent. Return the packets and their host times."""
+def drive(rig: StereoEDVS, script, until_host_us: int, *, silent_after: int | None = None, ticks=None,
+          each_tick=None):
+    """Deliver ``script`` on time and ask for a packet every host millisecond (or at ``ticks``); ``silent_after``:
+    from that host time on both readers report their cameras silent; ``each_tick(now)`` runs first at each tick.
+    Return the packets and their host times."""
     script = sorted(script, key=lambda d: (d[0], d[1]))
     packets, i = [], 0
-    for now in range(1_000, until_host_us + 1, 1_000):
+    for now in (range(1_000, until_host_us + 1, 1_000) if ticks is None else ticks):
+        if each_tick is not None:
+            each_tick(now)
         while i < len(script) and script[i][0] <= now:
             arrival, cam, chunk = script[i]
             rig.cams[cam].queue.put(Chunk(chunk, arrival))
@@ -122,22 +126,12 @@ def test_a_stall_of_the_whole_process_is_no_evidence_of_silence():
     # deliver their backlog. The consumer's own gap proves nothing: nothing is dropped.
     left, right = camera(400, 40), camera(400, 30)
     backlog = lambda k: 360_000 if 200 <= k < 354 else (k + 1) * 1_000 + D  # noqa: E731
-    script = sorted(deliveries(left, 0, backlog) + deliveries(right, 1, backlog), key=lambda d: (d[0], d[1]))
     rig = unopened_rig()
-    packets, i = [], 0
-    for now in [*range(1_000, 206_000, 1_000), 358_000, *range(361_000, 600_001, 1_000)]:
-        while i < len(script) and script[i][0] <= now:
-            rig.cams[script[i][1]].queue.put(Chunk(script[i][2], script[i][0]))
-            i += 1
-        if now >= 500_000:
-            for c in rig.cams:
-                c.silent = True
-        pkt = rig.packet(0, now_us=now)
-        if pkt is not None:
-            packets.append(pkt)
+    packets = drive(rig, deliveries(left, 0, backlog) + deliveries(right, 1, backlog), 0, silent_after=500_000,
+                    ticks=[*range(1_000, 206_000, 1_000), 358_000, *range(361_000, 600_001, 1_000)])
     assert rig.late_events == 0
-    np.testing.assert_array_equal(np.concatenate([p.left for p in packets]), left)
-    np.testing.assert_array_equal(np.concatenate([p.right for p in packets]), right)
+    np.testing.assert_array_equal(joined(packets, "left"), left)
+    np.testing.assert_array_equal(joined(packets, "right"), right)
 
 
 def test_when_both_go_quiet_the_held_events_come_out_after_the_bound():
@@ -231,21 +225,14 @@ def test_a_camera_whose_reader_reads_bytes_is_not_silent_while_they_are_held():
     left, right = camera(400, 40), camera(400, 30)
     held = deliveries(right, 1, lambda k: 354_500 if 200 <= k < 349 else (k + 1) * 1_000 + D)
     rig = unopened_rig()
-    script = sorted(deliveries(left, 0) + held, key=lambda d: (d[0], d[1]))
-    packets, i = [], 0
-    for now in range(1_000, 600_001, 1_000):
-        rig.cams[1].last_byte_us = now - 500 if now < 400_000 else rig.cams[1].last_byte_us
-        while i < len(script) and script[i][0] <= now:
-            rig.cams[script[i][1]].queue.put(Chunk(script[i][2], script[i][0]))
-            i += 1
-        if now >= 500_000:
-            for c in rig.cams:
-                c.silent = True
-        pkt = rig.packet(0, now_us=now)
-        if pkt is not None:
-            packets.append(pkt)
+
+    def reader_reads(now):
+        if now < 400_000:
+            rig.cams[1].last_byte_us = now - 500
+
+    packets = drive(rig, deliveries(left, 0) + held, 600_000, silent_after=500_000, each_tick=reader_reads)
     assert rig.late_events == 0
-    np.testing.assert_array_equal(np.concatenate([p.right for p in packets]), right)
+    np.testing.assert_array_equal(joined(packets, "right"), right)
 
 
 def test_an_ended_stream_holds_nothing():
