@@ -20,7 +20,7 @@ from cvstereo.model.fingerprint import EventFingerprint
 from cvstereo.model.matches import MatchResult, concat_matches
 from cvstereo.model.recording import Recording
 
-__all__ = ["DEFAULT_PACKET_US", "DIAGNOSTICS_WINDOW_US", "match", "run"]
+__all__ = ["DEFAULT_PACKET_US", "DIAGNOSTICS_WINDOW_US", "match", "run", "run_iter"]
 
 #: Windows of the diagnostics (:func:`cvstereo.evaluation.diagnostics.silence_warning`): 40 ms on the absolute
 # clock.
@@ -86,11 +86,13 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
 
     Parameters
     ----------
-    recording : Recording or path-like
-        A recording in memory, or a file that :func:`cvstereo.io.open_recording` can open: its packets are
-        read from the file as they are matched, so memory stays bounded whatever the file's size.
+    recording : Recording, RecordingStream or path-like
+        A recording in memory, a recording opened by :func:`cvstereo.io.open_recording` (with its format
+        options), or a file that it can open: the packets of a stream or a file are read as they are matched,
+        so memory stays bounded whatever the file's size (only the matches are kept). ``meta["input"]``:
+        the file(s) read, or a Recording's ``meta["source"]``.
     right : path-like, optional
-        The right camera's file, for formats with one file per camera.
+        The right camera's file, for formats with one file per camera (with a path only).
     method : str, keyword-only
         A registered method (:data:`cvstereo.matchers.registry.METHODS`): ``frame``, ``frame-area``, ``event-time``,
         ``event-area``, ``event-vector``, ``stereobm``, ``sgbm``, ...
@@ -140,10 +142,14 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
     >>> result.meta["method"], result.meta["input_events"]
     ('frame-area', 6)
     """
+    from cvstereo.io.stream import RecordingStream
+
     recording = _as_source(recording, right, method, columns=columns, time_unit=time_unit, resolution=resolution)
     if isinstance(recording, Recording):
         stream, source = recording, recording.meta.get("source", "memory")
         total = recording.left.size + recording.right.size
+    elif isinstance(recording, RecordingStream):
+        stream, source, total = recording, list(recording.files), None
     else:
         from cvstereo.io import open_recording
 
@@ -223,20 +229,12 @@ def run(matcher: StreamMatcher, packets: Iterable[StereoPacket], *,
         ``fingerprint`` and ``diagnostics``; arrays: ``uncertainty`` when the matcher rates its matches.
     """
     counted = _Counted(iter(packets))
-    fed = counted if through is None else through(counted)
     parts = []
     start = time.perf_counter()
-    for packet in fed:
-        found = matcher.feed(packet.left, packet.right, until=packet.until)
-        found = found if restore is None else restore(found)
+    for packet, found in run_iter(matcher, counted, through=through, restore=restore):
         parts.append(found)
         if on_packet is not None:
             on_packet(packet, found)
-    tail = matcher.flush()
-    tail = tail if restore is None else restore(tail)
-    parts.append(tail)
-    if on_packet is not None:
-        on_packet(None, tail)
     elapsed = time.perf_counter() - start - counted.fingerprint_s
     meta = matcher.describe()
     meta.update(elapsed_s=elapsed, input_events=int(counted.events), duration_s=counted.duration_s,
@@ -254,6 +252,26 @@ def run(matcher: StreamMatcher, packets: Iterable[StereoPacket], *,
             meta["uncertainty"] = "not stored: a stage between matcher and output changed the matches"
     meta["diagnostics"] = _diagnostics(matcher, counted.windows, matches, meta)
     return MatchResult(matches, meta, arrays)
+
+
+def run_iter(matcher: StreamMatcher, packets: Iterable[StereoPacket], *,
+             through: Callable[[Iterator[StereoPacket]], Iterator[StereoPacket]] | None = None,
+             restore: Callable[[np.ndarray], np.ndarray] | None = None
+             ) -> Iterator[tuple[StereoPacket | None, np.ndarray]]:
+    """The feed loop itself, as a generator: ``(packet, matches)`` per packet, then ``(None, tail)`` after the flush.
+
+    :func:`run` gathers what it yields into one result; a live run (:func:`cvstereo.sensors.live.run_live`)
+    reads it as it comes and keeps none of it, so that its memory does not grow with the session. The
+    matches of a packet are restored (``restore``) before they are yielded; ``through`` and ``restore`` are as
+    for :func:`run`. The matcher is flushed once the packets end (a live run's end when it is stopped), not
+    when the generator is closed early.
+    """
+    fed = iter(packets) if through is None else through(iter(packets))
+    for packet in fed:
+        found = matcher.feed(packet.left, packet.right, until=packet.until)
+        yield packet, found if restore is None else restore(found)
+    tail = matcher.flush()
+    yield None, tail if restore is None else restore(tail)
 
 
 def _time_order(t: np.ndarray) -> np.ndarray | None:
@@ -279,12 +297,13 @@ def _diagnostics(matcher, event_windows: set[int], matches, meta: dict) -> dict:
 
 
 def _as_source(recording, right, method: str, *, columns, time_unit, resolution):
-    """A Recording or a path for :func:`match`, after catching the easy mistakes with the arguments.
+    """A Recording, a RecordingStream or a path for :func:`match`, after catching the easy mistakes with the arguments.
 
     An argument that would be ignored is refused rather than dropped: ``columns`` and ``time_unit`` apply to
     arrays only, and ``resolution`` to arrays (a Recording and a file carry their own; given with a Recording
     it must agree with it).
     """
+    from cvstereo.io.stream import RecordingStream
     from cvstereo.model.arrays import events_from, is_event_data
     from cvstereo.model.events import DEFAULT_RESOLUTION, check_resolution
 
@@ -292,6 +311,11 @@ def _as_source(recording, right, method: str, *, columns, time_unit, resolution)
         raise TypeError(f"match(recording, {right!r}): the method is keyword-only; write "
                         f"match(recording, method={right!r}) (the second argument is the right camera).")
     res = None if resolution is None else check_resolution(resolution, source="match(resolution=...)")
+    if isinstance(recording, RecordingStream):
+        if right is not None or columns is not None or time_unit is not None or resolution is not None:
+            raise TypeError("match(stream, right/columns/time_unit/resolution): an opened recording has its cameras "
+                            "and format already; give these to open_recording instead.")
+        return recording
     if isinstance(recording, Recording):
         if right is not None:
             raise TypeError("match(recording, right): a Recording holds both cameras already; give right only "

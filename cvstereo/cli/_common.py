@@ -190,6 +190,28 @@ def load_recording(args: argparse.Namespace):
         return read_recording(args.recording, args.right, **format_options(args))
 
 
+def open_recording_stream(args: argparse.Namespace):
+    """Open the recording that :func:`add_recording_arguments` took for streaming, with its format options.
+
+    Errors name the file, those found while its packets are read (in the middle of a match) as well as those
+    found when it is opened; its plan (:func:`recording_plan`) has checked the files.
+    """
+    import dataclasses
+
+    from cvstereo.io import open_recording
+
+    settle_recording_inputs(args)
+    names = (args.recording, args.right)
+    with naming(*names):
+        stream = open_recording(args.recording, args.right, **format_options(args))
+
+    def open_chunks(camera: str):
+        with naming(*names):
+            yield from stream.open_chunks(camera)
+
+    return dataclasses.replace(stream, open_chunks=open_chunks)
+
+
 def load_matches(path: str | os.PathLike):
     """Read a matches file named on the command line (errors name the file)."""
     from cvstereo.io import read_matches

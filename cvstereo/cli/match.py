@@ -1,13 +1,16 @@
 """``cvstereo match RECORDING [RIGHT] --method M [--variant V] [--param key=value ...] -o MATCHES.npz``.
 
-Runs one matcher over a recording (through :func:`cvstereo.run.match`, so the file holds exactly what
-``match()`` returns) and writes the matches file of docs/formats.md. ``--list-methods`` prints every registered
-method with its variants and parameters. ``--param-set thesis|adaptive`` picks the parameter set
-(:mod:`cvstereo.matchers.sets`). A run that answers in less than 1 % of the 40 ms windows with events says why on
-one ``warning:`` line on stderr (and still exits 0). Where the geometry comes from (calibration, options, the
-recording's rig, the rig check: :mod:`cvstereo.geometry.source`) is said on one ``geometry:`` line and stored in the
-file; the matches file and a ``--point-cloud`` appear together, once both are written (an output plan:
-:mod:`cvstereo.io.output_plan`).
+Runs one matcher over a recording, streamed from its file packet by packet (memory holds the matches, not the
+events), and writes the matches file of docs/formats.md. The command wires library steps together
+(:mod:`cvstereo.geometry.steps`): the geometry resolved, the match (:func:`cvstereo.run.match`, so the file
+holds what ``match()`` returns), the geometry and the depth of every match recorded, the point cloud.
+``--auto``'s rig check looks at the whole recording, which it reads into memory before the match reads the file
+again. ``--list-methods`` prints every registered method with its variants and parameters. ``--param-set
+thesis|adaptive`` picks the parameter set (:mod:`cvstereo.matchers.sets`). A run that answers in less than 1 %
+of the 40 ms windows with events says why on one ``warning:`` line on stderr (and still exits 0). Where the
+geometry comes from (calibration, options, the recording's rig, the rig check: :mod:`cvstereo.geometry.source`)
+is said on one ``geometry:`` line and stored in the file; the matches file and a ``--point-cloud`` appear
+together, once both are written (an output plan: :mod:`cvstereo.io.output_plan`).
 """
 
 from __future__ import annotations
@@ -26,8 +29,8 @@ from cvstereo.cli._common import (
     add_recording_arguments,
     conflicts_as_usage_errors,
     format_options,
-    load_recording,
     matcher_overrides,
+    open_recording_stream,
     parse_depth_option,
     progress_wanted,
     recording_plan,
@@ -63,7 +66,8 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
     g = p.add_argument_group("rig correction (cvstereo rigcheck)")
     g.add_argument("--auto", action="store_true",
                    help="run the rig check first; swap the cameras and remove row/time offsets it finds (printed, "
-                   "and stored in the matches file's meta under 'rigcheck')")
+                   "and stored in the matches file's meta under 'rigcheck'). The check looks at the whole "
+                   "recording: it is read into memory for it, then read again for the match")
     g.add_argument("--row-offset", type=int, default=None, metavar="ROWS",
                    help="add ROWS to the right camera's y before matching (overrides --auto's estimate)")
     g.add_argument("--time-offset-us", type=int, default=None, metavar="US",
@@ -94,6 +98,7 @@ def run(args: argparse.Namespace) -> int:
     if args.time_offset_us is not None and abs(args.time_offset_us) > MAX_TIME_OFFSET_US:
         raise ValueError(f"--time-offset-us must be within +-{MAX_TIME_OFFSET_US:,} us (a day), got "
                          f"{args.time_offset_us:,}.")
+    from cvstereo.geometry.steps import point_cloud_of, record_geometry
     from cvstereo.io import write_matches
     from cvstereo.io.output_plan import MATCHES_FILE, POINT_CLOUD
     from cvstereo.run import DEFAULT_PACKET_US, match
@@ -105,20 +110,21 @@ def run(args: argparse.Namespace) -> int:
     said = []  # lines about outputs, printed once they are published
     with plan:  # every file checked before any work; the outputs published together at the end
         options = _geometry_options(args)
-        recording = load_recording(args)
-        height = recording.resolution[1]
+        stream = open_recording_stream(args)  # streamed: read again for the match after an --auto check
+        height = stream.resolution[1]
         if args.row_offset is not None and abs(args.row_offset) >= height:
             raise ValueError(f"--row-offset must be within +-{height - 1} rows (the sensor is {height} rows high), "
                              f"got {args.row_offset}.")
-        geometry = options.resolve(recording.meta, recording.resolution, recording=recording)
+        geometry = options.resolve(stream.meta, stream.resolution, recording=stream.read)
         if args.point_cloud is not None and geometry.depth is None:
             raise ValueError("--point-cloud needs a depth model: give --depth A C (or MODEL.json) or --calibration.")
-        result = match(geometry.prepare(recording), method=args.method, variant=args.variant,
-                       progress=progress_wanted(args), packet_us=args.packet_us or DEFAULT_PACKET_US,
-                       param_set=args.param_set, **geometry.match_kwargs(), **overrides)
-        _record_geometry(args, result, geometry)
+        result = record_geometry(match(geometry.prepare(stream), method=args.method, variant=args.variant,
+                                       progress=progress_wanted(args), packet_us=args.packet_us or DEFAULT_PACKET_US,
+                                       param_set=args.param_set, **geometry.match_kwargs(), **overrides), geometry)
+        result.meta["format_options"] = {k: list(v) if isinstance(v, tuple) else v
+                                         for k, v in format_options(args).items()}
         if args.point_cloud is not None:
-            said.append(_write_point_cloud(args, result, geometry))
+            said.append(_write_point_cloud(args, result, point_cloud_of(result, geometry), geometry))
         write_matches(args.output, result.matches, result.meta, arrays=result.arrays)
     m = result.meta
     print(geometry.summary(), *said, sep="\n")
@@ -167,31 +173,11 @@ def _rig_check(recording):
     return report
 
 
-def _record_geometry(args: argparse.Namespace, result, geometry) -> None:
-    """Store in the matches' meta what they were computed on and with: the inputs, the geometry and where it came
-    from, the depth of every match (docs/formats.md: the match dtype is a contract, distances go beside it)."""
-    from cvstereo.model.fingerprint import swap_cameras
+def _write_point_cloud(args: argparse.Namespace, result, points, geometry) -> str:
+    """Write ``points``, the point cloud of ``result``, to ``--point-cloud`` (into the plan); return the line that
+    says so."""
+    from cvstereo.geometry.pointcloud import write_ply
 
-    meta = result.meta
-    meta["geometry"] = geometry.describe()
-    if geometry.rigcheck is not None:
-        meta["rigcheck"] = geometry.rigcheck
-    if geometry.swap:  # the fingerprint is of the files as read, not of the cameras as exchanged
-        meta["fingerprint"] = swap_cameras(meta["fingerprint"])
-    meta["input"] = [args.recording] + ([args.right] if args.right else [])
-    meta["format_options"] = {k: list(v) if isinstance(v, tuple) else v for k, v in format_options(args).items()}
-    if geometry.depth is not None:
-        from cvstereo.geometry.pointcloud import depth_per_match
-
-        meta["depth"] = geometry.depth.to_dict()
-        result.arrays["depth_m"] = depth_per_match(result.matches, geometry.depth)
-
-
-def _write_point_cloud(args: argparse.Namespace, result, geometry) -> str:
-    """Write ``--point-cloud`` (into the plan); return the line that says so."""
-    from cvstereo.geometry.pointcloud import point_cloud, write_ply
-
-    points = point_cloud(result.matches, geometry.depth, geometry.intrinsics)
     write_ply(args.point_cloud, points, model=geometry.depth, intrinsics=geometry.intrinsics,
               comments=(f"input {' '.join(result.meta['input'])}", f"method {args.method} ({result.meta['variant']})"))
     return f"{points.size} points -> {args.point_cloud} (intrinsics from {geometry.intrinsics.source})"

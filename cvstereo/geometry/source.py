@@ -81,8 +81,9 @@ class Geometry:
     labels: dict = field(default_factory=dict)
     rigcheck: dict | None = None
 
-    def prepare(self, recording: Recording) -> Recording:
-        """The recording as the matcher gets it: its cameras exchanged when :attr:`swap`."""
+    def prepare(self, recording):
+        """The recording (a :class:`~cvstereo.model.recording.Recording` or a stream opened by
+        :func:`cvstereo.io.open_recording`) as the matcher gets it: its cameras exchanged when :attr:`swap`."""
         return recording.swapped() if self.swap else recording
 
     def match_kwargs(self) -> dict:
@@ -194,10 +195,12 @@ class GeometryOptions:
             Intrinsics.from_options((2, 2), focal_px=self.focal_px)  # the one check of --focal-px
 
     def resolve(self, recording_meta: Mapping, resolution: tuple[int, int], *,
-                recording: Recording | None = None) -> Geometry:
+                recording: Recording | Callable[[], Recording] | None = None) -> Geometry:
         """The geometry by the precedence rule, for a recording with ``recording_meta`` and ``resolution``.
 
-        ``recording`` (the events) is needed only for a rig check.
+        ``recording`` (the events) is needed only for a rig check, which looks at all of them: a Recording, or a
+        function that reads it (``stream.read`` of an opened recording), called only when the check runs, so
+        that a recording matched as a stream is read whole only for the check.
         """
         sources, labels, values = {}, {}, {}
         rigcheck = None
@@ -214,7 +217,7 @@ class GeometryOptions:
         if self.rig_check is not None:
             if recording is None:
                 raise ValueError("a rig check needs the recording's events: pass recording=.")
-            rigcheck, found = self._check_rig(recording)
+            rigcheck, found = self._check_rig(recording if isinstance(recording, Recording) else recording())
             labels["rigcheck"] = "the rig check"
             for aspect, key in (("side", "swap"), ("rows", "row_offset"), ("time", "time_offset_us")):
                 if aspect not in sources:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -99,6 +99,21 @@ class RecordingStream:
         self._require_stereo()
         (left, ld), (right, rd) = (self.read_camera(cam) for cam in CAMERAS)
         return Recording(left, right, ld, rd, self.resolution, dict(self.meta))
+
+    def swapped(self) -> RecordingStream:
+        """The same stream with the cameras exchanged, as :meth:`Recording.swapped
+        <cvstereo.model.recording.Recording.swapped>` (truth negated, so that it stays x_left - x_right).
+
+        ``files`` stay as given: they name what is read, and the swap is recorded by whoever asked for it.
+        """
+        self._require_stereo()
+        other = {"left": "right", "right": "left"}
+
+        def open_chunks(camera: str) -> Iterator[Chunk]:
+            for events, truth in self.open_chunks(other[camera]):
+                yield events, None if truth is None else -truth
+
+        return replace(self, open_chunks=open_chunks, meta=dict(self.meta))
 
     def _require_stereo(self) -> None:
         if not self.is_stereo:

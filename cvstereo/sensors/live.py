@@ -5,20 +5,24 @@ from __future__ import annotations
 import sys
 import threading
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from cvstereo.geometry.depth import DepthModel
 from cvstereo.matchers.protocol import StreamMatcher
+from cvstereo.model.events import StereoPacket
 from cvstereo.sensors.edvs import host_us
 from cvstereo.sensors.lag import LagMeter
 from cvstereo.sensors.stereo import StereoEDVS
 
-__all__ = ["UPDATE_S", "LiveStats", "run_live"]
+__all__ = ["PACKET_WAIT_S", "UPDATE_S", "LiveStats", "run_live"]
 
 #: Seconds between status lines (10 Hz).
 UPDATE_S = 0.1
+#: Longest wait for the rig's next packet, s: the stop conditions are checked at least this often.
+PACKET_WAIT_S = 0.02
 
 
 @dataclass
@@ -52,27 +56,29 @@ def run_live(rig: StereoEDVS, matcher: StreamMatcher, *, depth: DepthModel | Non
              update_s: float = UPDATE_S, done=None) -> LiveStats:
     """Feed the rig's packets to ``matcher`` and print one status line per ``update_s``.
 
-    A line shows the median disparity of the matches since the last line, the distance it means
-    (``depth``), events per second of each sensor, and the lag: how far the newest matched event lies
-    behind real time (host now minus its arrival-time mapped device time). The latency recorded per line is
-    from the arrival of the newest event that produced a match to the line being printed.
+    The packets go through the library's one feed loop (:func:`cvstereo.run.run_iter`), read as they come and
+    not kept, so that memory does not grow with the session. A line shows the median disparity of the matches
+    since the last line, the distance it means (``depth``), events per second of each sensor, and the lag:
+    how far the newest matched event lies behind real time (host now minus its arrival-time mapped device
+    time). The latency recorded per line is from the arrival of the newest event that produced a match to the
+    line being printed. The run ends at ``stop``, after ``seconds`` or when ``done()`` says so; the matcher is
+    then flushed and its last matches counted.
     """
+    from cvstereo.run import run_iter
+
     stats = LiveStats()
-    t_end = None if seconds is None else time.monotonic() + seconds
     recent: list[np.ndarray] = []
     counts = [0, 0]
     last_line = time.monotonic()
     newest_arrival: int | None = None
-    while not (stop is not None and stop.is_set()) and (t_end is None or time.monotonic() < t_end):
-        if done is not None and done():
+    for pkt, m in run_iter(matcher, _rig_packets(rig, seconds, stop, done)):
+        if pkt is None:  # the flush, once the packets ended
+            stats.matches += m.size
             break
-        pkt = rig.packet(0.02)
-        if pkt is None:
-            continue
         for i, ev in enumerate((pkt.left, pkt.right)):
             counts[i] += ev.size
             stats.events[i] += ev.size
-        m = matcher.feed(pkt.left, pkt.right, until=pkt.until)
+        # run_iter yields right after feeding this packet, before the next is taken from the rig.
         stats.lag.record(rig.packet_arrival_us, host_us())
         if m.size:
             recent.append(m["disparity"])
@@ -99,6 +105,17 @@ def run_live(rig: StereoEDVS, matcher: StreamMatcher, *, depth: DepthModel | Non
             if d.size and newest_arrival is not None:
                 stats.latencies_ms.append((host_us() - newest_arrival) / 1e3)
             stats.updates += 1
-    tail = matcher.flush()
-    stats.matches += tail.size
     return stats
+
+
+def _rig_packets(rig: StereoEDVS, seconds: float | None, stop: threading.Event | None, done
+                 ) -> Iterator[StereoPacket]:
+    """The rig's packets as they complete, until ``stop`` is set, ``seconds`` have passed or ``done()``; the
+    conditions are checked before every wait for a packet (a wait lasts at most :data:`PACKET_WAIT_S`)."""
+    t_end = None if seconds is None else time.monotonic() + seconds
+    while not (stop is not None and stop.is_set()) and (t_end is None or time.monotonic() < t_end):
+        if done is not None and done():
+            return
+        pkt = rig.packet(PACKET_WAIT_S)
+        if pkt is not None:
+            yield pkt

@@ -104,3 +104,66 @@ def test_matches_of_exchanged_cameras_get_the_recording_exchanged():
     assert as_matched(rec, {"geometry": {"side": {"swap": True}}}).left.size == 1
     assert as_matched(rec, {"geometry": {"side": {"swap": False}}}) is rec
     assert as_matched(rec, {}) is rec
+
+
+def test_the_recording_is_read_for_the_rig_check_only():
+    # A recording matched as a stream is read whole only when the rig check runs: resolve() takes a function
+    # that reads it and calls it then, once.
+    reads = []
+
+    def read():
+        reads.append(1)
+        return _recording()
+
+    GeometryOptions(row_offset=1).resolve({}, RES, recording=read)
+    assert reads == []
+    g = GeometryOptions(rig_check=lambda r: _Report()).resolve({}, RES, recording=read)
+    assert reads == [1] and (g.swap, g.row_offset, g.time_offset_us) == (True, -2, 300)
+
+
+def test_a_swapped_stream_is_the_swapped_recording(tmp_path):
+    from cvstereo.io import open_recording, write_recording
+
+    left = make_events([0, 10, 20], [5, 6, 7], [1, 1, 2], [1, 0, 1])
+    right = make_events([5, 15], [3, 4], [1, 1], [1, 1])
+    rec = Recording(left, right, np.array([2.0, 2.0, 3.0], np.float32), np.array([2.0, 2.5], np.float32))
+    write_recording(tmp_path / "r.npz", rec)
+    stream = open_recording(tmp_path / "r.npz")
+    got, expected = stream.swapped().read(), rec.swapped()
+    for a, b in ((got.left, expected.left), (got.right, expected.right),
+                 (got.left_disparity, [-2.0, -2.5]), (got.right_disparity, [-2.0, -2.0, -3.0])):
+        np.testing.assert_array_equal(a, b)
+    assert stream.swapped().files == stream.files  # what was read, whatever the order it is matched in
+
+
+def test_the_steps_record_the_geometry_the_depth_and_the_point_cloud():
+    from cvstereo.geometry.steps import point_cloud_of, record_geometry
+    from cvstereo.model.matches import MatchResult, make_matches
+
+    def result():
+        matches = make_matches([1000, 2000, 3000], [70, 80, 90], [64, 64, 10], [1, 1, 1], [0, 1, 0],
+                               [5.5, 3.0, -3.0])
+        return MatchResult(matches, {"fingerprint": {"left": "L", "right": "R"}})
+
+    g = GeometryOptions(point_cloud=True, rig_check=lambda r: _Report()).resolve(RIG, RES, recording=_recording())
+    r = record_geometry(result(), g)
+    # d = 16.5/Z - 3 (the recording's rig): Z = 16.5 / (d + 3); d = -3 is at infinity.
+    np.testing.assert_allclose(r.arrays["depth_m"], [16.5 / 8.5, 16.5 / 6.0, np.inf], rtol=1e-6)
+    assert (r.meta["depth"]["a"], r.meta["depth"]["c"]) == (16.5, 3.0)
+    assert r.meta["geometry"]["side"] == {"source": "rigcheck", "swap": True}
+    assert r.meta["rigcheck"]["applied"]["swap"] is True
+    assert r.meta["fingerprint"] == {"left": "R", "right": "L"}  # the files as read, not as exchanged
+    points = point_cloud_of(r, g)
+    # Two finite points; the right-anchored one sits at its left column 80 + 3; f 165, principal point (62, 63).
+    np.testing.assert_allclose(points["z"], [16.5 / 8.5, 16.5 / 6.0], rtol=1e-6)
+    np.testing.assert_allclose(points["x"], [(70 - 62) * 16.5 / 8.5 / 165, (83 - 62) * 16.5 / 6.0 / 165],
+                               rtol=1e-5)
+    np.testing.assert_allclose(points["y"], [(64 - 63) * 16.5 / 8.5 / 165, (64 - 63) * 16.5 / 6.0 / 165],
+                               rtol=1e-5)
+    with pytest.raises(ValueError, match="needs a depth model"):
+        point_cloud_of(result(), GeometryOptions(point_cloud=True).resolve({}, RES))
+    with pytest.raises(ValueError, match="needs the intrinsics"):
+        point_cloud_of(result(), GeometryOptions().resolve(RIG, RES))
+    plain = record_geometry(result(), GeometryOptions(metres=False).resolve(RIG, RES))
+    assert "depth_m" not in plain.arrays and "depth" not in plain.meta and "rigcheck" not in plain.meta
+    assert plain.meta["fingerprint"] == {"left": "L", "right": "R"}

@@ -1,5 +1,6 @@
-"""match() takes what users have: a Recording, a path, or the two cameras' events as arrays of any common
-shape; and it refuses the easy mistakes with its positional arguments instead of running something else."""
+"""match() takes what users have: a Recording, a path, a recording opened for streaming, or the two cameras'
+events as arrays of any common shape; and it refuses the easy mistakes with its positional arguments instead
+of running something else."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import numpy as np
 import pytest
 
 from cvstereo.errors import EventFormatError
-from cvstereo.io import write_recording
+from cvstereo.io import open_recording, write_recording
 from cvstereo.model.arrays import events_from
 from cvstereo.model.events import make_events
 from cvstereo.model.recording import Recording
@@ -34,6 +35,22 @@ def test_arrays_give_the_same_matches_as_the_recording(pair, tmp_path):
     np.testing.assert_array_equal(got.matches, ref.matches)
     write_recording(tmp_path / "r.npz", Recording(left, right))
     np.testing.assert_array_equal(match(tmp_path / "r.npz", method="frame-area", threshold=0.5).matches, ref.matches)
+
+
+def test_an_opened_recording_streams_with_its_format_options(pair, tmp_path):
+    # A merged text file whose left camera is retina 1 needs a format option: open_recording takes it, and
+    # match() streams the opened recording, recording the file it read as its input.
+    left, right = pair
+    ref = match(Recording(left, right), method="frame-area", threshold=0.5)
+    write_recording(tmp_path / "r.txt", Recording(left, right), format="edvs-merged", left_retina=1)
+    stream = open_recording(tmp_path / "r.txt", format="edvs-merged", left_retina=1)
+    got = match(stream, method="frame-area", threshold=0.5)
+    np.testing.assert_array_equal(got.matches, ref.matches)
+    assert got.meta["input"] == [str(tmp_path / "r.txt")] and got.meta["fingerprint"] == ref.meta["fingerprint"]
+    # The exchanged cameras of a stream are those of the recording exchanged.
+    swapped = match(stream.swapped(), method="frame-area", threshold=0.5)
+    np.testing.assert_array_equal(swapped.matches, match(Recording(left, right).swapped(), method="frame-area",
+                                                          threshold=0.5).matches)
 
 
 def test_tonic_order_dv_names_and_plain_columns(pair):
@@ -96,13 +113,17 @@ def test_real_event_store_when_dv_processing_is_installed(pair):
     ("left-only", {}, "give the right camera's events too"),
     ("path-events", {}, "both cameras as files, or both as event arrays"),
     ("path", {"columns": "txyp"}, "for events given as arrays"),
+    ("stream-right", {}, "an opened recording has its cameras and format already"),
+    ("stream", {"resolution": (128, 128)}, "an opened recording has its cameras and format already"),
 ])
 def test_argument_mistakes_raise_type_error(pair, tmp_path, args, kwargs, message):
     left, right = pair
     rec = Recording(left, right)
     write_recording(tmp_path / "r.npz", rec)
     positional = {"rec-method": (rec, "event-area"), "rec-right": (rec, tmp_path / "r.npz"), "left-only": (left,),
-                  "path-events": (tmp_path / "r.npz", right), "path": (tmp_path / "r.npz",)}[args]
+                  "path-events": (tmp_path / "r.npz", right), "path": (tmp_path / "r.npz",),
+                  "stream-right": (open_recording(tmp_path / "r.npz"), tmp_path / "r.npz"),
+                  "stream": (open_recording(tmp_path / "r.npz"),)}[args]
     with pytest.raises(TypeError, match=message):
         match(*positional, method="frame-area", threshold=0.5, **kwargs)
 

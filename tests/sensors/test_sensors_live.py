@@ -250,3 +250,73 @@ def test_compiling_before_streaming_leaves_the_matcher_as_new(rng):
     got += [m.flush() for m in (warmed, fresh)]
     np.testing.assert_array_equal(np.concatenate(got[0::2]), np.concatenate(got[1::2]))
     assert sum(g.size for g in got) > 0
+
+
+class _ScriptedRig:
+    """A rig double: hands out given packets (None: a wait that timed out), then nothing."""
+
+    class _Side:
+        last_arrival, min_offset = None, None
+
+    packet_arrival_us = None
+
+    def __init__(self, packets):
+        self._packets = list(packets)
+        self.sides = (self._Side(), self._Side())
+
+    def packet(self, timeout_s):
+        return self._packets.pop(0) if self._packets else None
+
+    def done(self):
+        return not self._packets
+
+
+class _CountingMeanX(_MeanX):
+    """_MeanX counting its feed and flush calls and the matches it returned."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.feeds, self.flushes, self.returned = 0, 0, 0
+
+    def feed(self, left, right, *, until=None):
+        self.feeds += 1
+        found = super().feed(left, right, until=until)
+        self.returned += found.size
+        return found
+
+    def flush(self):
+        self.flushes += 1
+        found = super().flush()
+        self.returned += found.size
+        return found
+
+
+def test_live_feeds_through_the_library_feed_loop(monkeypatch):
+    # Three packets with events on both sides (one match each by _MeanX's rule), one timed-out wait and one
+    # packet with only left events (no match): run_live must hand every packet to cvstereo.run.run_iter, which
+    # feeds each once and flushes once, and count what it yields.
+    import cvstereo.run
+    from cvstereo.model.events import StereoPacket
+
+    def packet(t0, n_right):
+        left = make_events(np.arange(t0, t0 + 4), [10, 20, 30, 40], [1, 1, 1, 1], [1, 1, 1, 1])
+        right = make_events(np.arange(t0, t0 + n_right), [5, 15, 25, 35][:n_right], [1] * n_right, [1] * n_right)
+        return StereoPacket(left, right, t0 + 1000)
+
+    packets = [packet(0, 4), None, packet(1000, 0), packet(2000, 4), packet(3000, 4)]
+    calls = []
+    original = cvstereo.run.run_iter
+
+    def spy(matcher, source, **kwargs):
+        calls.append(matcher)
+        yield from original(matcher, source, **kwargs)
+
+    monkeypatch.setattr(cvstereo.run, "run_iter", spy)
+    matcher = _CountingMeanX()
+    rig = _ScriptedRig(packets)
+    stats = run_live(rig, matcher, done=rig.done, out=io.StringIO(), update_s=0.0)
+    assert calls == [matcher]
+    assert (matcher.feeds, matcher.flushes) == (4, 1)
+    assert stats.matches == matcher.returned == 3  # disparity 5 px each: 25 - 20
+    assert stats.events == [16, 12]
+    assert stats.updates == 4  # a line after every packet fed (update_s=0)
