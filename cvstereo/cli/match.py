@@ -33,7 +33,9 @@ from cvstereo.cli._common import (
     recording_plan,
     require_range,
 )
+from cvstereo.cli._rerun import add_rerun_option, rerun_target
 from cvstereo.cli._text import number, plain_text
+from cvstereo.cli.plot import add_cmap_option
 from cvstereo.evaluation.diagnostics import silence_warning
 from cvstereo.matchers.sets import ADAPTIVE
 
@@ -77,6 +79,8 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
     g.add_argument("--focal-px", type=float, default=None, metavar="F",
                    help="point cloud without a calibration: focal length in px (default: the recording's rig, where "
                    "it has one, else the thesis rig's 165)")
+    add_rerun_option(p)
+    add_cmap_option(p)
     p.set_defaults(_parser=p)
     return p
 
@@ -95,13 +99,19 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--time-offset-us must be within +-{MAX_TIME_OFFSET_US:,} us (a day), got "
                          f"{args.time_offset_us:,}.")
     from cvstereo.io import write_matches
-    from cvstereo.io.output_plan import MATCHES_FILE, POINT_CLOUD
+    from cvstereo.io.output_plan import MATCHES_FILE, POINT_CLOUD, RERUN_FILE
     from cvstereo.run import DEFAULT_PACKET_US, match
 
     plan = recording_plan(args)
     plan.read(args.calibration, what="calibration file")
     plan.write(args.output, MATCHES_FILE)
     plan.write(args.point_cloud, POINT_CLOUD, option="--point-cloud")
+    rerun = rerun_target(args)
+    if rerun.wanted:
+        from cvstereo.viz.colormaps import check_cmap
+
+        check_cmap(args.cmap)
+    plan.write(rerun.path, RERUN_FILE, option="--rerun")
     said = []  # lines about outputs, printed once they are published
     with plan:  # every file checked before any work; the outputs published together at the end
         options = _geometry_options(args)
@@ -113,13 +123,16 @@ def run(args: argparse.Namespace) -> int:
         geometry = options.resolve(recording.meta, recording.resolution, recording=recording)
         if args.point_cloud is not None and geometry.depth is None:
             raise ValueError("--point-cloud needs a depth model: give --depth A C (or MODEL.json) or --calibration.")
-        result = match(geometry.prepare(recording), method=args.method, variant=args.variant,
+        prepared = geometry.prepare(recording)
+        result = match(prepared, method=args.method, variant=args.variant,
                        progress=progress_wanted(args), packet_us=args.packet_us or DEFAULT_PACKET_US,
                        param_set=args.param_set, **geometry.match_kwargs(), **overrides)
         _record_geometry(args, result, geometry)
         if args.point_cloud is not None:
             said.append(_write_point_cloud(args, result, geometry))
         write_matches(args.output, result.matches, result.meta, arrays=result.arrays)
+        if rerun.wanted:
+            said.append(_log_to_rerun(args, rerun, prepared, result, geometry))
     m = result.meta
     print(geometry.summary(), *said, sep="\n")
     print(f"{len(result)} matches from {m['input_events']} events ({args.method}, {m['variant']}, "
@@ -185,6 +198,20 @@ def _record_geometry(args: argparse.Namespace, result, geometry) -> None:
 
         meta["depth"] = geometry.depth.to_dict()
         result.arrays["depth_m"] = depth_per_match(result.matches, geometry.depth)
+
+
+def _log_to_rerun(args: argparse.Namespace, rerun, recording, result, geometry) -> str:
+    """``--rerun``: the windows of the matches (the matcher's own for frame matchers, else 40 ms) for the viewer."""
+    from cvstereo.viz._images import DEFAULT_WINDOW_US, anchor_of
+    from cvstereo.viz.rerun_log import log_windows, rerun_stream
+
+    anchor, own = anchor_of(result)
+    window_us = own if anchor == "window" and own > 0 else DEFAULT_WINDOW_US
+    intrinsics = geometry.intrinsics if geometry.depth is not None else None
+    with rerun_stream(rerun) as stream:
+        n = log_windows(stream, recording, result, window_us=window_us, depth=geometry.depth, intrinsics=intrinsics,
+                        cmap=args.cmap)
+    return f"{n} windows -> {rerun.path or 'the rerun viewer'}"
 
 
 def _write_point_cloud(args: argparse.Namespace, result, geometry) -> str:
