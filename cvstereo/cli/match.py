@@ -202,15 +202,11 @@ def _record_geometry(args: argparse.Namespace, result, geometry) -> None:
 
 def _log_to_rerun(args: argparse.Namespace, rerun, recording, result, geometry) -> str:
     """``--rerun``: the windows of the matches (the matcher's own for frame matchers, else 40 ms) for the viewer."""
-    from cvstereo.viz._images import DEFAULT_WINDOW_US, anchor_of
     from cvstereo.viz.rerun_log import log_windows, rerun_stream
 
-    anchor, own = anchor_of(result)
-    window_us = own if anchor == "window" and own > 0 else DEFAULT_WINDOW_US
     intrinsics = geometry.intrinsics if geometry.depth is not None else None
     with rerun_stream(rerun) as stream:
-        n = log_windows(stream, recording, result, window_us=window_us, depth=geometry.depth, intrinsics=intrinsics,
-                        cmap=args.cmap)
+        n = log_windows(stream, recording, result, depth=geometry.depth, intrinsics=intrinsics, cmap=args.cmap)
     return f"{n} windows -> {rerun.path or 'the rerun viewer'}"
 
 

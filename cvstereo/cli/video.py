@@ -58,7 +58,7 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     from cvstereo.viz.colormaps import check_cmap
     from cvstereo.viz.encode import CODEC_NAMES, require_av, video_codec
-    from cvstereo.viz.video import MAX_WIDTH_PX, fit_scale, write_video
+    from cvstereo.viz.video import MAX_WIDTH_PX, write_video
 
     require_av()  # before reading anything: a missing extra is said at once
     check_window_options(args)
@@ -72,7 +72,6 @@ def run(args: argparse.Namespace) -> int:
     check_cmap(args.cmap)
     rerun = rerun_target(args)
     from cvstereo.io.output_plan import RERUN_FILE, VIDEO
-    from cvstereo.viz._images import anchor_cameras
     from cvstereo.viz.rerun_log import log_windows, rerun_stream
 
     plan = recording_plan(args)
@@ -81,11 +80,9 @@ def run(args: argparse.Namespace) -> int:
         plan.write(rerun.path, RERUN_FILE, option="--rerun")
     with plan:  # every file checked before the frames are drawn; the video published once complete
         recording, result, depth = load_picture_inputs(args)
-        cams = 0 if result is None else len(anchor_cameras(result))
-        scale = args.scale if args.scale is not None else fit_scale(recording.resolution, cams, max_width)
         n = write_video(recording, args.output, result, fps=args.fps, window_us=round(args.window_ms * 1000),
-                        scale=scale, seconds=args.seconds, depth=depth, vmin=args.vmin, vmax=args.vmax,
-                        cmap=args.cmap)
+                        scale=args.scale, max_width=max_width, seconds=args.seconds, depth=depth, vmin=args.vmin,
+                        vmax=args.vmax, cmap=args.cmap)
         if rerun.wanted:
             with rerun_stream(rerun) as stream:
                 log_windows(stream, recording, result, window_us=round(args.window_ms * 1000), depth=depth,

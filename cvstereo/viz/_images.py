@@ -179,6 +179,16 @@ def disparity_range(*arrays: np.ndarray, reference=None) -> tuple[float, float]:
     return round(lo, 6), round(hi, 6)
 
 
+def whole_range(recording: Recording, result: MatchResult, vmin: float | None = None,
+                vmax: float | None = None) -> tuple[float, float]:
+    """The colour range of a whole run (video, rerun): fixed for every window, so that a colour means the same
+    disparity throughout; set by the anchor cameras' true disparities where known (a matcher's wild matches then
+    show as outliers instead of stretching the scale), else by the matches. ``vmin``/``vmax`` given win."""
+    truths = [t for t in (recording.truth(c) for c in anchor_cameras(result)) if t is not None]
+    lo, hi = disparity_range(result.disparity, reference=truths or None)
+    return (lo if vmin is None else vmin), (hi if vmax is None else vmax)
+
+
 def _finite(arrays) -> np.ndarray:
     if isinstance(arrays, np.ndarray):
         arrays = [arrays]

@@ -34,8 +34,8 @@ from cvstereo.viz._images import (
 from cvstereo.viz.colormaps import DISPARITY_CMAP, listed_cmap
 from cvstereo.viz.mpl import add_metres_axis, figure_title, new_figure, show_sensor_image
 
-__all__ = ["ERROR_BIN_PX", "TRUTH_BAND", "as_result", "fill_gaps", "grouped_percentiles", "plot_disparity_map",
-           "plot_disparity_over_time", "plot_error_histogram", "window_truth"]
+__all__ = ["ERROR_BIN_PX", "TRUTH_BAND", "as_result", "fill_gaps", "grouped_percentiles", "picture_window",
+           "plot_disparity_map", "plot_disparity_over_time", "plot_error_histogram", "window_truth"]
 
 #: Share of the truth drawn as a band around its median per window (10th to 90th percentile): wide enough to
 #: show two objects at different distances, narrow enough to ignore stray events at object borders.
@@ -60,7 +60,7 @@ def as_result(result) -> MatchResult:
     return MatchResult(matches, {"anchor": "event", "window_us": 0})
 
 
-def _plot_window(result: MatchResult, window_us: int | None) -> int:
+def picture_window(result: MatchResult, window_us: int | None) -> int:
     """The window of a picture: the matcher's own for window anchors, else ``window_us`` (default 40 ms)."""
     anchor, own = anchor_of(result)
     if anchor == "window" and own > 0:
@@ -157,7 +157,7 @@ def plot_disparity_over_time(recording: Recording, result, *, window_us: int | N
     """
     result = as_result(result)
     matches = result.matches
-    window_us = _plot_window(result, window_us)
+    window_us = picture_window(result, window_us)
     fig = new_figure(10.0, 4.8)
     ax = fig.subplots()
     disp = matches["disparity"].astype(np.float64)
@@ -256,7 +256,7 @@ def plot_disparity_map(recording: Recording, result, t_end_us: int | Sequence[in
         The disparity panels are titled with the number of matches they hold.
     """
     result = as_result(result)
-    window_us = _plot_window(result, window_us)
+    window_us = picture_window(result, window_us)
     if t_end_us is None:
         ends = _pick_windows(result, window_us, n_windows)
     else:

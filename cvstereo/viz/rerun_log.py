@@ -25,14 +25,15 @@ from cvstereo.model.events import time_slice
 from cvstereo.model.recording import Recording
 from cvstereo.viz._images import (
     CAMERA_NAMES,
+    DEFAULT_WINDOW_US,
     OFF_RGB,
     ON_RGB,
     anchor_cameras,
     anchor_of,
     colorize,
     disparity_image,
-    disparity_range,
     match_window_slice,
+    whole_range,
     window_grid,
 )
 from cvstereo.viz.colormaps import DISPARITY_CMAP, disparity_lut
@@ -76,7 +77,8 @@ def rerun_stream(target) -> Iterator[object]:
             stream.disconnect()
 
 
-def log_windows(stream, recording: Recording, result=None, *, window_us: int, depth=None, intrinsics=None,
+def log_windows(stream, recording: Recording, result=None, *, window_us: int | None = None, depth=None,
+                intrinsics=None,
                 cmap: str = DISPARITY_CMAP, vmin: float | None = None, vmax: float | None = None,
                 seconds: float | None = None) -> int:
     """Log every window ``[k*W, (k+1)*W)`` of the absolute clock (the video's frames) into ``stream``.
@@ -87,13 +89,14 @@ def log_windows(stream, recording: Recording, result=None, *, window_us: int, de
     recording : Recording
     result : MatchResult, optional
         Without it only the events are logged.
-    window_us : int, keyword-only
+    window_us : int, optional, keyword-only
+        Default: the matcher's own window for frame matchers, else 40 ms (as the pictures).
     depth : DepthModel, optional, keyword-only
         Adds the depth images and, with ``intrinsics``, the 3D points.
     intrinsics : cvstereo.geometry.pointcloud.Intrinsics, optional, keyword-only
         Default: :meth:`~cvstereo.geometry.pointcloud.Intrinsics.from_options` of the recording's rig.
     cmap, vmin, vmax : keyword-only
-        The disparity colours, as the video's (default range: :func:`~cvstereo.viz._images.disparity_range`).
+        The disparity colours, as the video's (default range: :func:`~cvstereo.viz._images.whole_range`).
     seconds : float, optional, keyword-only
         Only the first ``seconds`` (the windows the video shows).
 
@@ -104,14 +107,17 @@ def log_windows(stream, recording: Recording, result=None, *, window_us: int, de
     """
     import rerun as rr
 
+    from cvstereo.viz.disparity_plots import as_result, picture_window
+
+    result = None if result is None else as_result(result)
+    window_us = picture_window(result, window_us) if result is not None else int(window_us or DEFAULT_WINDOW_US)
     starts = window_grid(recording, window_us)
     if seconds is not None:
         starts = starts[starts < starts[0] + seconds * 1e6]
     cams = [] if result is None else anchor_cameras(result)
     anchor = None if result is None else anchor_of(result)[0]
     if result is not None:
-        lo, hi = disparity_range(result.disparity)
-        vmin, vmax = (lo if vmin is None else vmin), (hi if vmax is None else vmax)
+        vmin, vmax = whole_range(recording, result, vmin, vmax)
     if depth is not None and intrinsics is None:
         from cvstereo.geometry.pointcloud import Intrinsics
 

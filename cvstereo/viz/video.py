@@ -23,10 +23,10 @@ from cvstereo.viz._images import (
     colorize,
     context_rgb,
     disparity_image,
-    disparity_range,
     event_frame_rgb,
     format_distance,
     match_window_slice,
+    whole_range,
     window_grid,
 )
 from cvstereo.viz.colormaps import DISPARITY_CMAP
@@ -150,11 +150,7 @@ def write_video(recording: Recording, path: str | os.PathLike, result=None, *, f
         starts = starts[starts < starts[0] + seconds * 1e6]
     cams = [] if result is None else anchor_cameras(result)
     if result is not None:
-        # The scene's true disparities, where known, set the colours as in plot_disparity_map: a matcher's wild
-        # matches then show as outliers instead of stretching the scale.
-        truths = [t for t in (recording.truth(c) for c in cams) if t is not None]
-        lo, hi = disparity_range(result.disparity, reference=truths or None)
-        vmin, vmax = (lo if vmin is None else vmin), (hi if vmax is None else vmax)
+        vmin, vmax = whole_range(recording, result, vmin, vmax)
     if scale is None:
         scale = fit_scale(recording.resolution, len(cams), max_width)
     layout = _Layout(recording.resolution, scale, n_disparity=len(cams))
