@@ -57,8 +57,7 @@ def base(tmp_path_factory) -> Path:
 
 @pytest.fixture
 def work(base, tmp_path, monkeypatch) -> Path:
-    for p in base.iterdir():
-        shutil.copy2(p, tmp_path / p.name)
+    shutil.copytree(base, tmp_path, dirs_exist_ok=True)
     (tmp_path / "sub").mkdir()
     monkeypatch.chdir(tmp_path)
     return tmp_path

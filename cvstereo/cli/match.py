@@ -113,7 +113,10 @@ def run(args: argparse.Namespace) -> int:
         check_cmap(args.cmap)
     plan.write(rerun.path, RERUN_FILE, option="--rerun")
     said = []  # lines about outputs, printed once they are published
-    with plan:  # every file checked before any work; the outputs published together at the end
+    from cvstereo.viz.rerun_log import rerun_stream
+
+    # Every file checked (and a viewer started) before any work; the outputs published together at the end.
+    with plan, rerun_stream(rerun) as stream:
         options = _geometry_options(args)
         recording = load_recording(args)
         height = recording.resolution[1]
@@ -131,8 +134,8 @@ def run(args: argparse.Namespace) -> int:
         if args.point_cloud is not None:
             said.append(_write_point_cloud(args, result, geometry))
         write_matches(args.output, result.matches, result.meta, arrays=result.arrays)
-        if rerun.wanted:
-            said.append(_log_to_rerun(args, rerun, prepared, result, geometry))
+        if stream is not None:
+            said.append(_log_to_rerun(args, stream, rerun, prepared, result, geometry))
     m = result.meta
     print(geometry.summary(), *said, sep="\n")
     print(f"{len(result)} matches from {m['input_events']} events ({args.method}, {m['variant']}, "
@@ -200,13 +203,12 @@ def _record_geometry(args: argparse.Namespace, result, geometry) -> None:
         result.arrays["depth_m"] = depth_per_match(result.matches, geometry.depth)
 
 
-def _log_to_rerun(args: argparse.Namespace, rerun, recording, result, geometry) -> str:
+def _log_to_rerun(args: argparse.Namespace, stream, rerun, recording, result, geometry) -> str:
     """``--rerun``: the windows of the matches (the matcher's own for frame matchers, else 40 ms) for the viewer."""
-    from cvstereo.viz.rerun_log import log_windows, rerun_stream
+    from cvstereo.viz.rerun_log import log_windows
 
     intrinsics = geometry.intrinsics if geometry.depth is not None else None
-    with rerun_stream(rerun) as stream:
-        n = log_windows(stream, recording, result, depth=geometry.depth, intrinsics=intrinsics, cmap=args.cmap)
+    n = log_windows(stream, recording, result, depth=geometry.depth, intrinsics=intrinsics, cmap=args.cmap)
     return f"{n} windows -> {rerun.path or 'the rerun viewer'}"
 
 

@@ -78,14 +78,14 @@ def run(args: argparse.Namespace) -> int:
     plan.write(args.output, VIDEO)
     if rerun.path is not None:
         plan.write(rerun.path, RERUN_FILE, option="--rerun")
-    with plan:  # every file checked before the frames are drawn; the video published once complete
+    # Every file checked before the frames are drawn (and a viewer started); the outputs published once complete.
+    with plan, rerun_stream(rerun) as stream:
         recording, result, depth = load_picture_inputs(args)
         n = write_video(recording, args.output, result, fps=args.fps, window_us=round(args.window_ms * 1000),
                         scale=args.scale, max_width=max_width, seconds=args.seconds, depth=depth, vmin=args.vmin,
                         vmax=args.vmax, cmap=args.cmap)
-        if rerun.wanted:
-            with rerun_stream(rerun) as stream:
-                log_windows(stream, recording, result, window_us=round(args.window_ms * 1000), depth=depth,
-                            cmap=args.cmap, vmin=args.vmin, vmax=args.vmax, seconds=args.seconds)
+        if stream is not None:
+            log_windows(stream, recording, result, window_us=round(args.window_ms * 1000), depth=depth,
+                        cmap=args.cmap, vmin=args.vmin, vmax=args.vmax, seconds=args.seconds)
     print(f"{n} frames ({n / args.fps:.1f} s at {args.fps:g} fps, {CODEC_NAMES[video_codec()]}) -> {args.output}")
     return 0

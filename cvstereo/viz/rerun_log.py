@@ -47,13 +47,18 @@ APPLICATION_ID, TIMELINE = "cvstereo", "time"
 @contextlib.contextmanager
 def rerun_stream(target) -> Iterator[object]:
     """A ``rerun.RecordingStream`` to log into: written atomically to ``target.path``
-    (:class:`cvstereo.cli._rerun.RerunTarget`), else to a spawned viewer.
+    (:class:`cvstereo.cli._rerun.RerunTarget`), else to a spawned viewer; None where ``--rerun`` was not given.
+
+    Opened before the work it shows, so that a viewer that cannot start is said at once.
 
     Raises
     ------
     OSError
         No viewer can be started (the file form still works).
     """
+    if not target.wanted:
+        yield None
+        return
     import rerun as rr
 
     from cvstereo.io.atomic import atomic_path
@@ -63,8 +68,9 @@ def rerun_stream(target) -> Iterator[object]:
         try:
             stream.spawn()
         except Exception as exc:  # the SDK raises its own types: the viewer binary missing or not starting
-            raise OSError(f"--rerun: cannot start a rerun viewer ({exc}); give --rerun FILE.rrd to write a file "
-                          "instead.") from exc
+            reason = str(exc).split(".")[0].strip()  # the SDK's first sentence; the rest is installation advice
+            raise OSError(f"--rerun: cannot start a rerun viewer ({reason}); give --rerun FILE.rrd to write a "
+                          "file instead.") from exc
         yield stream
         stream.flush()
         return

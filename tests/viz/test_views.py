@@ -315,3 +315,22 @@ def test_rerun_without_the_sdk_names_the_extra(dv_files, tmp_path, monkeypatch, 
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "cvstereo[rerun]" in err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_rerun_without_a_viewer_fails_before_any_work(dv_files, tmp_path, monkeypatch, capsys):
+    rr = pytest.importorskip("rerun")
+    rec_path, m_path, _, _ = dv_files
+
+    def no_viewer(self, *args, **kwargs):
+        raise RuntimeError("Failed to find Rerun Viewer executable in PATH. Install it with ...")
+
+    def never(*args, **kwargs):
+        raise AssertionError("the video was drawn although the viewer could not start")
+
+    monkeypatch.setattr(rr.RecordingStream, "spawn", no_viewer)
+    monkeypatch.setattr("cvstereo.viz.video.write_video", never)
+    assert main(["video", str(rec_path), str(m_path), "-o", str(tmp_path / "v.mp4"), "--rerun"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert "cannot start a rerun viewer (Failed to find Rerun Viewer executable in PATH)" in err
+    assert "--rerun FILE.rrd" in err and list(tmp_path.iterdir()) == []
