@@ -8,6 +8,7 @@ import numpy as np
 
 from cvstereo.cli._common import add_format_options, check_files, format_options, is_matches_file, naming
 from cvstereo.cli._text import number, printable
+from cvstereo.model.recording import ORIGIN_KEY
 
 __all__ = ["add_parser", "describe", "describe_matches", "run"]
 
@@ -93,6 +94,11 @@ def describe(stream) -> list[str]:
     if "special_events" in meta:
         lines.append(f"  special (sync) events skipped: {meta['special_events']:,}")
     rows = [_camera_stats(name, stream) for name in stream.cameras]
+    firsts = [r["first"] for r in rows if r["first"] is not None]
+    origin = meta.get(ORIGIN_KEY, min(firsts) if firsts else None)
+    if origin is not None:  # the one place the absolute time is shown: plots and options count from it
+        lines.append(f"  t = 0 at {origin} us on the recording's clock (its first event); times shown and time "
+                     "options count from it")
     lines.extend("  " + line for line in _table(rows, truth=stream.has_truth))
     # Names and meta come from the file: no raw terminal codes.
     return [printable(line, collapse=False) for line in lines]
@@ -114,7 +120,8 @@ def _camera_stats(name: str, stream) -> dict:
         if truth is not None:
             finite += int(np.count_nonzero(np.isfinite(truth)))
     duration = 0.0 if first is None else (last - first) / 1e6
-    return {"camera": name, "events": n, "on": on, "off": n - on, "duration": duration, "truth": finite}
+    return {"camera": name, "events": n, "on": on, "off": n - on, "duration": duration, "truth": finite,
+            "first": first}
 
 
 def _table(rows: list[dict], *, truth: bool) -> list[str]:

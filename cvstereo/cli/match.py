@@ -36,7 +36,9 @@ from cvstereo.cli._common import (
     recording_plan,
     require_range,
 )
+from cvstereo.cli._rerun import add_rerun_option, rerun_target
 from cvstereo.cli._text import number, plain_text
+from cvstereo.cli.plot import add_cmap_option
 from cvstereo.evaluation.diagnostics import silence_warning
 from cvstereo.matchers.sets import ADAPTIVE
 
@@ -81,6 +83,8 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
     g.add_argument("--focal-px", type=float, default=None, metavar="F",
                    help="point cloud without a calibration: focal length in px (default: the recording's rig, where "
                    "it has one, else the thesis rig's 165)")
+    add_rerun_option(p)
+    add_cmap_option(p)
     p.set_defaults(_parser=p)
     return p
 
@@ -100,15 +104,24 @@ def run(args: argparse.Namespace) -> int:
                          f"{args.time_offset_us:,}.")
     from cvstereo.geometry.steps import point_cloud_of, record_geometry
     from cvstereo.io import write_matches
-    from cvstereo.io.output_plan import MATCHES_FILE, POINT_CLOUD
+    from cvstereo.io.output_plan import MATCHES_FILE, POINT_CLOUD, RERUN_FILE
     from cvstereo.run import DEFAULT_PACKET_US, match
 
     plan = recording_plan(args)
     plan.read(args.calibration, what="calibration file")
     plan.write(args.output, MATCHES_FILE)
     plan.write(args.point_cloud, POINT_CLOUD, option="--point-cloud")
+    rerun = rerun_target(args)
+    if rerun.wanted:
+        from cvstereo.viz.colormaps import check_cmap
+
+        check_cmap(args.cmap)
+    plan.write(rerun.path, RERUN_FILE, option="--rerun")
     said = []  # lines about outputs, printed once they are published
-    with plan:  # every file checked before any work; the outputs published together at the end
+    from cvstereo.viz.rerun_log import rerun_stream
+
+    # Every file checked (and a viewer started) before any work; the outputs published together at the end.
+    with plan, rerun_stream(rerun) as viewer:
         options = _geometry_options(args)
         stream = open_recording_stream(args)  # streamed: read again for the match after an --auto check
         height = stream.resolution[1]
@@ -118,7 +131,8 @@ def run(args: argparse.Namespace) -> int:
         geometry = options.resolve(stream.meta, stream.resolution, recording=stream.read)
         if args.point_cloud is not None and geometry.depth is None:
             raise ValueError("--point-cloud needs a depth model: give --depth A C (or MODEL.json) or --calibration.")
-        result = record_geometry(match(geometry.prepare(stream), method=args.method, variant=args.variant,
+        prepared = geometry.prepare(stream)
+        result = record_geometry(match(prepared, method=args.method, variant=args.variant,
                                        progress=progress_wanted(args), packet_us=args.packet_us or DEFAULT_PACKET_US,
                                        param_set=args.param_set, **geometry.match_kwargs(), **overrides), geometry)
         result.meta["format_options"] = {k: list(v) if isinstance(v, tuple) else v
@@ -126,6 +140,8 @@ def run(args: argparse.Namespace) -> int:
         if args.point_cloud is not None:
             said.append(_write_point_cloud(args, result, point_cloud_of(result, geometry), geometry))
         write_matches(args.output, result.matches, result.meta, arrays=result.arrays)
+        if viewer is not None:  # the pictures need the events: the file is read again, whole, only for --rerun
+            said.append(_log_to_rerun(args, viewer, rerun, prepared.read(), result, geometry))
     m = result.meta
     print(geometry.summary(), *said, sep="\n")
     print(f"{len(result)} matches from {m['input_events']} events ({args.method}, {m['variant']}, "
@@ -171,6 +187,15 @@ def _rig_check(recording):
     report = check_rig(recording)
     print(report.summary())
     return report
+
+
+def _log_to_rerun(args: argparse.Namespace, viewer, rerun, recording, result, geometry) -> str:
+    """``--rerun``: the windows of the matches (the matcher's own for frame matchers, else 40 ms) for the viewer."""
+    from cvstereo.viz.rerun_log import log_windows
+
+    intrinsics = geometry.intrinsics if geometry.depth is not None else None
+    n = log_windows(viewer, recording, result, depth=geometry.depth, intrinsics=intrinsics, cmap=args.cmap)
+    return f"{n} windows -> {rerun.path or 'the rerun viewer'}"
 
 
 def _write_point_cloud(args: argparse.Namespace, result, points, geometry) -> str:

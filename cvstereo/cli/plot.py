@@ -21,8 +21,9 @@ from cvstereo.cli._common import (
     require_range,
 )
 
-__all__ = ["KINDS", "MAX_DPI", "MAX_TIME_MS", "MAX_WINDOWS", "MAX_WINDOW_MS", "add_parser", "check_window_inside",
-           "check_window_options", "load_picture_inputs", "make_figure", "name_recording", "run"]
+__all__ = ["KINDS", "MAX_DPI", "MAX_TIME_MS", "MAX_WINDOWS", "MAX_WINDOW_MS", "add_cmap_option", "add_parser",
+           "check_window_inside", "check_window_options", "load_picture_inputs", "make_figure", "name_recording",
+           "run", "start_us"]
 
 #: Largest --dpi: print quality; a figure at 100000 dpi would need gigabytes.
 MAX_DPI = 1200
@@ -58,20 +59,36 @@ def check_window_options(args: argparse.Namespace) -> None:
     require_range(args.window_ms, "--window-ms", gt=0, le=MAX_WINDOW_MS)
     require_range(getattr(args, "t_start_ms", None), "--t-start-ms", ge=0, le=MAX_TIME_MS)
 
+def add_cmap_option(p: argparse.ArgumentParser) -> None:
+    """``--cmap NAME``: the colour map of disparities (every command that draws them)."""
+    from cvstereo.viz.colormaps import DISPARITY_CMAP
+
+    p.add_argument("--cmap", default=DISPARITY_CMAP, metavar="NAME",
+                   help="colour map of the disparities, any matplotlib name (default: %(default)s, colour-blind "
+                   "safe; its darkest end is left out so that it shows on the black background)")
+
+
+def start_us(args: argparse.Namespace, recording) -> int | None:
+    """``--t-start-ms`` as an absolute time, us: milliseconds after the recording's origin (``cvstereo info``'s
+    "t = 0 at"), None when not given."""
+    ms = getattr(args, "t_start_ms", None)
+    return None if ms is None else recording.origin_us + _ms_to_us(ms)
+
+
 def check_window_inside(args: argparse.Namespace, recording) -> None:
     """``--t-start-ms`` must show some of the recording: an empty window past its end is a typo, not a picture.
 
-    The window ``[t, t + --window-ms)`` (times on the recording's own clock, as ``cvstereo info`` prints them)
-    must overlap ``[first event, last event]``; the error names that span so that the user can pick a time.
+    The window ``[t, t + --window-ms)`` (t counted from the recording's origin, as the pictures show times) must
+    overlap ``[first event, last event]``; the error names that span so that the user can pick a time.
     """
-    t_start = _ms_to_us(getattr(args, "t_start_ms", None))
+    t_start = start_us(args, recording)
     if t_start is None:
         return
-    first, last = recording.t_start, recording.t_end
+    first, last, origin = recording.t_start, recording.t_end, recording.origin_us
     if t_start > last or t_start + _ms_to_us(args.window_ms) <= first:
         raise ValueError(f"--t-start-ms {args.t_start_ms:g} shows no event: the recording's events lie between "
-                         f"{first / 1000:g} ms and {last / 1000:g} ms; pick a start in that span (or leave it out "
-                         "for the busiest window).")
+                         f"{(first - origin) / 1000:g} ms and {(last - origin) / 1000:g} ms after its origin; pick a "
+                         "start in that span (or leave it out for the busiest window).")
 
 
 #: Picture kind (also its file name under ``all``) -> (needs matches, what it shows).
@@ -99,8 +116,10 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="picture to write (.png, .pdf, .svg); for KIND all, a folder (created if missing)")
     p.add_argument("--t-start-ms", type=float, default=None, metavar="MS",
-                   help="start of the window shown (default: the window with the most events); disparity-map: "
-                   "the first of --windows consecutive windows (default: windows spread over the matches)")
+                   help="start of the window shown, ms after the recording's first event (its origin, `cvstereo "
+                   "info` prints it; default: the window with the most events); disparity-map: the first of "
+                   "--windows consecutive windows (a frame matcher's: the window holding that time on the "
+                   "recording's clock; default: windows spread over the matches)")
     p.add_argument("--window-ms", type=float, default=40.0, metavar="MS",
                    help="window length (default: %(default)g, the thesis'; frame matchers' own window for "
                    "their matches)")
@@ -109,6 +128,7 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
                    help="disparity-map: disparity at the low end of the colour scale (default: from the data)")
     p.add_argument("--vmax", type=float, default=None, metavar="PX",
                    help="disparity-map: disparity at the high end of the colour scale (default: from the data)")
+    add_cmap_option(p)
     p.add_argument("--log", action="store_true", help="error-hist: logarithmic count axis")
     p.add_argument("--width-in", type=float, default=None, metavar="IN",
                    help="figure width in inches, height in proportion, text shrunk to fit (e.g. 3.5 for one column "
@@ -134,6 +154,9 @@ def run(args: argparse.Namespace) -> int:
     if not 1 <= args.windows <= MAX_WINDOWS:
         raise ValueError(f"--windows must be between 1 and {MAX_WINDOWS}, got {args.windows}.")
     require_range(args.dpi, "--dpi", gt=0, le=MAX_DPI)
+    from cvstereo.viz.colormaps import check_cmap
+
+    check_cmap(args.cmap)
     if args.kind != "all" and KINDS[args.kind][0] and args.matches is None:
         raise ValueError(f"plot {args.kind} shows matches: give the MATCHES file written by `cvstereo match` "
                          f"after RECORDING (e.g. cvstereo plot {args.kind} rec.npz matches.npz -o out.png).")
@@ -171,7 +194,7 @@ def make_figure(kind: str, recording, result, args: argparse.Namespace, depth):
     from cvstereo import viz
 
     window_us = _ms_to_us(args.window_ms)
-    t_start = _ms_to_us(args.t_start_ms)
+    t_start = start_us(args, recording)
     if kind == "events":
         return viz.plot_event_frames(recording, t_start, window_us=window_us)
     if kind == "filtered":
@@ -188,7 +211,7 @@ def make_figure(kind: str, recording, result, args: argparse.Namespace, depth):
         first = None if t_start is None else (t_start - t_start % w if anchor == "window" else t_start)
         ends = None if first is None else [first + w * (i + 1) for i in range(args.windows)]
         return viz.plot_disparity_map(recording, result, ends, n_windows=args.windows, window_us=window_us,
-                                      depth=depth, vmin=args.vmin, vmax=args.vmax)
+                                      depth=depth, vmin=args.vmin, vmax=args.vmax, cmap=args.cmap)
     if kind == "error-hist":
         return viz.plot_error_histogram(recording, result, log=args.log)
     raise ValueError(f"unknown picture kind {kind!r}; choose one of: {', '.join(KINDS)}, all.")

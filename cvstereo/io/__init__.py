@@ -237,7 +237,9 @@ def read_recording(path: str | os.PathLike, right: str | os.PathLike | None = No
     Returns
     -------
     Recording
-        For text and AEDAT input, ``meta`` says how undetermined properties were decided.
+        For text and AEDAT input, ``meta`` says how undetermined properties were decided. Its
+        :attr:`~cvstereo.model.recording.Recording.origin_us` (the file's ``meta["origin_us"]``, else the earliest
+        event of both cameras) is what times shown count from.
     """
     name = format or detect_format(path)
     fmt = _format(name, path, right=right, left_retina=left_retina, one_based=one_based, resolution=resolution,

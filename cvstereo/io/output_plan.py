@@ -67,6 +67,7 @@ DEPTH_MODEL_FILE = OutputKind("a depth-model file", (".json",))
 FIGURE = OutputKind("a picture", (".png", ".pdf", ".svg", ".svgz", ".eps", ".ps", ".jpg", ".jpeg", ".tif",
                                   ".tiff", ".webp"))
 VIDEO = OutputKind("an MP4 video", (".mp4",))
+RERUN_FILE = OutputKind("a rerun recording", (".rrd",))
 #: Files whose format another check settles (``convert``: the format table), or whose names the command makes.
 ANY_FILE = OutputKind("a file")
 
@@ -260,4 +261,5 @@ def _collide(a: str, b: str) -> bool:
     return True
 
 
-__all__ = ["ANY_FILE", "DEPTH_MODEL_FILE", "FIGURE", "MATCHES_FILE", "POINT_CLOUD", "VIDEO", "OutputKind", "OutputPlan"]
+__all__ = ["ANY_FILE", "DEPTH_MODEL_FILE", "FIGURE", "MATCHES_FILE", "POINT_CLOUD", "RERUN_FILE", "VIDEO", "OutputKind",
+           "OutputPlan"]

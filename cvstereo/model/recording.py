@@ -17,10 +17,27 @@ from cvstereo.model.events import (
     time_slice,
 )
 
-__all__ = ["CAMERAS", "Recording"]
+__all__ = ["CAMERAS", "ORIGIN_KEY", "Recording", "check_origin"]
 
 CAMERAS = ("left", "right")
 
+#: Meta key of the recording's time origin (docs/formats.md): the absolute time, us, that every time shown and
+#: every time option counts from.
+ORIGIN_KEY = "origin_us"
+
+
+def check_origin(value, *, source: str = "meta") -> int:
+    """``value`` as an origin in us: a whole number within int64 (a bool or a float is a corrupt meta, not a time).
+
+    Raises
+    ------
+    ValueError
+        Naming ``source`` and the key, and what an origin must be.
+    """
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or not -2**63 <= int(value) < 2**63:
+        raise EventFormatError(f"{source}: {ORIGIN_KEY} must be a whole number of microseconds (the absolute time "
+                               f"of t = 0), got {value!r}; remove the key to count from the first event.")
+    return int(value)
 
 
 @dataclass(frozen=True, eq=False)
@@ -62,6 +79,8 @@ class Recording:
                 object.__setattr__(self, f"{name}_disparity", truth)
         if (self.left_disparity is None) != (self.right_disparity is None):
             raise EventFormatError("give ground truth for both cameras or for neither (NaN where unknown).")
+        if ORIGIN_KEY in self.meta:
+            check_origin(self.meta[ORIGIN_KEY])
 
     @property
     def has_truth(self) -> bool:
@@ -89,6 +108,12 @@ class Recording:
         return max(lasts) if lasts else 0
 
     @property
+    def origin_us(self) -> int:
+        """The absolute time (us) that times shown count from: ``meta["origin_us"]`` where stored (a slice keeps
+        its recording's), else the earliest event of either camera; windows stay on the absolute clock."""
+        return int(self.meta[ORIGIN_KEY]) if ORIGIN_KEY in self.meta else self.t_start
+
+    @property
     def duration_s(self) -> float:
         """Seconds from the first to the last event of either camera."""
         return (self.t_end - self.t_start) / 1e6
@@ -113,13 +138,14 @@ class Recording:
                                None if self.right_disparity is None else self.right_disparity[sr])
 
     def slice_time(self, t_start: int | None = None, t_stop: int | None = None) -> Recording:
-        """The part of the recording with ``t_start <= t < t_stop`` (absolute times, us)."""
+        """The part of the recording with ``t_start <= t < t_stop`` (absolute times, us); it keeps the
+        recording's origin, so that its times read as they did in the whole."""
         sl, sr = time_slice(self.left, t_start, t_stop), time_slice(self.right, t_start, t_stop)
         return Recording(
             self.left[sl], self.right[sr],
             None if self.left_disparity is None else self.left_disparity[sl],
             None if self.right_disparity is None else self.right_disparity[sr],
-            self.resolution, dict(self.meta),
+            self.resolution, {**self.meta, ORIGIN_KEY: self.origin_us},
         )
 
     def swapped(self) -> Recording:

@@ -1,7 +1,8 @@
 """Pictures and videos of recordings and matches: the thesis' figures, drawn from our data.
 
 The plots need the ``viz`` extra (matplotlib: ``pip install 'cvstereo[viz]'``), imported when a plot is made;
-:func:`write_video` needs only OpenCV. Every plot takes data and returns a :class:`matplotlib.figure.Figure`:
+:func:`write_video` needs the ``video`` extra (PyAV). Times shown count from the recording's origin
+(``Recording.origin_us``). Every plot takes data and returns a :class:`matplotlib.figure.Figure`:
 
 ===============================  ================================================================  ===========
 function                         shows                                                             thesis

@@ -1,6 +1,6 @@
-"""The images every picture and the video are drawn from: plain numpy and OpenCV, no matplotlib.
+"""The images every picture and the video are drawn from: plain numpy arrays (the colour maps' tables aside).
 
-Keeping the data step apart from the drawing lets the plots (matplotlib) and the video (OpenCV) show exactly
+Keeping the data step apart from the drawing lets the plots (matplotlib) and the video (PyAV) show exactly
 the same pixels, and lets tests check the data without rendering anything.
 """
 
@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import math
 
-import cv2
 import numpy as np
 
 from cvstereo.frames.accumulate import frame_shape
@@ -19,6 +18,7 @@ from cvstereo.geometry.disparity_maps import disparity_image, match_window_slice
 from cvstereo.model.events import time_slice
 from cvstereo.model.matches import MatchResult
 from cvstereo.model.recording import Recording
+from cvstereo.viz.colormaps import DISPARITY_CMAP, disparity_lut
 
 #: Window length of the thesis' frames (40 ms), us.
 DEFAULT_WINDOW_US = 40_000
@@ -179,6 +179,16 @@ def disparity_range(*arrays: np.ndarray, reference=None) -> tuple[float, float]:
     return round(lo, 6), round(hi, 6)
 
 
+def whole_range(recording: Recording, result: MatchResult, vmin: float | None = None,
+                vmax: float | None = None) -> tuple[float, float]:
+    """The colour range of a whole run (video, rerun): fixed for every window, so that a colour means the same
+    disparity throughout; set by the anchor cameras' true disparities where known (a matcher's wild matches then
+    show as outliers instead of stretching the scale), else by the matches. ``vmin``/``vmax`` given win."""
+    truths = [t for t in (recording.truth(c) for c in anchor_cameras(result)) if t is not None]
+    lo, hi = disparity_range(result.disparity, reference=truths or None)
+    return (lo if vmin is None else vmin), (hi if vmax is None else vmax)
+
+
 def _finite(arrays) -> np.ndarray:
     if isinstance(arrays, np.ndarray):
         arrays = [arrays]
@@ -186,8 +196,10 @@ def _finite(arrays) -> np.ndarray:
     return values[np.isfinite(values)]
 
 
-def colorize(image: np.ndarray, vmin: float, vmax: float, *, background: np.ndarray | None = None) -> np.ndarray:
-    """Colour-code a disparity image with the turbo map (OpenCV's ``COLORMAP_TURBO``); NaN shows the background.
+def colorize(image: np.ndarray, vmin: float, vmax: float, *, background: np.ndarray | None = None,
+             cmap: str = DISPARITY_CMAP) -> np.ndarray:
+    """Colour-code a disparity image with a colour map (:func:`~cvstereo.viz.colormaps.disparity_lut`); NaN shows
+    the background.
 
     Parameters
     ----------
@@ -196,6 +208,8 @@ def colorize(image: np.ndarray, vmin: float, vmax: float, *, background: np.ndar
         Values mapped to the ends of the map (clipped beyond).
     background : (H, W, 3) uint8 ndarray, optional, keyword-only
         Shown where ``image`` is NaN (e.g. :func:`context_rgb`); default black.
+    cmap : str, keyword-only
+        A matplotlib colour map name; default viridis (colour-blind safe), its too-dark low end cut.
 
     Returns
     -------
@@ -204,11 +218,33 @@ def colorize(image: np.ndarray, vmin: float, vmax: float, *, background: np.ndar
     """
     finite = np.isfinite(image)
     scaled = np.clip((np.where(finite, image, vmin) - vmin) / (vmax - vmin), 0.0, 1.0)
-    levels = np.round(scaled * 255).astype(np.uint8)
-    rgb = cv2.applyColorMap(levels, cv2.COLORMAP_TURBO)[..., ::-1]
-    rgb = np.ascontiguousarray(rgb)
+    lut = disparity_lut(cmap)
+    rgb = lut[np.round(scaled * (lut.shape[0] - 1)).astype(np.intp)]
     rgb[~finite] = NO_DATA_RGB if background is None else background[~finite]
     return rgb
+
+
+#: Times shown below this (relative to the origin) are in ms to 0.1 ms, beyond it in s to 1 ms: a panel title
+#: keeps at most 6 digits, so that titles side by side do not run into each other.
+_MS_UNTIL_US = 10_000_000
+
+
+def format_time(t_us: int | float, origin_us: int = 0) -> str:
+    """A time for titles and labels, counted from the recording's origin: ``"2040 ms"``, ``"49.600 s"``.
+
+    Examples
+    --------
+    >>> format_time(1_700_000_002_040_000, 1_700_000_000_000_000), format_time(49_600_000), format_time(-100)
+    ('2040 ms', '49.600 s', '-0.1 ms')
+    """
+    t = t_us - origin_us
+    return f"{round(t / 1000, 1):g} ms" if abs(t) < _MS_UNTIL_US else f"{t / 1e6:.3f} s"
+
+
+def origin_note(recording: Recording) -> str:
+    """"t = 0 at ... us" where the recording's origin is not 0 (where it is, the times shown are the clock's own)."""
+    origin = recording.origin_us
+    return f"t = 0 at {origin} µs on the recording's clock" if origin else ""
 
 
 def format_distance(metres: float) -> str:

@@ -26,20 +26,16 @@ from cvstereo.viz._images import (
     disparity_image,
     disparity_range,
     event_frame_rgb,
+    format_time,
     match_window_slice,
+    origin_note,
     truth_image,
 )
-from cvstereo.viz.mpl import (
-    DISPARITY_CMAP,
-    add_metres_axis,
-    cmap_with_background,
-    figure_title,
-    new_figure,
-    show_sensor_image,
-)
+from cvstereo.viz.colormaps import DISPARITY_CMAP, listed_cmap
+from cvstereo.viz.mpl import add_metres_axis, figure_title, new_figure, show_sensor_image
 
-__all__ = ["ERROR_BIN_PX", "TRUTH_BAND", "as_result", "fill_gaps", "grouped_percentiles", "plot_disparity_map",
-           "plot_disparity_over_time", "plot_error_histogram", "window_truth"]
+__all__ = ["ERROR_BIN_PX", "TRUTH_BAND", "as_result", "fill_gaps", "grouped_percentiles", "picture_window",
+           "plot_disparity_map", "plot_disparity_over_time", "plot_error_histogram", "window_truth"]
 
 #: Share of the truth drawn as a band around its median per window (10th to 90th percentile): wide enough to
 #: show two objects at different distances, narrow enough to ignore stray events at object borders.
@@ -64,7 +60,7 @@ def as_result(result) -> MatchResult:
     return MatchResult(matches, {"anchor": "event", "window_us": 0})
 
 
-def _plot_window(result: MatchResult, window_us: int | None) -> int:
+def picture_window(result: MatchResult, window_us: int | None) -> int:
     """The window of a picture: the matcher's own for window anchors, else ``window_us`` (default 40 ms)."""
     anchor, own = anchor_of(result)
     if anchor == "window" and own > 0:
@@ -156,20 +152,22 @@ def plot_disparity_over_time(recording: Recording, result, *, window_us: int | N
     Returns
     -------
     matplotlib.figure.Figure
-        One axes: time (s) against disparity (px). Its first line holds the matches themselves.
+        One axes: time (s, from ``recording.origin_us``) against disparity (px). Its first line holds the matches
+        themselves.
     """
     result = as_result(result)
     matches = result.matches
-    window_us = _plot_window(result, window_us)
+    window_us = picture_window(result, window_us)
     fig = new_figure(10.0, 4.8)
     ax = fig.subplots()
     disp = matches["disparity"].astype(np.float64)
-    ax.plot(matches["t"] / 1e6, disp, linestyle="none", marker=".", markersize=2.0, markeredgewidth=0,
+    origin = recording.origin_us
+    ax.plot((matches["t"] - origin) / 1e6, disp, linestyle="none", marker=".", markersize=2.0, markeredgewidth=0,
             color="tab:blue", alpha=_point_alpha(disp.size), rasterized=True, label=f"matches ({disp.size:,})")
     lows, highs = [], []
     if disp.size:
         groups, med = fill_gaps(*grouped_percentiles(_window_keys(result, window_us), disp, [50]))
-        centre = (groups * window_us + window_us / 2) / 1e6
+        centre = (groups * window_us + window_us / 2 - origin) / 1e6
         ax.plot(centre, med[:, 0], color="tab:orange", linewidth=1.5,
                 label=f"median of matches per {window_us / 1000:g} ms")
         lows.append(np.percentile(disp, _Y_RANGE_PERCENTILES[0]))
@@ -177,7 +175,7 @@ def plot_disparity_over_time(recording: Recording, result, *, window_us: int | N
     if recording.has_truth:
         starts, pct = window_truth(recording, anchor_cameras(result), window_us)
         if starts.size:
-            centre = (starts + window_us / 2) / 1e6
+            centre = (starts + window_us / 2 - origin) / 1e6
             ax.fill_between(centre, pct[:, 1], pct[:, 2], color="k", alpha=0.15, linewidth=0,
                             label=f"truth, {TRUTH_BAND[0]}-{TRUTH_BAND[1]} % of events")
             ax.plot(centre, pct[:, 0], color="k", linestyle="--", linewidth=1.2,
@@ -194,7 +192,8 @@ def plot_disparity_over_time(recording: Recording, result, *, window_us: int | N
             ax.text(0.01, 0.98, f"{outside:,} matches ({'<0.1%' if share < 0.001 else f'{share:.1%}'}) outside "
                     "the plotted range",
                     transform=ax.transAxes, va="top", fontsize="small", color="0.3")
-    ax.set_xlabel("time (s)")
+    note = origin_note(recording)
+    ax.set_xlabel(f"time (s; {note})" if note else "time (s)")
     ax.set_ylabel("disparity (px)")
     ax.grid(True, alpha=0.3)
     # Below the axes: inside, any corner may hide matches.
@@ -223,7 +222,8 @@ def _pick_windows(result: MatchResult, window_us: int, n_windows: int) -> list[i
 
 def plot_disparity_map(recording: Recording, result, t_end_us: int | Sequence[int] | None = None, *,
                        n_windows: int = 3, window_us: int | None = None, depth: DepthModel | None = None,
-                       vmin: float | None = None, vmax: float | None = None, title: str | None = None):
+                       vmin: float | None = None, vmax: float | None = None, title: str | None = None,
+                       cmap: str = DISPARITY_CMAP):
     """Colour-coded disparities at their anchor pixels, one row per window (thesis figs. 4.3, 4.6).
 
     Each row shows a window ``[t_end - W, t_end)``: both cameras' events (ON blue, OFF orange), then for each
@@ -236,7 +236,8 @@ def plot_disparity_map(recording: Recording, result, t_end_us: int | Sequence[in
     recording : Recording
     result : MatchResult or (N,) ndarray of MATCH_DTYPE
     t_end_us : int or sequence of int, optional
-        End(s) of the window(s), us; default: ``n_windows`` windows spread over the matches.
+        End(s) of the window(s), us on the recording's (absolute) clock; default: ``n_windows`` windows spread over
+        the matches. Titles count from ``recording.origin_us``.
     n_windows : int, keyword-only
     window_us : int, optional, keyword-only
         Window length W; default: the matcher's for frame matchers, else 40 ms.
@@ -246,13 +247,16 @@ def plot_disparity_map(recording: Recording, result, t_end_us: int | Sequence[in
         Colour range, px; default: from the disparities and truths shown (0 to 1.5 x their 99th percentile, see
         :func:`~cvstereo.viz._images.disparity_range`).
     title : str, optional, keyword-only
+    cmap : str, keyword-only
+        Colour map of the disparities (:func:`~cvstereo.viz.colormaps.disparity_lut`); default colour-blind safe.
 
     Returns
     -------
     matplotlib.figure.Figure
+        The disparity panels are titled with the number of matches they hold.
     """
     result = as_result(result)
-    window_us = _plot_window(result, window_us)
+    window_us = picture_window(result, window_us)
     if t_end_us is None:
         ends = _pick_windows(result, window_us, n_windows)
     else:
@@ -281,12 +285,14 @@ def plot_disparity_map(recording: Recording, result, t_end_us: int | Sequence[in
     truths = [img for *_, maps in rows for label, img, count, _ in maps if count is None]
     lo, hi = disparity_range(*estimates, reference=truths or None)
     norm_lo, norm_hi = lo if vmin is None else vmin, hi if vmax is None else vmax
-    return _draw_map_grid(rows, norm_lo, norm_hi, depth=depth,
-                          title=title or ("Disparity per window: " + (figure_title(result.meta, recording.meta)
-                                                                       or "matches")))
+    title = title or ("Disparity per window: " + (figure_title(result.meta, recording.meta) or "matches"))
+    note = origin_note(recording)
+    return _draw_map_grid(rows, norm_lo, norm_hi, depth=depth, title=f"{title}\n{note}" if note else title,
+                          cmap=cmap, origin_us=recording.origin_us)
 
 
-def _draw_map_grid(rows, vmin: float, vmax: float, *, depth: DepthModel | None, title: str):
+def _draw_map_grid(rows, vmin: float, vmax: float, *, depth: DepthModel | None, title: str, cmap: str,
+                   origin_us: int):
     from matplotlib.colors import Normalize
 
     n_cols = 2 + len(rows[0][3])
@@ -295,17 +301,17 @@ def _draw_map_grid(rows, vmin: float, vmax: float, *, depth: DepthModel | None, 
     fig = new_figure(n_cols * panel + 1.0, len(rows) * panel + 0.9)
     axes = fig.subplots(len(rows), n_cols, sharex=True, sharey=True, squeeze=False)
     # NaN transparent: the anchor camera's events show through in grey where they got no disparity.
-    cmap = cmap_with_background(DISPARITY_CMAP, background=(0.0, 0.0, 0.0, 0.0))
+    colours = listed_cmap(cmap)
     norm = Normalize(vmin, vmax)
     im = None
     for r, (t0, t_end, frames, maps) in enumerate(rows):
-        span = f"{t0 / 1000:g}-{t_end / 1000:g} ms"
+        span = f"{format_time(t0, origin_us)} + {format_time(t_end - t0)}"
         for c, frame in enumerate(frames):
             show_sensor_image(axes[r, c], frame, title=f"{CAMERA_NAMES[c]} events, {span}")
         for j, (label, img, count, context) in enumerate(maps):
-            suffix = "" if count is None else f" ({count:,})"
+            suffix = "" if count is None else f", {count:,} match{'es' if count != 1 else ''}"
             show_sensor_image(axes[r, 2 + j], context)
-            im = show_sensor_image(axes[r, 2 + j], img, cmap=cmap, norm=norm, title=label + suffix)
+            im = show_sensor_image(axes[r, 2 + j], img, cmap=colours, norm=norm, title=label + suffix)
     for ax in axes.flat:
         ax.label_outer()
         ax.title.set_fontsize("small")

@@ -21,10 +21,12 @@ from cvstereo.viz._images import (
     ON_RGB,
     busiest_window,
     event_frame_rgb,
+    format_time,
+    origin_note,
 )
 from cvstereo.viz.mpl import SIGNED_CMAP, cmap_with_background, new_figure, recording_name, show_sensor_image
 
-__all__ = ["THESIS_THRESHOLD", "dynamic_frame_values", "plot_dynamic_frames", "plot_event_frames",
+__all__ = ["SWATCH_EDGE", "THESIS_THRESHOLD", "dynamic_frame_values", "plot_dynamic_frames", "plot_event_frames",
            "plot_filtered_frames"]
 
 #: The thesis' threshold on filtered frames (eq. 3.7) and on dynamic frames (event-time matcher): 1.2.
@@ -32,6 +34,9 @@ THESIS_THRESHOLD = 1.2
 
 #: Events older than this share of their initial weight are left out of a dynamic frame: below what a plot shows.
 _DYNAMIC_NEGLIGIBLE = 1e-6
+
+#: Edge colour of the legend swatches (matplotlib grey level): visible around white and the light hues alike.
+SWATCH_EDGE = "0.3"
 
 #: Size of one sensor panel, inches.
 _PANEL_IN = 4.0
@@ -54,8 +59,15 @@ def _window_start(recording: Recording, t_start_us: int | None, window_us: int) 
     return busiest_window(recording, window_us) if t_start_us is None else int(t_start_us)
 
 
-def _ms(t_us: float) -> str:
-    return f"{t_us / 1000:g} ms"
+def _span(recording: Recording, t0: int, t1: int) -> str:
+    """``[t0, t1)`` counted from the recording's origin."""
+    return f"[{format_time(t0, recording.origin_us)}, {format_time(t1, recording.origin_us)})"
+
+
+def _suptitle(fig, recording: Recording, text: str) -> None:
+    """The figure's title, with the absolute time of t = 0 below it where that is not 0."""
+    note = origin_note(recording)
+    fig.suptitle(f"{text}\n{note}" if note else text)
 
 
 def _camera_title(cam: int, n_events: int | None = None) -> str:
@@ -71,8 +83,8 @@ def plot_event_frames(recording: Recording, t_start_us: int | None = None, *,
     ----------
     recording : Recording
     t_start_us : int, optional
-        Start of the window ``[t_start_us, t_start_us + window_us)``, us; default: the absolute window with the
-        most events.
+        Start of the window ``[t_start_us, t_start_us + window_us)``, us on the recording's (absolute) clock;
+        default: the absolute window with the most events. Titles count from ``recording.origin_us``.
     window_us : int, keyword-only
         Window length, us (thesis: 40 ms; 2 ms gives its fig. 3.1).
     title : str, optional, keyword-only
@@ -81,7 +93,7 @@ def plot_event_frames(recording: Recording, t_start_us: int | None = None, *,
     Returns
     -------
     matplotlib.figure.Figure
-        Two image axes (left, right camera). A pixel that saw both polarities in the window is yellow.
+        Two image axes (left, right camera). A pixel that saw both polarities in the window is white.
     """
     from matplotlib.patches import Patch
 
@@ -95,10 +107,11 @@ def plot_event_frames(recording: Recording, t_start_us: int | None = None, *,
         show_sensor_image(ax, event_frame_rgb(ev, resolution=recording.resolution),
                           title=_camera_title(cam, ev.size))
         ax.label_outer()
-    handles = [Patch(color=np.array(rgb) / 255, label=label)
+    # A grey edge on every swatch: the white of "ON and OFF" is otherwise invisible on the white figure.
+    handles = [Patch(facecolor=np.array(rgb) / 255, edgecolor=SWATCH_EDGE, linewidth=0.8, label=label)
                for rgb, label in ((ON_RGB, "ON"), (OFF_RGB, "OFF"), (BOTH_RGB, "ON and OFF"))]
     fig.legend(handles=handles, loc="outside lower center", ncols=3, frameon=False)
-    fig.suptitle(title or f"Events in [{_ms(t0)}, {_ms(t0 + window_us)}){_of(recording)}")
+    _suptitle(fig, recording, title or f"Events in {_span(recording, t0, t0 + window_us)}{_of(recording)}")
     return fig
 
 
@@ -175,8 +188,8 @@ def plot_filtered_frames(recording: Recording, t_start_us: int | None = None, *,
     _signed_grid(fig, [(f"Gaussian {kernel_size}x{kernel_size}, σ={sigma:g}", filtered, False),
                        (f"|value| ≥ {threshold:g}", filtered, True)],
                  threshold=threshold, colorbar_label="filtered sum of event signs (ON +1, OFF −1)")
-    fig.suptitle(title or f"Filtered frames of [{_ms(t0)}, {_ms(t0 + window_us)}){_of(recording)}; contour at "
-                 f"±{threshold:g}")
+    _suptitle(fig, recording, title or f"Filtered frames of {_span(recording, t0, t0 + window_us)}{_of(recording)}; "
+              f"contour at ±{threshold:g}")
     return fig
 
 
@@ -242,6 +255,6 @@ def plot_dynamic_frames(recording: Recording, t_us: int | None = None, *, params
     rows = [(labels[i], [values[0][i], values[1][i]], False) for i in range(n_frames)]
     fig = new_figure(2 * _PANEL_IN + 1.2, n_frames * _PANEL_IN + 0.6)
     _signed_grid(fig, rows, threshold=threshold, colorbar_label="dynamic frame value (ON +, OFF −)")
-    fig.suptitle(title or f"Dynamic frames{_of(recording)} at t = {_ms(t)} (×{params.decay:g} every "
-                 f"{params.decay_period_us} µs); contour at ±{threshold:g}")
+    _suptitle(fig, recording, title or f"Dynamic frames{_of(recording)} at t = {format_time(t, recording.origin_us)} "
+              f"(×{params.decay:g} every {params.decay_period_us} µs); contour at ±{threshold:g}")
     return fig

@@ -14,14 +14,12 @@ import numpy as np
 from cvstereo.errors import require_extra
 from cvstereo.geometry.depth import DepthModel
 from cvstereo.io.atomic import atomic_path
+from cvstereo.viz.colormaps import DISPARITY_CMAP  # the disparity maps' default, kept importable from here
 
 __all__ = ["COLUMN_WIDTH_IN", "DEFAULT_DPI", "DISPARITY_CMAP", "MIN_PAPER_FONT_PT", "SIGNED_CMAP", "add_metres_axis",
            "cmap_with_background", "figure_title", "metres_ticks", "new_figure", "recording_name",
            "require_matplotlib", "save_figure", "set_paper_width", "show_sensor_image"]
 
-#: Colormap of disparities, the same map as the video's (OpenCV's COLORMAP_TURBO): a rainbow that, unlike the
-#: thesis' Matlab "jet", has no false bands; pixels without a disparity are black (not the colour of 0 px).
-DISPARITY_CMAP = "turbo"
 
 #: Diverging colormap of signed frames (filtered, dynamic): OFF (negative) orange, zero white, ON (positive) blue:
 #: the hues of the event frames (:data:`~cvstereo.viz._images.ON_RGB`), so a colour means one polarity everywhere.
