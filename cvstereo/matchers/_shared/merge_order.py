@@ -4,11 +4,14 @@ Event-area and event-vector compare an event's own dynamic frame with the other 
 at the event's time, so both cameras' events are processed in one merged order: by time, and at equal times
 the left camera's events first, each camera's events in their array order **[choice]**.
 :func:`left_is_next` is that rule; the numba kernels walk :func:`merged_stream` (built by
-:func:`left_is_next_jit`, the same function compiled). The references merge on their own, by a sort
-(:func:`cvstereo.matchers._shared.reference_frames.merged_events`).
+:func:`left_is_next_jit`, the same function compiled); :func:`merged_events` walks it in Python (kept for the 0.2
+path ``calibration_free.merge_order``). The references merge on their own, by a sort
+(:func:`cvstereo.matchers._shared.reference_frames.merged_events`), so that a slip in this rule shows.
 """
 
 from __future__ import annotations
+
+from collections.abc import Iterator
 
 import numpy as np
 from numba import njit
@@ -37,6 +40,25 @@ def left_is_next(il: int, nl: int, ir: int, nr: int, tl, tr) -> bool:
 
 #: :func:`left_is_next` compiled for the kernels (inlined into each, so that it costs no call).
 left_is_next_jit = njit(cache=True, inline="always")(left_is_next)
+
+
+def merged_events(left: np.ndarray, right: np.ndarray) -> Iterator[tuple[int, int, np.void]]:
+    """Both cameras' events in the merged order.
+
+    Yields
+    ------
+    (camera, index, event)
+        camera 0 = left, 1 = right; index into that camera's array.
+    """
+    i = j = 0
+    tl, tr = left["t"], right["t"]
+    while i < left.size or j < right.size:
+        if left_is_next(i, left.size, j, right.size, tl, tr):
+            yield 0, i, left[i]
+            i += 1
+        else:
+            yield 1, j, right[j]
+            j += 1
 
 
 def merged_stream(tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p, buffer=None):
