@@ -1,11 +1,12 @@
 """Reference dynamic frames of one camera: plain Python, one operation at a time.
 
 The twin of :class:`cvstereo.frames.dynamic.FrameBank` (the numba state the fast matchers use): the same
-float64 operations in the same order, so both agree bit for bit (see :mod:`cvstereo.frames.dynamic` for
-the rules: lazy decay with one scale factor, renormalisation, forgetting after a long gap). It shares no code
-with it: the update kernel is built here from its formula (:func:`update_kernel`), the two cameras' events are
-merged here by sorting (:func:`merged_events`), and only the limits of the lazy decay
-(:mod:`cvstereo.frames.dynamic_limits`) are common.
+float64 operations in the same order (see :mod:`cvstereo.frames.dynamic` for the rules: lazy decay with one
+scale factor, renormalisation, forgetting after a long gap). It shares no code with it: the update kernel is
+built here from its formula (:func:`update_kernel`: the same weights as OpenCV's for the thesis' 3x3, sigma 1,
+so the values agree bit for bit there; within a unit in the last place for other sizes), the two cameras'
+events are merged here by sorting (:func:`merged_events`), and only the parameters and the limits of the lazy
+decay (:mod:`cvstereo.frames.dynamic_limits`) are common.
 
 >>> frames = DynamicFrames()
 >>> frames.add_event(t=0, x=5, y=5, p=1)
