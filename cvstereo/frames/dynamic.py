@@ -44,6 +44,7 @@ import numpy as np
 from numba import njit
 
 from cvstereo.frames.accumulate import check_filter_params
+from cvstereo.frames.dynamic_limits import FORGET_TICKS, RENORM
 from cvstereo.matchers.params import AliasedParams
 from cvstereo.model.events import DEFAULT_RESOLUTION
 from cvstereo.model.polarity import Polarity, check_polarity, slot_of_p
@@ -51,11 +52,6 @@ from cvstereo.model.polarity import Polarity, check_polarity, slot_of_p
 __all__ = ["FORGET_TICKS", "RENORM", "DynamicFrameParams", "FrameBank", "advance", "advance_due", "dynamic_unit",
            "event_columns", "event_matrix", "process_events", "splat", "tick_due", "update_kernel"]
 
-#: Renormalise the stored frames when the lazy decay factor falls below this (0.99^22900, about 5.7 s).
-RENORM = 1e-100
-
-#: A gap of more than this many decay ticks clears the frames (0.99^1e6 underflows to zero).
-FORGET_TICKS = 1_000_000
 
 @dataclass(frozen=True, kw_only=True)
 class DynamicFrameParams(metaclass=AliasedParams):

@@ -37,11 +37,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-#: ``border_horizon_us`` of the ``thesis`` set: the rule is off (the thesis answers everywhere).
-OFF = 0
-
-#: How many rows (the nearest that hold evidence) vote on a match near the border.
-VOTES = 3
+from cvstereo.matchers._shared.consistency import BORDER_OFF as OFF
+from cvstereo.matchers._shared.consistency import BORDER_VOTES as VOTES
 
 #: Time before the first match: no evidence yet.
 _NEVER = np.iinfo(np.int64).min // 2

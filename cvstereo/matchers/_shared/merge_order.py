@@ -4,7 +4,9 @@ Event-area and event-vector compare an event's own dynamic frame with the other 
 at the event's time, so both cameras' events are processed in one merged order: by time, and at equal times
 the left camera's events first, each camera's events in their array order **[choice]**.
 :func:`left_is_next` is that rule; the numba kernels walk :func:`merged_stream` (built by
-:func:`left_is_next_jit`, the same function compiled), and the references walk :func:`merged_events`.
+:func:`left_is_next_jit`, the same function compiled); :func:`merged_events` walks it in Python (kept for the 0.2
+path ``calibration_free.merge_order``). The references merge on their own, by a sort
+(:func:`cvstereo.matchers._shared.reference_frames.merged_events`), so that a slip in this rule shows.
 """
 
 from __future__ import annotations

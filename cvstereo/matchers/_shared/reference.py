@@ -4,14 +4,16 @@ One module per matcher (:mod:`.frame_clusters`, :mod:`.frame_area`, :mod:`.event
 :mod:`.event_vector`), and the reference dynamic frames (:mod:`.dynamic_frames`). Each matcher's function
 ``<name>_reference(left, right, params, *, resolution)`` takes the whole stream at once and returns a
 time-ordered matches array. They are slow (use them on short inputs) and exist so that tests can hold the fast
-matchers to them: same anchors, same disparities, bit for bit. They share the parameter classes
-(:mod:`cvstereo.matchers._shared.thesis_params`) and the merge order of the two cameras
-(:mod:`cvstereo.matchers._shared.merge_order`)
-with the fast matchers, and import none of their kernels. In relative threshold mode they feed the same
-signal-level estimator (:class:`cvstereo.matchers._shared.signal_level.SignalLevel`) with the values they compute,
-window by
-window (the event references one event at a time, through
-:class:`~cvstereo.matchers._shared.reference_frames.LevelByWindow`).
+matchers to them: same anchors, same disparities, bit for bit. They share with the fast matchers only what is
+not code of a kernel: the parameter classes
+(:mod:`cvstereo.matchers._shared.thesis_params`), named constants (:mod:`cvstereo.matchers._shared.consistency`,
+:mod:`cvstereo.frames.dynamic_limits`) and, in relative threshold mode, the signal-level estimator
+(:class:`cvstereo.matchers._shared.signal_level.SignalLevel`), which they feed with the values they compute,
+window by window (the event references one event at a time, through
+:class:`~cvstereo.matchers._shared.reference_frames.LevelByWindow`). The merge order of the two cameras, the
+frames and their Gaussian, the dynamic frames' kernel, neighbour support and the left-right check are computed
+here again from their definitions (:mod:`.reference_frames`, :mod:`.reference_windows`, :mod:`.reference_checks`),
+and no reference module imports a module holding a numba kernel (test_reference_independence).
 """
 
 from __future__ import annotations

@@ -1,8 +1,12 @@
 """Reference dynamic frames of one camera: plain Python, one operation at a time.
 
 The twin of :class:`cvstereo.frames.dynamic.FrameBank` (the numba state the fast matchers use): the same
-float64 operations in the same order, so both agree bit for bit (see :mod:`cvstereo.frames.dynamic` for
-the rules: lazy decay with one scale factor, renormalisation, forgetting after a long gap).
+float64 operations in the same order (see :mod:`cvstereo.frames.dynamic` for the rules: lazy decay with one
+scale factor, renormalisation, forgetting after a long gap). It shares no code with it: the update kernel is
+built here from its formula (:func:`update_kernel`: the same weights as OpenCV's for the thesis' 3x3, sigma 1,
+so the values agree bit for bit there; within a unit in the last place for other sizes), the two cameras'
+events are merged here by sorting (:func:`merged_events`), and only the parameters and the limits of the lazy
+decay (:mod:`cvstereo.frames.dynamic_limits`) are common.
 
 >>> frames = DynamicFrames()
 >>> frames.add_event(t=0, x=5, y=5, p=1)
@@ -12,16 +16,51 @@ the rules: lazy decay with one scale factor, renormalisation, forgetting after a
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import numpy as np
 
-from cvstereo.frames.dynamic import FORGET_TICKS, RENORM, DynamicFrameParams, dynamic_unit, update_kernel
-from cvstereo.matchers._shared.merge_order import merged_events
+from cvstereo.frames.dynamic_limits import FORGET_TICKS, RENORM
+from cvstereo.matchers._shared.reference_border import border_rule_of
+from cvstereo.matchers._shared.reference_windows import gaussian_kernel
 from cvstereo.matchers._shared.signal_level import SignalLevel
+from cvstereo.matchers._shared.thesis_params import DynamicFrameParams
 from cvstereo.model.events import DEFAULT_RESOLUTION
 from cvstereo.model.matches import empty_matches, make_matches
 from cvstereo.model.polarity import ON, slot_of_p
+
+
+def update_kernel(params) -> np.ndarray:
+    """(k, k) float64 weights an ON event adds around its pixel: ``gaussian_gain`` times the outer product of the
+    Gaussian's axis (:func:`~cvstereo.matchers._shared.reference_windows.gaussian_kernel`, eq. 3.8-3.9), or
+    ``[[1.0]]`` for the single-pixel update (eq. 4.1). ``params`` has the fields of the dynamic frames."""
+    if not params.gaussian:
+        return np.ones((1, 1))
+    g = gaussian_kernel(params.kernel_size, params.kernel_sigma)
+    return params.gaussian_gain * np.outer(g, g)
+
+
+def dynamic_unit(params) -> float:
+    """|D| at the pixel of one isolated event just after it (the update kernel's centre weight): the unit of a
+    relative threshold's floor."""
+    kernel = update_kernel(params)
+    return float(kernel[kernel.shape[0] // 2, kernel.shape[1] // 2])
+
+
+def merged_events(left: np.ndarray, right: np.ndarray) -> Iterator[tuple[int, int, np.void]]:
+    """Both cameras' events in the one order the event matchers see them: by time, at equal times the left
+    camera's first, each camera's in its array order (a stable sort on (t, camera)).
+
+    Yields
+    ------
+    (camera, index, event)
+        camera 0 = left, 1 = right; index into that camera's array.
+    """
+    t = np.concatenate([left["t"], right["t"]])
+    cams = np.concatenate([np.zeros(left.size, np.int64), np.ones(right.size, np.int64)])
+    index = np.concatenate([np.arange(left.size), np.arange(right.size)])
+    for i in np.lexsort((index, cams, t)).tolist():
+        yield int(cams[i]), int(index[i]), (left, right)[cams[i]][index[i]]
 
 
 class DynamicFrames:
@@ -195,4 +234,5 @@ def match_merged(left: np.ndarray, right: np.ndarray, params: DynamicFrameParams
         if disparity is not None:
             rows.append((t, x, y, p, cam, float(disparity)))
         own.add(slot, x, y, 1.0 if p else -1.0)
-    return make_matches(*zip(*rows, strict=True)) if rows else empty_matches()
+    # The border rule (adaptive set) decides on the whole output, in its order.
+    return border_rule_of(make_matches(*zip(*rows, strict=True)) if rows else empty_matches(), params, resolution)

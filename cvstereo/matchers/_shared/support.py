@@ -15,7 +15,8 @@ give the same result when both apply it per window.
 
 **Left-right check** (:func:`lr_consistent`): a disparity found scanning one camera's frame stands only where
 scanning the other camera's frame finds (nearly) the same disparity at the pixel it names. Its tolerance
-(1 px) is geometry too. Both fast paths and references call these functions, so they agree by construction.
+(:data:`~cvstereo.matchers._shared.consistency.LR_TOLERANCE_PX`, 1 px) is geometry too. The references count
+and check on their own (:mod:`cvstereo.matchers._shared.reference_checks`), plainly, from the same constants.
 
 >>> import numpy as np
 >>> x = np.array([10, 11, 12, 40]); y = np.array([5, 5, 6, 5]); d = np.array([3.0, 3.0, 3.5, 3.0])
@@ -28,10 +29,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-#: Neighbours lie within this many pixels in x and in y (a 5x5 square around the match).
-SUPPORT_RADIUS_PX = 2
-#: A neighbour supports a match when their disparities differ by at most this, px.
-SUPPORT_TOLERANCE_PX = 1.0
+from cvstereo.matchers._shared.consistency import LR_TOLERANCE_PX, SUPPORT_RADIUS_PX, SUPPORT_TOLERANCE_PX
 
 
 @njit(cache=True, nogil=True)
@@ -119,7 +117,7 @@ def supported(matches: np.ndarray, min_support: int, *, width: int) -> np.ndarra
 
 
 def lr_consistent(disparity: np.ndarray, other_disparity: np.ndarray, *, reference_camera: int = 1,
-                  tolerance: float = 1.0) -> np.ndarray:
+                  tolerance: float = LR_TOLERANCE_PX) -> np.ndarray:
     """Left-right check: where the other camera's scan agrees with the reference scan.
 
     Parameters

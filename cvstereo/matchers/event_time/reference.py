@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from cvstereo.frames.dynamic import dynamic_unit
 from cvstereo.matchers._shared.reference import sign
-from cvstereo.matchers._shared.reference_frames import DynamicFrames
+from cvstereo.matchers._shared.reference_border import border_rule_of
+from cvstereo.matchers._shared.reference_frames import DynamicFrames, dynamic_unit
 from cvstereo.matchers._shared.signal_level import SignalLevel
 from cvstereo.matchers._shared.thesis_params import EventTimeParams
 from cvstereo.model.events import DEFAULT_RESOLUTION
@@ -155,4 +155,5 @@ def event_time_reference(left: np.ndarray, right: np.ndarray, params: EventTimeP
             rows.append((t, x, y, int(e1["p"]), ref, float(chosen)))
     if not rows:
         return empty_matches()
-    return make_matches(*zip(*rows, strict=True))
+    # The border rule (adaptive set) decides on the whole output, in its order.
+    return border_rule_of(make_matches(*zip(*rows, strict=True)), prm, resolution)

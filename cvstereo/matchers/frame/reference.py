@@ -1,11 +1,11 @@
 """Reference frame-based cluster matcher (docs/algorithms.md section 1, thesis 3.3): numpy over whole frames.
 
 Frame by frame, as the thesis describes it: per window and camera a signed frame per polarity frame
-(:func:`cvstereo.frames.accumulate.signed_frame`), the Gaussian, the threshold, the clusters of each row (the thesis'
-3xN "comparison array": sign, left edge, right edge), then rows with the same number of clusters in the same
-sign order are paired cluster by cluster. Vectorised with numpy (runs from comparing each pixel with its row
-neighbours, rows compared through per-row run counts) but with no shortcut of the fast matcher, which stacks
-all frames of a window into one image and runs one numba kernel over it.
+(:func:`cvstereo.matchers._shared.reference_windows.signed_frame`), the Gaussian, the threshold, the clusters of
+each row (the thesis' 3xN "comparison array": sign, left edge, right edge), then rows with the same number of
+clusters in the same sign order are paired cluster by cluster. Vectorised with numpy (runs from comparing each
+pixel with its row neighbours, rows compared through per-row run counts) but with no shortcut of the fast
+matcher, which stacks all frames of a window into one image and runs one numba kernel over it.
 """
 
 from __future__ import annotations
@@ -14,10 +14,16 @@ from typing import NamedTuple
 
 import numpy as np
 
-from cvstereo.frames.accumulate import filtered_unit, gaussian_filter, signed_frame
-from cvstereo.matchers._shared.reference_windows import values_at_events, window_events
+from cvstereo.matchers._shared.reference_border import border_rule_of
+from cvstereo.matchers._shared.reference_checks import supported
+from cvstereo.matchers._shared.reference_windows import (
+    filtered_unit,
+    gaussian_filter,
+    signed_frame,
+    values_at_events,
+    window_events,
+)
 from cvstereo.matchers._shared.signal_level import SignalLevel
-from cvstereo.matchers._shared.support import supported
 from cvstereo.matchers._shared.thesis_params import WIDTH_EPS, FrameClusterParams
 from cvstereo.model.events import DEFAULT_RESOLUTION
 from cvstereo.model.matches import empty_matches, make_matches
@@ -207,5 +213,6 @@ def frame_clusters_reference(left: np.ndarray, right: np.ndarray, params: FrameC
         rows.sort()
         if rows:
             y, x, p, d = zip(*rows, strict=True)
-            parts.append(supported(make_matches(t_end, x, y, p, prm.anchor_camera, d), prm.min_support, width=width))
-    return np.concatenate(parts) if parts else empty_matches()
+            parts.append(supported(make_matches(t_end, x, y, p, prm.anchor_camera, d), prm.min_support))
+    # The border rule (adaptive set) decides on the whole output, in its order.
+    return border_rule_of(np.concatenate(parts) if parts else empty_matches(), prm, resolution)

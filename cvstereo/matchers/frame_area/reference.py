@@ -10,10 +10,16 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from cvstereo.frames.accumulate import filtered_unit, gaussian_filter, signed_frame
-from cvstereo.matchers._shared.reference_windows import values_at_events, window_events
+from cvstereo.matchers._shared.reference_border import border_rule_of
+from cvstereo.matchers._shared.reference_checks import lr_consistent
+from cvstereo.matchers._shared.reference_windows import (
+    filtered_unit,
+    gaussian_filter,
+    signed_frame,
+    values_at_events,
+    window_events,
+)
 from cvstereo.matchers._shared.signal_level import SignalLevel
-from cvstereo.matchers._shared.support import lr_consistent
 from cvstereo.matchers._shared.thesis_params import FrameAreaParams
 from cvstereo.model.events import DEFAULT_RESOLUTION
 from cvstereo.model.matches import empty_matches, make_matches
@@ -156,4 +162,5 @@ def frame_area_reference(left: np.ndarray, right: np.ndarray, params: FrameAreaP
             y, x = np.nonzero(seen & keep)
             parts.append(make_matches(t_end, x, y, (ref[y, x] > 0).astype(np.int8), prm.reference_camera,
                                       disp[y, x]))
-    return np.concatenate(parts) if parts else empty_matches()
+    # The border rule (adaptive set) decides on the whole output, in its order.
+    return border_rule_of(np.concatenate(parts) if parts else empty_matches(), prm, resolution)
