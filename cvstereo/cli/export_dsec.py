@@ -83,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         raise ValueError(f"{args.recording}: no ground-truth times to export at (a test sequence); give DSEC's "
                          "test timestamps of this sequence: --timestamps CSV.")
-    paths = plan.write_folder(Path(args.output) / seq.name, names, DISPARITY_PNG)
+    paths = plan.write_folder(args.output, [f"{seq.name}/{n}" for n in names], DISPARITY_PNG)
     with plan:
         _, result = load_matches_for(args, load_recording(args))
         maps = predicted_maps(result.matches, times, resolution=truth.resolution,
