@@ -47,7 +47,8 @@ def base(tmp_path_factory) -> Path:
 
 def _png(shape, dtype, value) -> Callable[[Path], None]:
     def damage(work: Path) -> None:
-        ok, data = cv2.imencode(".png", np.full(shape, value, dtype))
+        encoded, data = cv2.imencode(".png", np.full(shape, value, dtype))
+        assert encoded
         (work / TRUTH / "000002.png").write_bytes(data.tobytes())
 
     return damage

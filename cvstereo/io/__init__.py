@@ -100,6 +100,12 @@ def _open_mvsec(path, *, resolution=None) -> RecordingStream:
     return open_mvsec(path, resolution=resolution)
 
 
+def _open_m3ed(path, *, resolution=None) -> RecordingStream:
+    from cvstereo.io.hdf5 import open_m3ed
+
+    return open_m3ed(path, resolution=resolution)
+
+
 def _prophesee_opener(name: str) -> Callable[..., RecordingStream]:
     """The opener of one Prophesee format: the header must name that format."""
     def open_format(path, right=None, *, resolution=None) -> RecordingStream:
@@ -117,9 +123,10 @@ FORMAT_TABLE: dict[str, Format] = {
                           TEXT_SUFFIXES, ("left_retina",)),
     "aedat2": Format(_open_aedat2, write_aedat2, ("right", "resolution"), AEDAT_SUFFIXES),
     "aedat4": Format(_open_aedat4, None, ("right", "resolution"), AEDAT4_SUFFIXES),
-    # DSEC and MVSEC share .h5/.hdf5: detect_format tells them apart by the layout inside.
+    # DSEC, MVSEC and M3ED share .h5/.hdf5: detect_format tells them apart by the layout inside.
     "dsec": Format(_open_dsec, None, ("right", "resolution")),
     "mvsec": Format(_open_mvsec, None, ("resolution",)),
+    "m3ed": Format(_open_m3ed, None, ("resolution",)),
     # Prophesee's files are told by their header (.raw holds any EVT encoding; .dat is also eDVS text's name).
     **{name: Format(_prophesee_opener(name), None, ("right", "resolution")) for name in ENCODINGS},
     "metavision-csv": Format(open_metavision_csv, None, ("right", "resolution", "columns")),
