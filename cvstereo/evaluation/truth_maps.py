@@ -110,17 +110,14 @@ def _dsec(folder, calibration) -> TruthMaps:
 
 
 def _mvsec(data_file, truth, calibration) -> TruthMaps:
-    from cvstereo.io._hdf5_datasets import numeric_dataset
-    from cvstereo.io.hdf5 import _open
-    from cvstereo.io.mvsec_truth import DEPTH_TIMES_KEY, mvsec_disparity_maps, mvsec_truth_file
+    from cvstereo.io.mvsec_truth import mvsec_disparity_maps, mvsec_map_count, mvsec_truth_file
 
     gt = Path(truth) if truth is not None else mvsec_truth_file(data_file)
     if not gt.is_file():
         raise FileNotFoundError(f"{gt}: no such MVSEC ground-truth file (MVSEC ships NAME_gt.hdf5 beside "
                                 "NAME_data.hdf5); give it with --truth FILE.")
     rect = _rectification(calibration, os.fspath(data_file))
-    with _open(gt) as f:
-        n = numeric_dataset(f, gt, DEPTH_TIMES_KEY, ndim=1, holds="the depth maps' times in seconds").shape[0]
+    n = mvsec_map_count(gt)
 
     def read() -> Iterator:
         return mvsec_disparity_maps(gt, rect.calibration)

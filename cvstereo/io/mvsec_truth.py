@@ -23,7 +23,7 @@ import numpy as np
 from cvstereo.errors import CorruptFileError
 from cvstereo.model.columns import times_to_us
 
-__all__ = ["DEPTH_KEY", "DEPTH_TIMES_KEY", "mvsec_disparity_maps", "mvsec_truth_file"]
+__all__ = ["DEPTH_KEY", "DEPTH_TIMES_KEY", "mvsec_disparity_maps", "mvsec_map_count", "mvsec_truth_file"]
 
 DEPTH_KEY = "davis/left/depth_image_rect"
 DEPTH_TIMES_KEY = "davis/left/depth_image_rect_ts"
@@ -34,6 +34,15 @@ def mvsec_truth_file(data_file: str | os.PathLike) -> Path:
     data_file = Path(data_file)
     stem = data_file.stem[:-len("_data")] if data_file.stem.endswith("_data") else data_file.stem
     return data_file.with_name(f"{stem}_gt{data_file.suffix}")
+
+
+def mvsec_map_count(path: str | os.PathLike) -> int:
+    """How many depth maps an MVSEC ``*_gt.hdf5`` holds (its times dataset checked to be one of numbers)."""
+    from cvstereo.io._hdf5_datasets import numeric_dataset
+    from cvstereo.io.hdf5 import _open
+
+    with _open(path) as f:
+        return numeric_dataset(f, path, DEPTH_TIMES_KEY, ndim=1, holds="the depth maps' times in seconds").shape[0]
 
 
 def mvsec_disparity_maps(path: str | os.PathLike, calibration) -> Iterator[tuple[int, np.ndarray]]:
