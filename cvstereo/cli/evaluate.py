@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
+import sys
 
 from cvstereo.cli._common import (
     add_force_option,
@@ -14,6 +14,7 @@ from cvstereo.cli._common import (
     recording_plan,
 )
 from cvstereo.cli._text import printable
+from cvstereo.io.dsec_sequence import recording_name
 
 __all__ = ["add_parser", "run"]
 
@@ -53,6 +54,10 @@ def run(args: argparse.Namespace) -> int:
                          "onto (a DSEC sequence folder or an MVSEC data file has).")
     plan.read(*(truth.files if truth is not None else ()))
     plan.check()  # reads only: its inputs are regular files
+    if truth is not None and truth.times == []:  # said before the events are read
+        raise ValueError(f"{args.recording}: no ground-truth disparity maps (disparity/event/*.png with "
+                         "disparity/timestamps.txt); DSEC's test sequences have none: write DSEC's submission "
+                         "PNGs with `cvstereo export-dsec` instead.")
     recording, result = load_matches_for(args, load_recording(args))
     if truth is not None:
         return _dense(args, truth, result)
@@ -64,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
                        "method": meta.get("method"), "variant": meta.get("variant"), "figures": figures},
                       indent=2))
         return 0
-    name = Path(args.recording).stem
+    name = recording_name(args.recording)
     pub = thesis_disparity(str(meta.get("method")), str(meta.get("variant")), name)
     print(printable(f"method {meta.get('method')} ({meta.get('variant')}), anchor {meta.get('anchor')}, "
                     f"recording {args.recording}" + ("" if recording.has_truth else
@@ -80,10 +85,10 @@ def _dense(args: argparse.Namespace, truth, result) -> int:
     from cvstereo.evaluation.dense_truth import score_maps
     from cvstereo.evaluation.metrics import markdown_table, to_json
 
-    if truth.times == []:
-        raise ValueError(f"{args.recording}: no ground-truth disparity maps (disparity/event/*.png with "
-                         "disparity/timestamps.txt); DSEC's test sequences have none: write DSEC's submission "
-                         "PNGs with `cvstereo export-dsec` instead.")
+    if "rectification" not in result.meta:
+        print(f"note: {args.matches} was matched without --calibration: its disparities are the raw pair's, not the "
+              "rectified pair's the ground truth holds (match with --calibration to compare like with like).",
+              file=sys.stderr)
     with naming(args.matches):
         figures = score_maps(result.matches, truth.read(), resolution=truth.resolution,
                              rectification=truth.rectification)
@@ -93,7 +98,7 @@ def _dense(args: argparse.Namespace, truth, result) -> int:
                        "method": meta.get("method"), "variant": meta.get("variant"), "truth": truth.what,
                        "figures": figures}, indent=2))
         return 0
-    name = Path(args.recording).resolve().name if Path(args.recording).is_dir() else Path(args.recording).stem
+    name = recording_name(args.recording)
     print(printable(f"method {meta.get('method')} ({meta.get('variant')}), recording {args.recording}, "
                     f"{truth.what}"))
     print(markdown_table({name: figures}, columns=list(figures)))

@@ -76,7 +76,8 @@ def describe(stream) -> list[str]:
             f"{', '.join(stream.files)}: {stream.format}")
     lines = [f"{head}, {width}x{height}"
              + (f" ({_FROM[meta['resolution_from']]})" if "resolution_from" in meta else "")
-             + (", ground truth" if stream.has_truth else ", no ground truth")
+             # A sequence's truth is its disparity maps, said on their own line; per-event truth it has none.
+             + ("" if sequence else ", ground truth" if stream.has_truth else ", no ground truth")
              + ("" if stream.is_stereo else ", one camera")]
     indent = "  "
     if sequence:

@@ -28,7 +28,7 @@ from cvstereo.io.files import printable
 
 __all__ = ["CALIBRATION_FILE", "DISPARITY_FOLDER", "DISPARITY_SCALE", "EVENT_FILES", "MAX_PNG_DISPARITY",
            "TIMESTAMPS_FILE", "DsecSequence", "find_dsec_sequence", "is_dsec_sequence", "read_disparity_png",
-           "read_timestamps", "write_disparity_png"]
+           "read_timestamps", "recording_name", "write_disparity_png"]
 
 #: The event files of a sequence, left then right, relative to its folder.
 EVENT_FILES = ("events/left/events.h5", "events/right/events.h5")
@@ -70,6 +70,22 @@ class DsecSequence:
         extra = [self.calibration] if self.calibration is not None else []
         truth = [self.root / TIMESTAMPS_FILE, *(p for _, p in self.disparity)] if self.disparity else []
         return [self.left, self.right, *extra, *truth]
+
+
+def recording_name(path: str | os.PathLike) -> str:
+    """The name to show for a recording: a folder's name; for a DSEC ``NAME/events/left/events.h5`` the
+    sequence's ``NAME`` (every DSEC event file is called ``events``); else the file name without extension.
+
+    >>> recording_name("zurich_city_01_a/events/left/events.h5"), recording_name("arm50.npz")
+    ('zurich_city_01_a', 'arm50')
+    """
+    path = Path(path)
+    if path.is_dir():
+        return path.resolve().name
+    parts = path.parts
+    if len(parts) >= 4 and parts[-3] == "events" and os.path.join(*parts[-3:]) in EVENT_FILES:
+        return parts[-4]
+    return path.stem
 
 
 def is_dsec_sequence(path: str | os.PathLike) -> bool:
