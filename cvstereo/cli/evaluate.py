@@ -85,13 +85,13 @@ def _dense(args: argparse.Namespace, truth, result) -> int:
     from cvstereo.evaluation.dense_truth import score_maps
     from cvstereo.evaluation.metrics import markdown_table, to_json
 
-    if "rectification" not in result.meta:
-        print(f"note: {args.matches} was matched without --calibration: its disparities are the raw pair's, not the "
-              "rectified pair's the ground truth holds (match with --calibration to compare like with like).",
-              file=sys.stderr)
     with naming(args.matches):
         figures = score_maps(result.matches, truth.read(), resolution=truth.resolution,
                              rectification=truth.rectification)
+    if "rectification" not in result.meta:  # after the scoring: an error in the ground truth stays one line
+        print(f"note: {args.matches} was matched without --calibration: its disparities are the raw pair's, not the "
+              "rectified pair's the ground truth holds (match with --calibration to compare like with like).",
+              file=sys.stderr)
     meta = result.meta
     if args.json:
         print(to_json({"recording": str(args.recording), "matches_file": str(args.matches),

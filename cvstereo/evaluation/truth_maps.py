@@ -117,7 +117,7 @@ def _mvsec(data_file, truth, calibration) -> TruthMaps:
         raise FileNotFoundError(f"{gt}: no such MVSEC ground-truth file (MVSEC ships NAME_gt.hdf5 beside "
                                 "NAME_data.hdf5); give it with --truth FILE.")
     rect = _rectification(calibration, os.fspath(data_file))
-    n = mvsec_map_count(gt)
+    n = mvsec_map_count(gt, rect.resolution)
 
     def read() -> Iterator:
         return mvsec_disparity_maps(gt, rect.calibration)

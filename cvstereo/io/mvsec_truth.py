@@ -36,13 +36,26 @@ def mvsec_truth_file(data_file: str | os.PathLike) -> Path:
     return data_file.with_name(f"{stem}_gt{data_file.suffix}")
 
 
-def mvsec_map_count(path: str | os.PathLike) -> int:
-    """How many depth maps an MVSEC ``*_gt.hdf5`` holds (its times dataset checked to be one of numbers)."""
+def _datasets(f, path, resolution: tuple[int, int]):
+    """The depth maps and their times, checked: datasets of numbers, one (height, width) map per time."""
     from cvstereo.io._hdf5_datasets import numeric_dataset
+
+    w, h = resolution
+    depth = numeric_dataset(f, path, DEPTH_KEY, ndim=3, holds="depth maps in metres, (N, height, width)")
+    times = numeric_dataset(f, path, DEPTH_TIMES_KEY, ndim=1, holds="the depth maps' times in seconds")
+    if depth.shape[0] != times.shape[0] or depth.shape[1:] != (h, w):
+        raise CorruptFileError(f"{path}: /{DEPTH_KEY} has shape {depth.shape} and /{DEPTH_TIMES_KEY} "
+                               f"{times.shape}; one {h}x{w} map per time is expected (the calibration's sensor).")
+    return depth, times
+
+
+def mvsec_map_count(path: str | os.PathLike, resolution: tuple[int, int]) -> int:
+    """How many depth maps an MVSEC ``*_gt.hdf5`` holds, its datasets checked (as :func:`mvsec_disparity_maps`
+    checks them) before any event is read."""
     from cvstereo.io.hdf5 import _open
 
     with _open(path) as f:
-        return numeric_dataset(f, path, DEPTH_TIMES_KEY, ndim=1, holds="the depth maps' times in seconds").shape[0]
+        return _datasets(f, path, resolution)[1].shape[0]
 
 
 def mvsec_disparity_maps(path: str | os.PathLike, calibration) -> Iterator[tuple[int, np.ndarray]]:
@@ -54,18 +67,12 @@ def mvsec_disparity_maps(path: str | os.PathLike, calibration) -> Iterator[tuple
     CorruptFileError
         The datasets are missing or of another shape; times that are not increasing.
     """
-    from cvstereo.io._hdf5_datasets import numeric_dataset, read_rows
+    from cvstereo.io._hdf5_datasets import read_rows
     from cvstereo.io.hdf5 import _open
 
     model = calibration.depth_model()
-    w, h = calibration.resolution
     with _open(path) as f:
-        depth = numeric_dataset(f, path, DEPTH_KEY, ndim=3, holds="depth maps in metres, (N, height, width)")
-        times = numeric_dataset(f, path, DEPTH_TIMES_KEY, ndim=1, holds="the depth maps' times in seconds")
-        if depth.shape[0] != times.shape[0] or depth.shape[1:] != (h, w):
-            raise CorruptFileError(f"{path}: /{DEPTH_KEY} has shape {depth.shape} and /{DEPTH_TIMES_KEY} "
-                                   f"{times.shape}; one {h}x{w} map per time is expected (the calibration's "
-                                   "sensor).")
+        depth, times = _datasets(f, path, calibration.resolution)
         t_us = times_to_us(read_rows(times, path, DEPTH_TIMES_KEY, 0, times.shape[0]), "s",
                            label=f"/{DEPTH_TIMES_KEY}", source=os.fspath(path))
         back = np.flatnonzero(np.diff(t_us) <= 0)

@@ -85,3 +85,12 @@ def test_mvsec_depth_is_scored_as_disparity_with_dsecs_metrics(tmp_path, capsys)
     # Without a calibration there is no way into the rectified frame: said in one line.
     assert main(["evaluate", str(data), str(tmp_path / "m.npz")]) == 1
     assert "--calibration" in capsys.readouterr().err
+    cal = ["--calibration", str(tmp_path / "camchain.yaml")]
+    # A ground-truth file missing, or holding maps of another size: one line naming it.
+    assert main(["evaluate", str(data), str(tmp_path / "m.npz"), *cal, "--truth", str(tmp_path / "none.hdf5")]) == 1
+    err = capsys.readouterr().err
+    assert "none.hdf5: no such MVSEC ground-truth file" in err and len(err.strip().splitlines()) == 1
+    _write_truth(tmp_path / "small_gt.hdf5", [(T0 + 50_000) / 1e6], np.ones((1, 10, 10)))
+    assert main(["evaluate", str(data), str(tmp_path / "m.npz"), *cal, "--truth", str(tmp_path / "small_gt.hdf5")]) == 1
+    err = capsys.readouterr().err
+    assert "small_gt.hdf5" in err and "(1, 10, 10)" in err and len(err.strip().splitlines()) == 1
