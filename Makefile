@@ -2,6 +2,8 @@
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
+# Where the command is after an install, as the README says (tests/test_readme.py runs that way).
+ON_PATH := the cvstereo command is in $(BIN)/: run '. $(BIN)/activate' in each new shell, or call $(BIN)/cvstereo
 
 .PHONY: demo test lint bench clean
 
@@ -12,10 +14,12 @@ $(BIN)/python:
 # Stamp files: reinstall only when pyproject.toml changes.
 $(VENV)/.demo-installed: pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e ".[viz,sweep]"
+	@echo "$(ON_PATH)"
 	touch $@
 
 $(VENV)/.test-installed: pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e ".[dev]"
+	@echo "$(ON_PATH)"
 	touch $@
 
 demo: $(VENV)/.demo-installed

@@ -40,13 +40,13 @@ _EXPORTS = {
     "write_matches": "cvstereo.io",
     "match": "cvstereo.run",
     "available_methods": "cvstereo.matchers.registry", "create_matcher": "cvstereo.matchers.registry",
-    "evaluate": "cvstereo.evaluation.metrics",
+    "evaluate": "cvstereo.evaluation.metrics", "disparity_images": "cvstereo.geometry.disparity_maps",
     "simulate_preset": "cvstereo.simulate",
 }
 
 __all__ = ["EVENT_DTYPE", "MATCH_DTYPE", "MatchResult", "Recording", "__version__", "as_events",
-           "available_methods", "concat_matches", "create_matcher", "evaluate", "make_events", "match",
-           "open_recording", "read_matches", "read_recording", "simulate_preset", "write_matches"]
+           "available_methods", "concat_matches", "create_matcher", "disparity_images", "evaluate", "make_events",
+           "match", "open_recording", "read_matches", "read_recording", "simulate_preset", "write_matches"]
 
 
 def __getattr__(name: str):

@@ -1,6 +1,7 @@
 """Types of the front door's lazily imported names (cvstereo/__init__.py), for IDEs and type checkers."""
 
 from cvstereo.evaluation.metrics import evaluate as evaluate
+from cvstereo.geometry.disparity_maps import disparity_images as disparity_images
 from cvstereo.io import open_recording as open_recording
 from cvstereo.io import read_matches as read_matches
 from cvstereo.io import read_recording as read_recording
@@ -19,5 +20,5 @@ from cvstereo.simulate import simulate_preset as simulate_preset
 
 __version__: str
 __all__ = ["EVENT_DTYPE", "MATCH_DTYPE", "MatchResult", "Recording", "__version__", "as_events",
-           "available_methods", "concat_matches", "create_matcher", "evaluate", "make_events", "match",
-           "open_recording", "read_matches", "read_recording", "simulate_preset", "write_matches"]
+           "available_methods", "concat_matches", "create_matcher", "disparity_images", "evaluate", "make_events",
+           "match", "open_recording", "read_matches", "read_recording", "simulate_preset", "write_matches"]

@@ -28,6 +28,7 @@ COMMANDS: dict[str, str] = {
     "info": "info",
     "convert": "convert",
     "evaluate": "evaluate",
+    "export-dsec": "export_dsec",
     "demo": "demo",
     "bench": "bench",
     "depth-fit": "depth_fit",

@@ -23,8 +23,9 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
         "with how that was decided. A file holding one camera is described on its own.",
     )
     p.add_argument("files", metavar="FILE", nargs="+",
-                   help="recording files (.npz, .txt/.dat, .aedat, .aedat4, .h5), each described on its own (so "
-                   "both files of a one-file-per-camera pair too); a matches .npz is summarised as such")
+                   help="recording files (.npz, .txt/.dat, .aedat, .aedat4, .h5) or DSEC sequence folders, each "
+                   "described on its own (so both files of a one-file-per-camera pair too: give the DSEC sequence "
+                   "folder to see the pair as one); a matches .npz is summarised as such")
     add_format_options(p)
     return p
 
@@ -70,11 +71,19 @@ def describe(stream) -> list[str]:
     """Lines describing a :class:`~cvstereo.io.stream.RecordingStream` (header lines, then a table)."""
     meta = stream.meta
     width, height = stream.resolution
-    lines = [f"{', '.join(stream.files)}: {stream.format}, {width}x{height}"
+    # A DSEC sequence folder is one stereo input: named by its folder, its files listed below.
+    sequence = meta.get("sequence")
+    head = (f"{meta['sequence_folder']}: DSEC sequence {sequence}" if sequence else
+            f"{', '.join(stream.files)}: {stream.format}")
+    lines = [f"{head}, {width}x{height}"
              + (f" ({_FROM[meta['resolution_from']]})" if "resolution_from" in meta else "")
-             + (", ground truth" if stream.has_truth else ", no ground truth")
+             # A sequence's truth is its disparity maps, said on their own line; per-event truth it has none.
+             + ("" if sequence else ", ground truth" if stream.has_truth else ", no ground truth")
              + ("" if stream.is_stereo else ", one camera")]
     indent = "  "
+    if sequence:
+        lines.append(f"  files: {', '.join(stream.files)}")
+        lines.append(f"  ground-truth disparity maps: {meta['ground_truth_maps'] or 'none (a test sequence)'}")
     if "converted_from" in meta:
         source = meta["converted_from"]
         lines.append(f"  converted from {', '.join(source.get('files', []))} ({source.get('format', '?')}):")

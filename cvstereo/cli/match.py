@@ -213,7 +213,8 @@ def list_methods() -> str:
 
     Methods whose module cannot be imported here are listed as unavailable, with the reason. The parameter
     defaults listed are the ``thesis`` set's; the ``adaptive`` line gives what that set changes, and why its
-    default variant.
+    default variant. A parameter whose 0 means "automatic" says what it then takes (a matcher class's
+    ``automatic_values(params)``).
     """
     from cvstereo.matchers.registry import METHODS, matcher_class
 
@@ -247,8 +248,11 @@ def list_methods() -> str:
         lines.append("  parameters (--param key=value):")
         hints = typing.get_type_hints(cls.Params)
         defaults = cls.Params()
+        # A 0 that means "automatic" (sgbm's p1, p2) is named with the value it takes, so that nobody reads 0.
+        automatic = getattr(cls, "automatic_values", lambda params: {})(defaults)
         for f in dataclasses.fields(cls.Params):
-            lines.append(f"    {f.name} = {_text(getattr(defaults, f.name))}  ({_type_text(hints[f.name])})")
+            auto = f"; 0 = automatic: {automatic[f.name]}" if f.name in automatic else ""
+            lines.append(f"    {f.name} = {_text(getattr(defaults, f.name))}  ({_type_text(hints[f.name])}{auto})")
         lines.append("")
     # Method docstrings and the parameter sets' reasons are written for Sphinx: shown here as plain text.
     return plain_text("\n".join(lines).rstrip())

@@ -334,6 +334,8 @@ def _nan_to_none(obj):
 _FORMATS = {
     "matches": "{:d}", "bad1": "{:.1%}", "bad2": "{:.1%}", "false_rate": "{:.1%}", "coverage": "{:.1%}",
     "events_per_s": "{:,.0f}", "realtime_x": "{:.1f}x",
+    # DSEC's metrics against dense ground truth (cvstereo.evaluation.dense_truth): fractions shown as percentages.
+    "1PE": "{:.2%}", "2PE": "{:.2%}", "maps": "{:d}", "pixels_scored": "{:,d}", "truth_pixels": "{:,d}",
 }
 
 _HEADERS = {

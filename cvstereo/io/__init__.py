@@ -81,6 +81,16 @@ def _open_aedat4(path, right=None, *, resolution=None) -> RecordingStream:
 def _open_dsec(path, right=None, *, resolution=None) -> RecordingStream:
     from cvstereo.io.hdf5 import open_dsec
 
+    if os.path.isdir(path):  # a sequence folder: both cameras' files, its name
+        from cvstereo.io.dsec_sequence import find_dsec_sequence
+
+        if right is not None:
+            raise ValueError(f"{path}: a DSEC sequence folder holds both cameras; give no second file ({right}).")
+        seq = find_dsec_sequence(path)
+        stream = open_dsec(seq.left, seq.right, resolution=resolution)
+        stream.meta.update(sequence=seq.name, sequence_folder=os.fspath(path),
+                           ground_truth_maps=len(seq.disparity))
+        return stream
     return open_dsec(path, right, resolution=resolution)
 
 
@@ -88,6 +98,12 @@ def _open_mvsec(path, *, resolution=None) -> RecordingStream:
     from cvstereo.io.hdf5 import open_mvsec
 
     return open_mvsec(path, resolution=resolution)
+
+
+def _open_m3ed(path, *, resolution=None) -> RecordingStream:
+    from cvstereo.io.hdf5 import open_m3ed
+
+    return open_m3ed(path, resolution=resolution)
 
 
 def _prophesee_opener(name: str) -> Callable[..., RecordingStream]:
@@ -107,9 +123,10 @@ FORMAT_TABLE: dict[str, Format] = {
                           TEXT_SUFFIXES, ("left_retina",)),
     "aedat2": Format(_open_aedat2, write_aedat2, ("right", "resolution"), AEDAT_SUFFIXES),
     "aedat4": Format(_open_aedat4, None, ("right", "resolution"), AEDAT4_SUFFIXES),
-    # DSEC and MVSEC share .h5/.hdf5: detect_format tells them apart by the layout inside.
+    # DSEC, MVSEC and M3ED share .h5/.hdf5: detect_format tells them apart by the layout inside.
     "dsec": Format(_open_dsec, None, ("right", "resolution")),
     "mvsec": Format(_open_mvsec, None, ("resolution",)),
+    "m3ed": Format(_open_m3ed, None, ("resolution",)),
     # Prophesee's files are told by their header (.raw holds any EVT encoding; .dat is also eDVS text's name).
     **{name: Format(_prophesee_opener(name), None, ("right", "resolution")) for name in ENCODINGS},
     "metavision-csv": Format(open_metavision_csv, None, ("right", "resolution", "columns")),
@@ -125,7 +142,8 @@ def detect_format(path: str | os.PathLike) -> str:
     ``#!AER-DAT4.0`` at the start (or ``.aedat4``) means AEDAT4, other ``#!AER-DAT`` AEDAT 2.0 (jAER also
     used ``.dat`` for it); a Prophesee ``% `` header names its format (EVT 2.0 / 2.1 / 3.0 ``.raw``, Prophesee
     ``.dat``) whatever the extension (:func:`cvstereo.io.prophesee.sniff_prophesee`); ``.npz`` is a recording
-    archive; ``.h5`` / ``.hdf5`` are DSEC or MVSEC (told by the layout, :func:`cvstereo.io.hdf5.hdf5_layout`);
+    archive; ``.h5`` / ``.hdf5`` are DSEC, MVSEC or M3ED (told by the layout, :func:`cvstereo.io.hdf5.hdf5_layout`),
+    a folder with ``events/left`` / ``events/right`` is a DSEC sequence (:mod:`cvstereo.io.dsec_sequence`);
     ``.txt`` / ``.dat`` / ``.csv`` are Metavision CSV when their content says so
     (:func:`cvstereo.io.metavision_csv.sniff_metavision_csv`), else eDVS text, ``edvs-text`` when the first
     event line has 4 columns and ``edvs-merged`` when it has 5.
@@ -139,6 +157,10 @@ def detect_format(path: str | os.PathLike) -> str:
         message lists the ``--format`` values.
     """
     path = Path(path)
+    from cvstereo.io.dsec_sequence import is_dsec_sequence
+
+    if is_dsec_sequence(path):
+        return "dsec"
     suffix = path.suffix.lower()
     if suffix in HDF5_SUFFIXES:
         from cvstereo.io.hdf5 import hdf5_layout

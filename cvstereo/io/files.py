@@ -41,7 +41,8 @@ def require_regular_file(path: str | os.PathLike) -> Path:
     if stat.S_ISREG(mode):
         return path
     if stat.S_ISDIR(mode):
-        raise IsADirectoryError(f"{path}: is a directory; give a recording file.")
+        raise IsADirectoryError(f"{path}: is a directory; give a recording file (or a DSEC sequence folder, which "
+                                "holds events/left/events.h5 and events/right/events.h5).")
     kind = next((name for test, name in _KINDS if test(mode)), "not a file")
     raise OSError(f"{path}: is {kind}, not a regular file; recordings are read by seeking and in several passes, "
                   "so save the stream to a file first.")

@@ -1,4 +1,4 @@
-"""HDF5 event datasets (the ``hdf5`` extra: h5py, and hdf5plugin for DSEC's compression): DSEC and MVSEC.
+"""HDF5 event datasets (the ``hdf5`` extra: h5py, and hdf5plugin for DSEC's compression): DSEC, MVSEC and M3ED.
 
 DSEC (``dsec``; one file per camera, ``events/left/events.h5`` and ``events/right/events.h5``, 640x480):
 
@@ -9,6 +9,9 @@ DSEC (``dsec``; one file per camera, ``events/left/events.h5`` and ``events/righ
 MVSEC (``mvsec``; both cameras in one ``*_data.hdf5`` file, 346x260): ``/davis/left/events`` and
 ``/davis/right/events``, (N, 4) float64 rows ``x, y, t, p`` with t in seconds and p in -1/+1. Times become
 whole microseconds (``round(t * 1e6)``: the float64 seconds of a ROS clock resolve 0.25 us).
+
+M3ED (``m3ed``; both Prophesee cameras in one ``*_data.h5``, 1280x720): ``/prophesee/{left,right}/{x,y,t,p}``
+with ``ms_map_idx`` beside them, read as DSEC's (:func:`open_m3ed`).
 
 Both are streamed: DSEC by time slices of ``chunk_ms`` milliseconds cut with ``ms_to_idx`` (files are
 gigabytes), never more than :data:`CHUNK_ROWS` events at once; MVSEC by blocks of rows.
@@ -26,6 +29,7 @@ from __future__ import annotations
 import itertools
 import os
 from collections.abc import Iterator
+from typing import NamedTuple
 
 import numpy as np
 
@@ -36,8 +40,9 @@ from cvstereo.io.stream import MONO, Chunk, RecordingStream
 from cvstereo.model.columns import check_times, times_to_us, whole_numbers
 from cvstereo.model.recording import CAMERAS
 
-__all__ = ["CHUNK_MS", "CHUNK_ROWS", "DSEC_RESOLUTION", "INDEX_BLOCK", "MVSEC_RESOLUTION", "dsec_time_range",
-           "hdf5_layout", "open_dsec", "open_mvsec", "read_time_slice"]
+__all__ = ["CHUNK_MS", "CHUNK_ROWS", "DSEC_GROUP", "DSEC_RESOLUTION", "INDEX_BLOCK", "M3ED_GROUPS", "M3ED_RESOLUTION",
+           "MVSEC_RESOLUTION", "dsec_time_range", "hdf5_layout", "open_dsec", "open_m3ed", "open_mvsec",
+           "read_time_slice"]
 
 DSEC_RESOLUTION = (640, 480)
 MVSEC_RESOLUTION = (346, 260)
@@ -52,7 +57,26 @@ _DSEC_FIELDS = ("x", "y", "t", "p")
 #: What each DSEC dataset holds, for the messages that refuse another kind.
 _DSEC_HOLDS = {"x": "pixel columns (uint16)", "y": "pixel rows (uint16)", "p": "polarities 0/1",
                "t": "integer microseconds (uint32) relative to /t_offset"}
-_DSEC_LABELS = {f: f"/events/{f}" for f in _DSEC_FIELDS}
+
+
+class _Group(NamedTuple):
+    """Where one camera's DSEC-style datasets are: ``PREFIX/{x,y,t,p}``, the millisecond index, the time offset."""
+
+    prefix: str
+    index: str
+    offset: str | None
+
+    @property
+    def labels(self) -> dict[str, str]:
+        return {f: f"/{self.prefix}/{f}" for f in _DSEC_FIELDS}
+
+
+DSEC_GROUP = _Group("events", "ms_to_idx", "t_offset")
+#: M3ED (m3ed.io; the daniilidis-group/m3ed README and loaders): both Prophesee cameras in one ``*_data.h5``,
+#: ``/prophesee/{left,right}/{x,y,t,p}`` (t int64 us) with ``ms_map_idx`` as DSEC's ``ms_to_idx``, no offset.
+M3ED_GROUPS = {cam: _Group(f"prophesee/{cam}", f"prophesee/{cam}/ms_map_idx", None) for cam in CAMERAS}
+M3ED_RESOLUTION = (1280, 720)
+_DSEC_LABELS = DSEC_GROUP.labels
 #: MVSEC's column order in /davis/CAMERA/events.
 _MVSEC_COLUMNS = {"x": 0, "y": 1, "t": 2, "p": 3}
 
@@ -67,18 +91,18 @@ def _open(path):
         raise CorruptFileError(f"{path}: not a readable HDF5 file ({exc}).") from None
 
 
-def _is_dsec(f) -> bool:
-    events = f.get("events")
+def _is_dsec(f, g: _Group = DSEC_GROUP) -> bool:
+    events = f.get(g.prefix)
     return isinstance(events, h5py_module().Group) and all(k in events for k in _DSEC_FIELDS)
 
 
 def hdf5_layout(path: str | os.PathLike) -> str:
-    """``"dsec"`` or ``"mvsec"``: which layout an HDF5 file has.
+    """``"dsec"``, ``"mvsec"`` or ``"m3ed"``: which layout an HDF5 file has.
 
     Raises
     ------
     CorruptFileError
-        Neither ``/events/{x,y,t,p}`` nor ``/davis/{left,right}/events``.
+        None of ``/events/{x,y,t,p}``, ``/davis/{left,right}/events``, ``/prophesee/{left,right}/{x,y,t,p}``.
     """
     with _open(path) as f:
         if _is_dsec(f):
@@ -86,54 +110,58 @@ def hdf5_layout(path: str | os.PathLike) -> str:
         davis = f.get("davis")
         if isinstance(davis, h5py_module().Group) and any(f"{cam}/events" in davis for cam in CAMERAS):
             return "mvsec"
+        if any(_is_dsec(f, g) for g in M3ED_GROUPS.values()):
+            return "m3ed"
         raise CorruptFileError(f"{path}: neither the DSEC layout (/events/x, y, t, p) nor MVSEC's "
-                               f"(/davis/left/events); top-level keys: {', '.join(f.keys()) or 'none'}.")
+                               f"(/davis/left/events) nor M3ED's (/prophesee/left/x, y, t, p); top-level keys: "
+                               f"{', '.join(f.keys()) or 'none'}.")
 
 
-def _dsec_header(path) -> tuple[int, int, int | None]:
-    """(events, t_offset, length of /ms_to_idx or None), after checking every dataset's kind and shape."""
+def _dsec_header(path, g: _Group = DSEC_GROUP) -> tuple[int, int, int | None]:
+    """(events, t_offset, length of the ms index or None), after checking every dataset's kind and shape."""
+    labels = g.labels
     with _open(path) as f:
-        if not _is_dsec(f):
-            raise CorruptFileError(f"{path}: not a DSEC event file (needs /events/x, /events/y, /events/t, "
-                                   "/events/p).")
-        datasets = {k: numeric_dataset(f, path, f"events/{k}", ndim=1, holds=_DSEC_HOLDS[k]) for k in _DSEC_FIELDS}
+        if not _is_dsec(f, g):
+            raise CorruptFileError(f"{path}: not a DSEC event file (needs {', '.join(labels.values())}).")
+        datasets = {k: numeric_dataset(f, path, f"{g.prefix}/{k}", ndim=1, holds=_DSEC_HOLDS[k]) for k in _DSEC_FIELDS}
         if datasets["t"].dtype.kind == "f":
             raise CorruptFileError(
-                f"{path}: /events/t has dtype {datasets['t'].dtype}; DSEC stores t as {_DSEC_HOLDS['t']}, and the "
-                "unit of float times (seconds? microseconds?) cannot be told from them: convert them to integer "
+                f"{path}: {labels['t']} has dtype {datasets['t'].dtype}; DSEC stores t as {_DSEC_HOLDS['t']}, and "
+                "the unit of float times (seconds? microseconds?) cannot be told from them: convert them to integer "
                 "microseconds, e.g. np.round(t_seconds * 1e6).astype('uint32').")
         sizes = {k: ds.shape[0] for k, ds in datasets.items()}
         if len(set(sizes.values())) != 1:
-            raise CorruptFileError(f"{path}: /events/x, y, t, p have different lengths {sizes}.")
+            raise CorruptFileError(f"{path}: {', '.join(labels.values())} have different lengths {sizes}.")
         t_offset = 0
-        if "t_offset" in f:
-            t_offset = integer_scalar(f, path, "t_offset", holds="the int64 microseconds added to every t")
+        if g.offset is not None and g.offset in f:
+            t_offset = integer_scalar(f, path, g.offset, holds="the int64 microseconds added to every t")
         index = None
-        if "ms_to_idx" in f:
-            index = numeric_dataset(f, path, "ms_to_idx", ndim=1, holds="event indices (integers)", integers=True)
+        if g.index in f:
+            index = numeric_dataset(f, path, g.index, ndim=1, holds="event indices (integers)", integers=True)
             index = index.shape[0]
     return sizes["x"], t_offset, index
 
 
-def _index_cuts(f, path, n: int, size: int, chunk_ms: int) -> Iterator[int]:
+def _index_cuts(f, path, n: int, size: int, chunk_ms: int, g: _Group) -> Iterator[int]:
     """Every ``chunk_ms``-th entry of /ms_to_idx but zeros (the row ranges start at 0 anyway), each block of the
     table checked before it is used."""
-    index, previous = f["ms_to_idx"], None
+    index, previous = f[g.index], None
     for lo in range(0, size, INDEX_BLOCK):
-        block = read_rows(index, path, "ms_to_idx", lo, lo + INDEX_BLOCK)
-        previous = check_index_block(block, previous, n, path=path, key="ms_to_idx", index_offset=lo)
+        block = read_rows(index, path, g.index, lo, lo + INDEX_BLOCK)
+        previous = check_index_block(block, previous, n, path=path, key=g.index, index_offset=lo)
         first = -lo % chunk_ms  # the block's first entry at a multiple of chunk_ms
         yield from (int(v) for v in block[first::chunk_ms] if v > 0)
 
 
-def _dsec_bounds(f, path, n: int, index_size: int | None, chunk_ms: int) -> Iterator[tuple[int, int]]:
+def _dsec_bounds(f, path, n: int, index_size: int | None, chunk_ms: int,
+                 g: _Group = DSEC_GROUP) -> Iterator[tuple[int, int]]:
     """Row ranges that tile ``0..n`` in order: cut where the index says a slice begins, at most CHUNK_ROWS long.
 
     The ranges start at 0 and end at n whatever the index says, so that an index that is not DSEC's (its
     first entry not 0, entries missing at the end) still reads every event once; one that decreases or points
     outside the data is refused by :func:`check_index_block`.
     """
-    cuts = _index_cuts(f, path, n, index_size, chunk_ms) if index_size else iter(())
+    cuts = _index_cuts(f, path, n, index_size, chunk_ms, g) if index_size else iter(())
     lo = 0
     for cut in itertools.chain(cuts, (n,)):
         while cut - lo > CHUNK_ROWS:
@@ -144,20 +172,21 @@ def _dsec_bounds(f, path, n: int, index_size: int | None, chunk_ms: int) -> Iter
             lo = cut
 
 
-def _dsec_rows(f, path, lo: int, hi: int, t_offset: int, check: ChunkChecker) -> np.ndarray:
+def _dsec_rows(f, path, lo: int, hi: int, t_offset: int, check: ChunkChecker,
+               g: _Group = DSEC_GROUP) -> np.ndarray:
     """Rows ``lo:hi`` of a DSEC file as EVENT_DTYPE, every value checked as stored before the cast."""
-    ev = f["events"]
-    raw = {k: read_rows(ev[k], path, f"events/{k}", lo, hi) for k in _DSEC_FIELDS}
-    x, y, p = (whole_numbers(raw[k], label=_DSEC_LABELS[k], source=str(path), index_offset=lo) for k in "xyp")
+    ev = f[g.prefix]
+    raw = {k: read_rows(ev[k], path, f"{g.prefix}/{k}", lo, hi) for k in _DSEC_FIELDS}
+    x, y, p = (whole_numbers(raw[k], label=g.labels[k], source=str(path), index_offset=lo) for k in "xyp")
     return check.columns(raw["t"], x, y, p, t_offset=t_offset)
 
 
-def _dsec_chunks(path, resolution, chunk_ms: int) -> Iterator[Chunk]:
-    n, t_offset, index_size = _dsec_header(path)
-    check = ChunkChecker(resolution=resolution, source=str(path), labels=_DSEC_LABELS)
+def _dsec_chunks(path, resolution, chunk_ms: int, g: _Group = DSEC_GROUP) -> Iterator[Chunk]:
+    n, t_offset, index_size = _dsec_header(path, g)
+    check = ChunkChecker(resolution=resolution, source=str(path), labels=g.labels)
     with _open(path) as f:
-        for lo, hi in _dsec_bounds(f, path, n, index_size, chunk_ms):
-            yield _dsec_rows(f, path, lo, hi, t_offset, check), None
+        for lo, hi in _dsec_bounds(f, path, n, index_size, chunk_ms, g):
+            yield _dsec_rows(f, path, lo, hi, t_offset, check, g), None
 
 
 def _mvsec_dataset(f, path, camera: str):
@@ -251,6 +280,37 @@ def open_mvsec(path: str | os.PathLike, *, resolution: tuple[int, int] | None = 
     meta = {"source": [path], "format": "mvsec", "cameras": dict(by_camera)}
     return RecordingStream("mvsec", (path,), cameras, res, meta, False,
                            lambda camera: _mvsec_chunks(path, by_camera[camera], res))
+
+
+def open_m3ed(path: str | os.PathLike, *, resolution: tuple[int, int] | None = None,
+              chunk_ms: int = CHUNK_MS) -> RecordingStream:
+    """Open an M3ED ``*_data.h5`` file (both Prophesee cameras, ``/prophesee/{left,right}``) for streaming.
+
+    Parameters
+    ----------
+    path : path-like
+    resolution : (width, height), optional, keyword-only
+        Default 1280x720 (M3ED's Prophesee EVK4 cameras).
+    chunk_ms : int, keyword-only
+
+    Returns
+    -------
+    RecordingStream
+        Microseconds as stored; read and checked as DSEC's files are (one camera alone: a one-camera stream).
+    """
+    path = os.fspath(path)
+    with _open(path) as f:
+        present = tuple(cam for cam in CAMERAS if _is_dsec(f, M3ED_GROUPS[cam]))
+    if not present:
+        raise CorruptFileError(f"{path}: no /prophesee/left or /prophesee/right with x, y, t, p: not an M3ED file.")
+    for cam in present:
+        _dsec_header(path, M3ED_GROUPS[cam])  # fail now, not at the first packet
+    res = tuple(resolution) if resolution is not None else M3ED_RESOLUTION
+    cameras = CAMERAS if present == CAMERAS else (MONO,)
+    by_camera = dict(zip(cameras, present, strict=True))
+    meta = {"source": [path], "format": "m3ed", "cameras": dict(by_camera)}
+    return RecordingStream("m3ed", (path,), cameras, res, meta, False,
+                           lambda camera: _dsec_chunks(path, res, chunk_ms, M3ED_GROUPS[by_camera[camera]]))
 
 
 def dsec_time_range(path: str | os.PathLike) -> tuple[int, int] | None:

@@ -106,8 +106,12 @@ class OutputPlan:
     def read(self, *paths: str | os.PathLike | None, what: str | None = None) -> None:
         """Declare input files (None entries are skipped); ``what`` they are, where a missing one should say so
         (e.g. ``"depth-model file (write one with `cvstereo depth-fit -o`)"``)."""
+        from cvstereo.io.dsec_sequence import find_dsec_sequence, is_dsec_sequence
+
         for p in paths:
-            if p is not None:
+            if p is not None and is_dsec_sequence(p):  # a folder read as one input: its files are the inputs
+                self.inputs.extend(os.fspath(f) for f in find_dsec_sequence(p).files())
+            elif p is not None:
                 self.inputs.append(os.fspath(p))
                 if what is not None:
                     self._what[os.fspath(p)] = what

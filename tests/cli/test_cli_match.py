@@ -64,7 +64,10 @@ def test_list_methods(capsys):
                      "adaptive set (default): variant separate, because ON and OFF events in one frame cancel",
                      "thesis set (--param-set thesis): variant shared",
                      "width_tolerance = 0.3", "threshold = 1.2", "reference_camera = 1", "max_disparity = 63",
-                     "no-gaussian: gaussian=false, threshold=4.0"):
+                     "no-gaussian: gaussian=false, threshold=4.0",
+                     # sgbm's 0 = automatic, with OpenCV's usual values at its default block of 5: 8 * 25, 32 * 25
+                     "p1 = 0  (int; 0 = automatic: 8 * block_size**2 = 200 at block_size 5)",
+                     "p2 = 0  (int; 0 = automatic: 32 * block_size**2 = 800 at block_size 5)"):
         assert expected in text
 
 

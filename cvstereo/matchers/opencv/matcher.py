@@ -159,7 +159,7 @@ class StereoSGBMParams(_OpenCVParams):
     block_size : int
         Odd block side (SGBM works with small blocks; default 5).
     p1, p2 : int
-        Smoothness penalties; 0 chooses OpenCV's usual ``8 * block_size**2`` and ``32 * block_size**2``.
+        Smoothness penalties; 0 = automatic: OpenCV's usual ``8 * block_size**2`` and ``32 * block_size**2``.
     disp12_max_diff : int
         Left-right consistency tolerance, px (-1: off).
     mode : {"sgbm", "hh", "3way"}
@@ -305,6 +305,9 @@ class StereoBMMatcher(_OpenCVMatcher):
         return bm
 
 
+#: OpenCV's usual smoothness penalties as multiples of the block's area: what ``p1 = 0`` and ``p2 = 0`` choose.
+SGBM_PENALTY_FACTORS = {"p1": 8, "p2": 32}
+
 _SGBM_MODES = {"sgbm": cv2.STEREO_SGBM_MODE_SGBM, "hh": cv2.STEREO_SGBM_MODE_HH,
                "3way": cv2.STEREO_SGBM_MODE_SGBM_3WAY}
 
@@ -321,12 +324,21 @@ class StereoSGBMMatcher(_OpenCVMatcher):
     Params = StereoSGBMParams
     method = "sgbm"
 
+    @staticmethod
+    def automatic_values(params: StereoSGBMParams) -> dict[str, str]:
+        """What the parameters whose 0 means "automatic" take for ``params`` (``p1``, ``p2``), as
+        `cvstereo match --list-methods` names them: OpenCV's usual penalties for the block size."""
+        area = params.block_size * params.block_size
+        return {k: f"{f} * block_size**2 = {f * area} at block_size {params.block_size}"
+                for k, f in SGBM_PENALTY_FACTORS.items()}
+
     def _create(self):
         prm = self.params
         area = prm.block_size * prm.block_size
+        penalty = {k: getattr(prm, k) or f * area for k, f in SGBM_PENALTY_FACTORS.items()}
         return cv2.StereoSGBM_create(
             minDisparity=prm.min_disparity, numDisparities=prm.num_disparities, blockSize=prm.block_size,
-            P1=prm.p1 or 8 * area, P2=prm.p2 or 32 * area, disp12MaxDiff=prm.disp12_max_diff,
+            P1=penalty["p1"], P2=penalty["p2"], disp12MaxDiff=prm.disp12_max_diff,
             uniquenessRatio=prm.uniqueness_ratio, speckleWindowSize=prm.speckle_window_size,
             speckleRange=prm.speckle_range, mode=_SGBM_MODES[prm.mode],
         )
