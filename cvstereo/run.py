@@ -149,7 +149,7 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         stream, source = recording, recording.meta.get("source", "memory")
         total = recording.left.size + recording.right.size
     elif isinstance(recording, RecordingStream):
-        stream, source, total = recording, list(recording.files), None
+        stream, source, total = recording, list(recording.given or recording.files), None
     else:
         from cvstereo.io import open_recording
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from cvstereo.io.aedat2 import open_aedat2, write_aedat2
@@ -237,7 +237,8 @@ def open_recording(path: str | os.PathLike, right: str | os.PathLike | None = No
                   columns=columns)
     given = {"right": right, "left_retina": left_retina, "one_based": one_based, "resolution": resolution,
              "columns": columns}
-    return fmt.open(path, **{k: given[k] for k in fmt.options})
+    stream = fmt.open(path, **{k: given[k] for k in fmt.options})
+    return replace(stream, given=tuple(os.fspath(p) for p in (path, right) if p is not None))
 
 
 def read_recording(path: str | os.PathLike, right: str | os.PathLike | None = None, *, format: str | None = None,

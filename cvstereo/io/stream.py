@@ -52,6 +52,10 @@ class RecordingStream:
         Whether chunks carry per-event ground truth.
     open_chunks : callable
         ``open_chunks(camera)`` returns a fresh iterator of validated ``(events, truth)`` chunks.
+    given : tuple of str
+        The path(s) as the user named them (:func:`cvstereo.io.open_recording` fills it: a DSEC sequence's
+        folder, where ``files`` are its two event files); empty where the stream was made otherwise.
+        A matches file's ``meta["input"]`` is this, else ``files``.
     """
 
     format: str
@@ -61,6 +65,7 @@ class RecordingStream:
     meta: dict
     has_truth: bool
     open_chunks: Callable[[str], Iterator[Chunk]] = field(repr=False)
+    given: tuple[str, ...] = ()
 
     @property
     def is_stereo(self) -> bool:
