@@ -43,10 +43,9 @@ import cv2
 import numpy as np
 from numba import njit
 
-from cvstereo.frames.accumulate import check_filter_params
-from cvstereo.matchers.params import AliasedParams
+from cvstereo.matchers.constraints import DeclaredParams, param
 from cvstereo.model.events import DEFAULT_RESOLUTION
-from cvstereo.model.polarity import Polarity, check_polarity, slot_of_p
+from cvstereo.model.polarity import Polarity, slot_of_p
 
 __all__ = ["FORGET_TICKS", "RENORM", "DynamicFrameParams", "FrameBank", "advance", "advance_due", "dynamic_unit",
            "event_columns", "event_matrix", "process_events", "splat", "tick_due", "update_kernel"]
@@ -58,7 +57,7 @@ RENORM = 1e-100
 FORGET_TICKS = 1_000_000
 
 @dataclass(frozen=True, kw_only=True)
-class DynamicFrameParams(metaclass=AliasedParams):
+class DynamicFrameParams(metaclass=DeclaredParams):
     """Parameters of the dynamic frames, shared by the parameter classes of all event matchers.
 
     Attributes
@@ -81,19 +80,11 @@ class DynamicFrameParams(metaclass=AliasedParams):
 
     polarity: Polarity = "shared"
     gaussian: bool = True
-    kernel_size: int = 3
-    kernel_sigma: float = 1.0
+    kernel_size: int = param(3, side=True, note="the thesis uses 3")
+    kernel_sigma: float = param(1.0, gt=0, note="the thesis uses 1.0")
     gaussian_gain: float = 2.0
-    decay: float = 0.99
-    decay_period_us: int = 250
-
-    def __post_init__(self):
-        check_polarity(self.polarity, type(self).__name__)
-        check_filter_params(self.kernel_sigma, self.kernel_size, type(self).__name__)
-        if not 0 < self.decay <= 1:
-            raise ValueError(f"decay must lie in (0, 1], got {self.decay}.")
-        if self.decay_period_us <= 0:
-            raise ValueError(f"decay_period_us must be positive, got {self.decay_period_us}.")
+    decay: float = param(0.99, gt=0, le=1, note="the thesis uses 0.99")
+    decay_period_us: int = param(250, gt=0, note="the thesis uses 250")
 
     def frame_params(self) -> DynamicFrameParams:
         """The dynamic-frame part of a (derived) parameter object."""

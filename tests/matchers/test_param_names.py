@@ -7,7 +7,7 @@ import dataclasses
 import pytest
 
 from cvstereo.frames.dynamic import DynamicFrameParams
-from cvstereo.matchers._shared.thesis_params import (
+from cvstereo.matchers.thesis_params import (
     EventAreaParams,
     EventVectorParams,
     FrameAreaParams,

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from cvstereo.matchers._shared.support import lr_consistent, support_counts, supported
-from cvstereo.matchers._shared.thesis_params import EventAreaParams, FrameAreaParams, FrameClusterParams
+from cvstereo.matchers.thesis_params import EventAreaParams, FrameAreaParams, FrameClusterParams
 from cvstereo.model.matches import make_matches
 
 

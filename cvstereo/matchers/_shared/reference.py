@@ -5,7 +5,7 @@ One module per matcher (:mod:`.frame_clusters`, :mod:`.frame_area`, :mod:`.event
 ``<name>_reference(left, right, params, *, resolution)`` takes the whole stream at once and returns a
 time-ordered matches array. They are slow (use them on short inputs) and exist so that tests can hold the fast
 matchers to them: same anchors, same disparities, bit for bit. They share the parameter classes
-(:mod:`cvstereo.matchers._shared.thesis_params`) and the merge order of the two cameras
+(``cvstereo.matchers.<name>.params``) and the merge order of the two cameras
 (:mod:`cvstereo.matchers._shared.merge_order`)
 with the fast matchers, and import none of their kernels. In relative threshold mode they feed the same
 signal-level estimator (:class:`cvstereo.matchers._shared.signal_level.SignalLevel`) with the values they compute,

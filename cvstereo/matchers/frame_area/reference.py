@@ -14,7 +14,7 @@ from cvstereo.frames.accumulate import filtered_unit, gaussian_filter, signed_fr
 from cvstereo.matchers._shared.reference_windows import values_at_events, window_events
 from cvstereo.matchers._shared.signal_level import SignalLevel
 from cvstereo.matchers._shared.support import lr_consistent
-from cvstereo.matchers._shared.thesis_params import FrameAreaParams
+from cvstereo.matchers.frame_area.params import FrameAreaParams
 from cvstereo.model.events import DEFAULT_RESOLUTION
 from cvstereo.model.matches import empty_matches, make_matches
 from cvstereo.model.polarity import frame_signs
