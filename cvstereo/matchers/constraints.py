@@ -132,7 +132,7 @@ def constraint_of(field: dataclasses.Field) -> Constraint | None:
     return field.metadata.get(_KEY)
 
 
-def check_value(params_cls: type, name: str, value, *, where: str = "parameter") -> Any:
+def check_value(params_cls: type, name: str, value, *, where: str = "parameter", given_as: str | None = None) -> Any:
     """Return ``value`` checked against the field ``name`` of ``params_cls``: its type, then its declaration.
 
     The one rule of every matcher's parameters, at construction, in ``--param`` and in a sweep's grid: floats
@@ -151,6 +151,8 @@ def check_value(params_cls: type, name: str, value, *, where: str = "parameter")
         The value given.
     where : str, keyword-only
         How the message names the source ("parameter", "--param", "FrameAreaParams: parameter").
+    given_as : str, keyword-only
+        The name the value was given under, if an old one (:mod:`cvstereo.matchers.params`): the message uses it.
 
     Returns
     -------
@@ -164,7 +166,7 @@ def check_value(params_cls: type, name: str, value, *, where: str = "parameter")
     hint, check = _fields(params_cls)[name]
     choices = typing.get_args(hint) if typing.get_origin(hint) is typing.Literal else ()
     kind = type(choices[0]) if choices else hint
-    label = f"{where} '{name}'"
+    label = f"{where} '{given_as or name}'"
     if kind is bool:
         if not isinstance(value, bool):
             raise ValueError(f"{label} must be true or false, got {_shown(value)}.")

@@ -14,14 +14,14 @@ imports a matcher by name. A matcher's module is imported only when it is used.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import importlib
 import importlib.metadata
 import importlib.util
 import typing
 from collections.abc import Iterator, Mapping
 
-from cvstereo.matchers._registry import BUILTIN_METHODS
+from cvstereo.matchers._registry import BUILTIN_METHODS, ENTRY_POINT_GROUP, matcher_class
+from cvstereo.matchers._registry import registered_methods as _methods
 from cvstereo.matchers.constraints import check_value
 from cvstereo.matchers.params import aliases_of, canonical_params
 from cvstereo.matchers.protocol import StreamMatcher
@@ -31,35 +31,12 @@ __all__ = ["DEFAULT_METHOD", "ENTRY_POINT_GROUP", "LISTING_ORDER", "METHODS", "a
            "check_param_item", "create_matcher", "matcher_class", "matcher_params", "params_from_meta",
            "parse_param_strings"]
 
-#: The entry-point group in which other distributions register matchers: name (docs/formats.md) -> "module:Class".
-ENTRY_POINT_GROUP = "cvstereo.matchers"
-
 #: The method run when none is named (`cvstereo match`, `cvstereo live`, :func:`cvstereo.match`): the thesis'
 #: frame matcher, the one that answers on the most recordings.
 DEFAULT_METHOD = "frame"
 
 #: The order in which tables and listings show the methods: the built-in table's, then plugins by name.
 LISTING_ORDER = tuple(BUILTIN_METHODS)
-
-
-@functools.cache
-def _methods() -> dict[str, str]:
-    """name -> "module:Class": the built-in table, then the plugins' entry points (a plugin cannot replace a
-    built-in name: the name would mean two matchers, and the thesis' names are fixed by docs/formats.md)."""
-    found = dict(BUILTIN_METHODS)
-    plugins = {ep.name: ep.value for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)}
-    for name in sorted(plugins):
-        found.setdefault(name, plugins[name])
-    return found
-
-
-def _load(target: str) -> type[StreamMatcher]:
-    """The object a ``"module:Qualified.name"`` string names (the entry-point syntax)."""
-    module, _, qualname = target.partition(":")
-    obj = importlib.import_module(module)
-    for part in qualname.split("."):
-        obj = getattr(obj, part)
-    return obj
 
 
 class _Methods(Mapping):
@@ -94,19 +71,6 @@ def available_methods() -> list[str]:
         if all(importlib.util.find_spec(mod) is not None for mod in getattr(cls, "requires", ())):
             out.append(name)
     return out
-
-
-def matcher_class(method: str) -> type[StreamMatcher]:
-    """The StreamMatcher class registered under ``method``.
-
-    Raises
-    ------
-    ValueError
-        Unknown method; the message lists the known ones.
-    """
-    if method not in METHODS:
-        raise ValueError(f"unknown method '{method}'; choose one of: {', '.join(METHODS)}.")
-    return _load(_methods()[method])
 
 
 def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 128), param_set: str = "adaptive",
@@ -157,7 +121,7 @@ def check_param_item(params_cls: type, key: str, value, *, where: str = "paramet
     ValueError
         Unknown name (the allowed ones listed) or a value of the wrong type or range, naming ``where`` and ``key``.
     """
-    return check_value(params_cls, _field_named(params_cls, key), value, where=where)
+    return check_value(params_cls, _field_named(params_cls, key), value, where=where, given_as=key)
 
 
 def parse_param_strings(params_cls: type, items: list[str]) -> dict:
@@ -179,7 +143,8 @@ def parse_param_strings(params_cls: type, items: list[str]) -> dict:
         if not sep:
             raise ValueError(f"--param '{item}' is not key=value.")
         field = _field_named(params_cls, key)
-        out[key] = check_value(params_cls, field, _parse_value(key, text.strip(), hints[field]), where="--param")
+        value = _parse_value(key, text.strip(), hints[field])
+        out[key] = check_value(params_cls, field, value, where="--param", given_as=key)
     return canonical_params(params_cls, out)
 
 

@@ -31,6 +31,8 @@ from __future__ import annotations
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 
+from cvstereo.matchers._registry import matcher_class, registered_methods
+
 __all__ = ["ADAPTIVE", "ADAPTIVE_BORDER", "ADAPTIVE_THESIS", "DEFAULT_PARAM_SET", "PARAM_SETS", "AdaptiveDefaults",
            "adaptive_of", "check_param_set", "default_variant", "resolve"]
 
@@ -81,10 +83,8 @@ def adaptive_of(method: str) -> AdaptiveDefaults | None:
     Raises
     ------
     ValueError
-        Unknown method (:func:`~cvstereo.matchers.registry.matcher_class`).
+        Unknown method (the known ones listed).
     """
-    from cvstereo.matchers.registry import matcher_class  # the registry imports this module
-
     return getattr(matcher_class(method).Params, "adaptive", None)
 
 
@@ -92,10 +92,8 @@ class _AdaptiveView(Mapping):
     """method -> :class:`AdaptiveDefaults`, read-only, of the registered methods whose parameters have a set."""
 
     def _table(self) -> dict[str, AdaptiveDefaults]:
-        from cvstereo.matchers.registry import METHODS
-
         out = {}
-        for method in METHODS:
+        for method in registered_methods():
             try:
                 spec = adaptive_of(method)
             except ImportError:  # a plugin whose module cannot be imported here has no set to show

@@ -18,9 +18,7 @@ __all__ = ["EventAreaParams"]
 
 @dataclass(frozen=True, kw_only=True)
 class EventAreaParams(BorderParams, SignalLevelParams, DynamicFrameParams):
-    """Parameters of the event-area matcher (thesis defaults), besides those of the dynamic frames and the
-    relative-threshold fields of :class:`~cvstereo.matchers._shared.signal_level.SignalLevelParams` and the
-    border rule's of :class:`~cvstereo.matchers._shared.border.BorderParams`.
+    """Parameters of the event-area matcher (thesis defaults; dynamic-frame, signal-level and border fields inherited).
 
     Attributes
     ----------

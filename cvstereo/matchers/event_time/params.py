@@ -19,9 +19,8 @@ __all__ = ["EventTimeParams"]
 
 @dataclass(frozen=True, kw_only=True)
 class EventTimeParams(BorderParams, SignalLevelParams, DynamicFrameParams):
-    """Parameters of the event-time matcher (thesis defaults), besides those of the dynamic frames and the
-    relative-threshold fields of :class:`~cvstereo.matchers._shared.signal_level.SignalLevelParams` and the
-    border rule's of :class:`~cvstereo.matchers._shared.border.BorderParams`.
+    """Parameters of the event-time matcher: its own below, those of the dynamic frames, the signal level and the
+    border rule from its bases; thesis defaults.
 
     Attributes
     ----------

@@ -16,9 +16,10 @@ __all__ = ["EventVectorParams"]
 
 @dataclass(frozen=True, kw_only=True)
 class EventVectorParams(BorderParams, SignalLevelParams, DynamicFrameParams):
-    """Parameters of the event-vector matcher (thesis defaults), besides those of the dynamic frames and the
-    relative-threshold fields of :class:`~cvstereo.matchers._shared.signal_level.SignalLevelParams` and the
-    border rule's of :class:`~cvstereo.matchers._shared.border.BorderParams`.
+    """Parameters of the event-vector matcher, Algorithm 4 (docs/algorithms.md section 5). The class defaults are the
+    ``thesis`` set and :attr:`adaptive` says what the ``adaptive`` set changes; the fields of the dynamic frames
+    (:class:`~cvstereo.frames.dynamic.DynamicFrameParams`), of the relative thresholds and of the border rule come
+    from the bases.
 
     Attributes
     ----------

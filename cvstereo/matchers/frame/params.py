@@ -22,12 +22,8 @@ WIDTH_EPS = 1e-9
 
 @dataclass(frozen=True, kw_only=True)
 class FrameClusterParams(BorderParams, SignalLevelParams, WindowFrameParams):
-    """Parameters of the frame-based cluster matcher (thesis defaults; docs/algorithms.md section 1).
-
-    The window and Gaussian fields (window_us, gaussian, kernel_sigma, kernel_size) are those of
-    :class:`~cvstereo.frames.windows.WindowFrameParams`, the relative-threshold fields (threshold_mode,
-    threshold_scale, level_*) those of :class:`~cvstereo.matchers._shared.signal_level.SignalLevelParams`, the
-    border rule's (border_horizon_us, border_rows) those of :class:`~cvstereo.matchers._shared.border.BorderParams`.
+    """Parameters of the frame-based cluster matcher (docs/algorithms.md section 1): the defaults are the thesis'
+    constants, :attr:`adaptive` the default set; the window, Gaussian, signal-level and border fields are its bases'.
 
     Attributes
     ----------

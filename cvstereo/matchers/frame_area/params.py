@@ -17,12 +17,10 @@ __all__ = ["FrameAreaParams"]
 
 @dataclass(frozen=True, kw_only=True)
 class FrameAreaParams(BorderParams, SignalLevelParams, WindowFrameParams):
-    """Parameters of the frame-area SAD matcher (thesis defaults; docs/algorithms.md section 3).
-
-    The window and Gaussian fields (window_us, gaussian, kernel_sigma, kernel_size) are those of
-    :class:`~cvstereo.frames.windows.WindowFrameParams`, the relative-threshold fields (threshold_mode,
-    threshold_scale, level_*) those of :class:`~cvstereo.matchers._shared.signal_level.SignalLevelParams`, the
-    border rule's (border_horizon_us, border_rows) those of :class:`~cvstereo.matchers._shared.border.BorderParams`.
+    """Parameters of the frame-area SAD matcher (docs/algorithms.md section 3), the thesis' values as defaults, with
+    the window and Gaussian of :class:`~cvstereo.frames.windows.WindowFrameParams`, the relative thresholds of
+    :class:`~cvstereo.matchers._shared.signal_level.SignalLevelParams` and the border rule of
+    :class:`~cvstereo.matchers._shared.border.BorderParams`.
 
     Attributes
     ----------
