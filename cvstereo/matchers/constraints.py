@@ -39,8 +39,8 @@ from typing import Any
 from cvstereo.matchers.params import AliasedParams
 from cvstereo.model.events import MAX_RESOLUTION
 
-__all__ = ["MAX_EXTENT", "MAX_PARAM_INT", "Constraint", "DeclaredParams", "check_value", "constraint_of", "param",
-           "validate"]
+__all__ = ["MAX_EXTENT", "MAX_PARAM_INT", "Constraint", "DeclaredParams", "check_value", "constraint_of",
+           "finite_number", "param", "validate", "whole_number"]
 
 #: Largest magnitude of an integer parameter: a C int. Kernels, OpenCV and products of windows and counts
 #: stay far from int64 overflow below it (a window of 2**31 us is 36 minutes).
@@ -171,9 +171,9 @@ def check_value(params_cls: type, name: str, value, *, where: str = "parameter",
         if not isinstance(value, bool):
             raise ValueError(f"{label} must be true or false, got {_shown(value)}.")
     elif kind is float:
-        value = _finite(label, value)
+        value = finite_number(label, value)
     elif kind is int:
-        value = _whole(label, value)
+        value = whole_number(label, value)
     elif kind is str and not isinstance(value, str):
         raise ValueError(f"{label} must be text, got {_shown(value)}.")
     if choices and value not in choices:
@@ -230,7 +230,8 @@ def _fields(params_cls: type) -> dict[str, tuple[Any, Constraint | None]]:
     return {f.name: (hints[f.name], constraint_of(f)) for f in dataclasses.fields(params_cls)}
 
 
-def _finite(label: str, value) -> float:
+def finite_number(label: str, value) -> float:
+    """``value`` if it is a finite real number (not a bool); ValueError starting with ``label`` otherwise."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise ValueError(f"{label} must be a number, got {_shown(value)}.")
     try:
@@ -242,7 +243,9 @@ def _finite(label: str, value) -> float:
     return value
 
 
-def _whole(label: str, value) -> int:
+def whole_number(label: str, value) -> int:
+    """``value`` as an int if it is a whole number a C int holds (a whole float too, not a bool); ValueError
+    starting with ``label`` otherwise."""
     if isinstance(value, bool):
         raise ValueError(f"{label} must be an integer, got {value}.")
     if isinstance(value, numbers.Integral):

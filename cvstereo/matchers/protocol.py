@@ -22,16 +22,39 @@ from numba import njit
 
 from cvstereo.errors import EventFormatError, StreamEndedError
 from cvstereo.matchers._shared.border import border_rule_for
-from cvstereo.matchers.constraints import MAX_EXTENT, MAX_PARAM_INT, DeclaredParams, validate
+from cvstereo.matchers.constraints import (
+    MAX_EXTENT,
+    MAX_PARAM_INT,
+    DeclaredParams,
+    check_value,
+    finite_number,
+    validate,
+    whole_number,
+)
 from cvstereo.matchers.params import canonical_params
 from cvstereo.model.events import DEFAULT_RESOLUTION, EVENT_DTYPE, check_resolution, validate_events
 from cvstereo.model.matches import empty_matches
 
 # MAX_EXTENT and MAX_PARAM_INT: defined in cvstereo.matchers.constraints, named here as in 0.2.
-__all__ = ["MAX_EXTENT", "MAX_PARAM_INT", "StreamMatcher", "check_until"]
+__all__ = ["MAX_EXTENT", "MAX_PARAM_INT", "StreamMatcher", "check_param_value", "check_params", "check_until"]
 
 #: The range of ``until``: event times are int64 microseconds.
 _INT64 = np.iinfo(np.int64)
+
+
+def check_param_value(name: str, value, kind: type, *, where: str = "parameter") -> Any:
+    """0.2's type rule of one value, kept for code that calls it: a finite number for ``float``, a whole number a
+    C int holds for ``int`` (returned as the int), anything else unchecked. The rule of a field is
+    :func:`cvstereo.matchers.constraints.check_value` (its type and its declaration)."""
+    label = f"{where} '{name}'"
+    return finite_number(label, value) if kind is float else whole_number(label, value) if kind is int else value
+
+
+def check_params(params_cls: type, values: dict) -> dict:
+    """``values`` checked against the fields of ``params_cls`` (:func:`cvstereo.matchers.constraints.check_value`;
+    names it does not have are returned unchecked, as in 0.2)."""
+    fields = {f.name for f in dataclasses.fields(params_cls)}
+    return {k: check_value(params_cls, k, v) if k in fields else v for k, v in values.items()}
 
 
 def check_until(until) -> int:

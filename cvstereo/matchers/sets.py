@@ -43,7 +43,8 @@ DEFAULT_PARAM_SET = "adaptive"
 
 @dataclass(frozen=True)
 class AdaptiveDefaults:
-    """What the ``adaptive`` set changes for one method.
+    """What the ``adaptive`` set changes for one method: its parameter class' ``adaptive`` class attribute
+    (e.g. :attr:`cvstereo.matchers.frame.params.FrameClusterParams.adaptive`).
 
     Attributes
     ----------
