@@ -40,7 +40,6 @@ from cvstereo.cli._rerun import add_rerun_option, rerun_target
 from cvstereo.cli._text import number, plain_text
 from cvstereo.cli.plot import add_cmap_option
 from cvstereo.evaluation.diagnostics import silence_warning
-from cvstereo.matchers.sets import ADAPTIVE
 
 __all__ = ["MAX_TIME_OFFSET_US", "add_parser", "list_methods", "run"]
 
@@ -228,7 +227,7 @@ def list_methods() -> str:
             continue
         variants = list(cls.variants)
         lines.append(f"{name}: {(cls.__doc__ or '').strip().splitlines()[0]}")
-        spec = ADAPTIVE.get(name)
+        spec = getattr(cls.Params, "adaptive", None)
         adaptive = spec.variant if spec is not None else variants[0]
         labels = []
         for i, v in enumerate(variants):

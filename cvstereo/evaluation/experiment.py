@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from cvstereo.evaluation.metrics import FIGURES, markdown_table
 from cvstereo.evaluation.thesis import DISPARITY_TABLES
 from cvstereo.matchers.registry import available_methods, matcher_class
-from cvstereo.matchers.sets import ADAPTIVE
+from cvstereo.matchers.sets import adaptive_of
 from cvstereo.model.recording import Recording
 from cvstereo.sweep.engine import Score, run_sweep
 from cvstereo.sweep.grid import Cell
@@ -58,14 +58,15 @@ class ExperimentResult:
 def all_combos(methods: Iterable[str] | None = None, *, param_sets: Iterable[str] = ("thesis",)) -> list[Combo]:
     """Every variant of every importable method (or of ``methods``), in registry order, under ``thesis``;
     with ``"adaptive"`` in ``param_sets`` also the ``adaptive`` default of each method whose sets differ
-    (:data:`~cvstereo.matchers.sets.ADAPTIVE`: the thesis' five and the OpenCV baselines), right after its thesis
+    (:func:`~cvstereo.matchers.sets.adaptive_of`: the thesis' five and the OpenCV baselines), right after its thesis
     variants."""
     names = available_methods() if methods is None else list(methods)
     out = []
     for m in names:
         out += [Combo(m, v) for v in matcher_class(m).variants] if "thesis" in param_sets else []
-        if "adaptive" in param_sets and m in ADAPTIVE:
-            out.append(Combo(m, ADAPTIVE[m].variant, param_set="adaptive"))
+        spec = adaptive_of(m) if "adaptive" in param_sets else None
+        if spec is not None:
+            out.append(Combo(m, spec.variant, param_set="adaptive"))
     return out
 
 

@@ -35,65 +35,19 @@ does exactly the same float64 operations in the same order so that both agree bi
 
 from __future__ import annotations
 
-import dataclasses
-from dataclasses import dataclass
 from typing import Literal
 
 import cv2
 import numpy as np
 from numba import njit
 
-from cvstereo.frames.accumulate import check_filter_params
 from cvstereo.frames.dynamic_limits import FORGET_TICKS, RENORM
-from cvstereo.matchers.params import AliasedParams
+from cvstereo.frames.dynamic_params import DynamicFrameParams
 from cvstereo.model.events import DEFAULT_RESOLUTION
-from cvstereo.model.polarity import Polarity, check_polarity, slot_of_p
+from cvstereo.model.polarity import slot_of_p
 
 __all__ = ["FORGET_TICKS", "RENORM", "DynamicFrameParams", "FrameBank", "advance", "advance_due", "dynamic_unit",
            "event_columns", "event_matrix", "process_events", "splat", "tick_due", "update_kernel"]
-
-
-@dataclass(frozen=True, kw_only=True)
-class DynamicFrameParams(metaclass=AliasedParams):
-    """Parameters of the dynamic frames, shared by the parameter classes of all event matchers.
-
-    Attributes
-    ----------
-    polarity : {"shared", "separate", "on", "off"}
-        ON and OFF in one frame (thesis default), one frame each, ON events only, OFF events only.
-    gaussian : bool
-        Add ``gaussian_gain * s * G`` (eq. 3.9); False adds s at the event's pixel only (eq. 4.1).
-    kernel_size : int
-        Odd side of the Gaussian G (thesis: 3).
-    kernel_sigma : float
-        Its standard deviation in pixels (thesis: 1).
-    gaussian_gain : float
-        The factor 2 of eq. 3.9.
-    decay : float
-        Factor applied to all values at every tick (thesis: 0.99).
-    decay_period_us : int
-        Tick period on the absolute clock (thesis: 250 us).
-    """
-
-    polarity: Polarity = "shared"
-    gaussian: bool = True
-    kernel_size: int = 3
-    kernel_sigma: float = 1.0
-    gaussian_gain: float = 2.0
-    decay: float = 0.99
-    decay_period_us: int = 250
-
-    def __post_init__(self):
-        check_polarity(self.polarity, type(self).__name__)
-        check_filter_params(self.kernel_sigma, self.kernel_size, type(self).__name__)
-        if not 0 < self.decay <= 1:
-            raise ValueError(f"decay must lie in (0, 1], got {self.decay}.")
-        if self.decay_period_us <= 0:
-            raise ValueError(f"decay_period_us must be positive, got {self.decay_period_us}.")
-
-    def frame_params(self) -> DynamicFrameParams:
-        """The dynamic-frame part of a (derived) parameter object."""
-        return DynamicFrameParams(**{f.name: getattr(self, f.name) for f in dataclasses.fields(DynamicFrameParams)})
 
 
 def update_kernel(params: DynamicFrameParams) -> np.ndarray:

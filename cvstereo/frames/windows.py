@@ -18,8 +18,7 @@ from typing import ClassVar, NamedTuple
 
 import numpy as np
 
-from cvstereo.frames.accumulate import check_filter_params
-from cvstereo.matchers.params import AliasedParams
+from cvstereo.matchers.constraints import DeclaredParams, param
 from cvstereo.matchers.protocol import StreamMatcher
 from cvstereo.model.events import DEFAULT_RESOLUTION, count_before, empty_events, paired_window_segments
 from cvstereo.model.matches import concat_matches, empty_matches, join_records
@@ -35,7 +34,7 @@ def check_window_us(window_us: int, where: str) -> None:
 
 
 @dataclass(frozen=True, kw_only=True)
-class WindowFrameParams(metaclass=AliasedParams):
+class WindowFrameParams(metaclass=DeclaredParams):
     """Parameters every frame matcher shares: the window on the absolute clock and the thesis' Gaussian.
 
     Matchers' parameter classes extend it with their own fields.
@@ -54,15 +53,10 @@ class WindowFrameParams(metaclass=AliasedParams):
 
     aliases: ClassVar[dict] = {"sigma": "kernel_sigma"}
 
-    window_us: int = 40_000
+    window_us: int = param(40_000, gt=0, note="the thesis uses 40000")
     gaussian: bool = True
-    kernel_sigma: float = 1.0
-    kernel_size: int = 5
-
-    def __post_init__(self):
-        where = type(self).__name__
-        check_window_us(self.window_us, where)
-        check_filter_params(self.kernel_sigma, self.kernel_size, where)
+    kernel_sigma: float = param(1.0, gt=0, note="the thesis uses 1.0")
+    kernel_size: int = param(5, side=True, note="the thesis uses 5")
 
 
 class Window(NamedTuple):

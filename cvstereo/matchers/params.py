@@ -26,7 +26,7 @@ stored meta: a parameter class lists ``aliases = {old: new}`` (or ``{old: Alias(
 value changes too), and :class:`AliasedParams`, the metaclass of every parameter class, renames the keywords
 before the dataclass sees them.
 
->>> from cvstereo.matchers._shared.thesis_params import EventAreaParams
+>>> from cvstereo.matchers.event_area.params import EventAreaParams
 >>> EventAreaParams(max_sad=500.0).max_cost
 500.0
 """

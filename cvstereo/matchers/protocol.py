@@ -15,7 +15,6 @@ import abc
 import dataclasses
 import math
 import numbers
-import typing
 from typing import Any, ClassVar
 
 import numpy as np
@@ -23,74 +22,39 @@ from numba import njit
 
 from cvstereo.errors import EventFormatError, StreamEndedError
 from cvstereo.matchers._shared.border import border_rule_for
+from cvstereo.matchers.constraints import (
+    MAX_EXTENT,
+    MAX_PARAM_INT,
+    DeclaredParams,
+    check_value,
+    finite_number,
+    validate,
+    whole_number,
+)
 from cvstereo.matchers.params import canonical_params
-from cvstereo.model.events import DEFAULT_RESOLUTION, EVENT_DTYPE, MAX_RESOLUTION, check_resolution, validate_events
+from cvstereo.model.events import DEFAULT_RESOLUTION, EVENT_DTYPE, check_resolution, validate_events
 from cvstereo.model.matches import empty_matches
 
+# MAX_EXTENT and MAX_PARAM_INT: defined in cvstereo.matchers.constraints, named here as in 0.2.
 __all__ = ["MAX_EXTENT", "MAX_PARAM_INT", "StreamMatcher", "check_param_value", "check_params", "check_until"]
-
-#: Largest magnitude of an integer parameter: a C int. Kernels, OpenCV and products of windows and counts
-#: stay far from int64 overflow below it (a window of 2**31 us is 36 minutes).
-MAX_PARAM_INT = 2**31 - 1
-
-#: Fields that size a square filter or block in pixels (by name, in every matcher's parameters): a side
-#: beyond the largest sensor is meaningless and would allocate side**2 values (99999: 75 GB).
-_EXTENT_FIELDS = ("kernel_size", "block", "block_size")
-MAX_EXTENT = max(MAX_RESOLUTION) - 1
 
 #: The range of ``until``: event times are int64 microseconds.
 _INT64 = np.iinfo(np.int64)
 
 
 def check_param_value(name: str, value, kind: type, *, where: str = "parameter") -> Any:
-    """Return ``value`` checked against the type of a parameter field; raise a ValueError naming it.
+    """0.2's type rule of one value, kept for code that calls it: a finite number for ``float``, a whole number a
+    C int holds for ``int`` (returned as the int), anything else unchecked. The rule of a field is
+    :func:`cvstereo.matchers.constraints.check_value` (its type and its declaration)."""
+    label = f"{where} '{name}'"
+    return finite_number(label, value) if kind is float else whole_number(label, value) if kind is int else value
 
-    One rule for every matcher's parameters, whatever their class: floats must be finite (a NaN
-    threshold compares false with everything and silently disables a test), integers must be whole
-    numbers of at most :data:`MAX_PARAM_INT` in magnitude (a larger window overflows the int64 clock
-    arithmetic of the kernels), and filter or block sides (``kernel_size``, ``block``, ``block_size``) at
-    most :data:`MAX_EXTENT` pixels. A whole float such as ``40000.0`` (JSON, YAML) is accepted as the int.
 
-    Parameters
-    ----------
-    name : str
-        Field name, named in the message.
-    value
-        The value given.
-    kind : type
-        The field's annotated type (``int``, ``float``; anything else is returned unchecked).
-    where : str, keyword-only
-        How to name the field in the message ("parameter", "--param").
-
-    Returns
-    -------
-    The value (an int for int fields).
-    """
-    if kind is float:
-        if isinstance(value, bool) or not isinstance(value, numbers.Real):
-            raise ValueError(f"{where} '{name}' must be a number, got {_shown(value)}.")
-        try:
-            finite = math.isfinite(value)
-        except OverflowError:  # an int beyond any float
-            finite = False
-        if not finite:
-            raise ValueError(f"{where} '{name}' must be a finite number, got {_shown(value)}.")
-    elif kind is int:
-        if isinstance(value, bool):
-            raise ValueError(f"{where} '{name}' must be an integer, got {value}.")
-        if isinstance(value, numbers.Integral):
-            value = int(value)
-        elif isinstance(value, numbers.Real) and math.isfinite(value) and value == int(value) \
-                and abs(value) <= MAX_PARAM_INT:
-            value = int(value)
-        if not isinstance(value, int):
-            raise ValueError(f"{where} '{name}' must be an integer, got {_shown(value)}.")
-        if abs(value) > MAX_PARAM_INT:
-            raise ValueError(f"{where} '{name}' must be at most {MAX_PARAM_INT} in magnitude, got {_shown(value)}.")
-        if name in _EXTENT_FIELDS and value > MAX_EXTENT:
-            raise ValueError(f"{where} '{name}' must be at most {MAX_EXTENT} px (the largest sensor's side), "
-                             f"got {value}.")
-    return value
+def check_params(params_cls: type, values: dict) -> dict:
+    """``values`` checked against the fields of ``params_cls`` (:func:`cvstereo.matchers.constraints.check_value`;
+    names it does not have are returned unchecked, as in 0.2)."""
+    fields = {f.name for f in dataclasses.fields(params_cls)}
+    return {k: check_value(params_cls, k, v) if k in fields else v for k, v in values.items()}
 
 
 def check_until(until) -> int:
@@ -120,23 +84,6 @@ def check_until(until) -> int:
 def _shown(value, limit: int = 40) -> str:
     text = repr(value)
     return text if len(text) <= limit else text[: limit - 3] + "..."
-
-
-def _field_kinds(params_cls: type) -> dict[str, type]:
-    """Field name -> int or float for the numeric fields of a parameter dataclass (Literal[0, 1] -> int)."""
-    out = {}
-    for name, hint in typing.get_type_hints(params_cls).items():
-        if typing.get_origin(hint) is typing.Literal:
-            hint = type(typing.get_args(hint)[0])
-        if hint in (int, float):
-            out[name] = hint
-    return out
-
-
-def check_params(params_cls: type, values: dict) -> dict:
-    """Apply :func:`check_param_value` to every numeric field among ``values``; return the checked values."""
-    kinds = _field_kinds(params_cls)
-    return {k: check_param_value(k, v, kinds[k]) if k in kinds else v for k, v in values.items()}
 
 
 @njit(cache=True, nogil=True)
@@ -176,8 +123,8 @@ class StreamMatcher(abc.ABC):
             params = self.Params()
         if not isinstance(params, self.Params):
             raise TypeError(f"params must be a {self.Params.__name__}, got {type(params).__name__}.")
-        # Parameters built directly (not through make_params) get the same checks.
-        check_params(self.Params, {f.name: getattr(params, f.name) for f in dataclasses.fields(params)})
+        if not isinstance(type(params), DeclaredParams):
+            validate(params)  # a plugin's class without the metaclass, built directly: the same rules
         self.params = params
         self.resolution = check_resolution(resolution, source=f"{type(self).__name__} resolution")
         #: Every event fed from now on has t >= watermark (None before the first feed).
@@ -248,8 +195,10 @@ class StreamMatcher(abc.ABC):
             raise ValueError(
                 f"unknown parameter(s) {', '.join(unknown)}; {cls.Params.__name__} has: {', '.join(sorted(fields))}."
             )
-        # Checked before the dataclass sees them: its own checks may not expect NaN or 10**20.
-        return cls.Params(**check_params(cls.Params, {**cls.variants[variant], **overrides}))
+        params = cls.Params(**{**cls.variants[variant], **overrides})
+        if not isinstance(cls.Params, DeclaredParams):
+            validate(params)  # a plugin's class without the metaclass: the same rules (the sweep's grid check)
+        return params
 
     @classmethod
     def variant_of(cls, params) -> str:

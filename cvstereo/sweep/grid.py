@@ -148,12 +148,12 @@ class Grid:
 
 
 def _has_param_sets(method: str) -> bool:
-    """Whether the parameter sets differ for a method: those :data:`cvstereo.matchers.sets.ADAPTIVE` lists (the
+    """Whether the parameter sets differ for a method: those whose parameters have an ``adaptive`` set (the
     thesis' five, and the OpenCV baselines, which ``adaptive`` gives the border rule); the others run the same
     under both, so once."""
-    from cvstereo.matchers.sets import ADAPTIVE
+    from cvstereo.matchers.sets import adaptive_of
 
-    return method in ADAPTIVE
+    return adaptive_of(method) is not None
 
 
 #: Longest value text a message quotes.

@@ -76,7 +76,7 @@ def test_list_methods(capsys):
     (["--variant", "both"], "shared, separate, on, off"),
     (["--param", "treshold=2"], "allowed: anchor_camera"),
     (["--param", "threshold=high"], "needs a float"),
-    (["--param", "threshold=-1"], "threshold must be > 0"),
+    (["--param", "threshold=-1"], "--param 'threshold' must be > 0 (the thesis uses 1.2), got -1.0"),
     (["--param", "polarity=both"], "must be one of shared, separate, on, off"),
     (["--method", "stereobm", "--param", "num_disparities=40"], "multiple of 16"),
 ])

@@ -160,7 +160,7 @@ def test_result_does_not_depend_on_the_packets(seed, cuts):
 
 
 def test_invalid_parameters_say_what_to_do():
-    with pytest.raises(ValueError, match="block must be a positive odd"):
+    with pytest.raises(ValueError, match="'block' must be a positive odd number of px"):
         FrameAreaParams(block=4)
     with pytest.raises(ValueError, match="reference_camera"):
         FrameAreaParams(reference_camera=3)

@@ -7,13 +7,11 @@ import dataclasses
 import pytest
 
 from cvstereo.frames.dynamic import DynamicFrameParams
-from cvstereo.matchers._shared.thesis_params import (
-    EventAreaParams,
-    EventVectorParams,
-    FrameAreaParams,
-    FrameClusterParams,
-)
-from cvstereo.matchers.opencv.matcher import StereoBMParams, StereoSGBMParams
+from cvstereo.matchers.event_area.params import EventAreaParams
+from cvstereo.matchers.event_vector.params import EventVectorParams
+from cvstereo.matchers.frame.params import FrameClusterParams
+from cvstereo.matchers.frame_area.params import FrameAreaParams
+from cvstereo.matchers.opencv.params import StereoBMParams, StereoSGBMParams
 from cvstereo.matchers.registry import create_matcher, matcher_class, params_from_meta, parse_param_strings
 
 #: (method, old name, old value, new name, new value)

@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 
 from cvstereo.matchers._shared.support import lr_consistent, support_counts, supported
-from cvstereo.matchers._shared.thesis_params import EventAreaParams, FrameAreaParams, FrameClusterParams
+from cvstereo.matchers.event_area.params import EventAreaParams
+from cvstereo.matchers.frame.params import FrameClusterParams
+from cvstereo.matchers.frame_area.params import FrameAreaParams
 from cvstereo.model.matches import make_matches
 
 

@@ -70,9 +70,9 @@ def test_values_in_chunks_give_the_thresholds_of_the_values_at_once(rng):
 
 
 def test_invalid_level_parameters_say_what_to_do():
-    with pytest.raises(ValueError, match="threshold_mode must be 'absolute' or 'relative'"):
+    with pytest.raises(ValueError, match="'threshold_mode' must be one of absolute, relative, got 'auto'"):
         SignalLevelParams(threshold_mode="auto")
-    with pytest.raises(ValueError, match="level_quantile must lie in"):
+    with pytest.raises(ValueError, match=r"'level_quantile' must be in \(0, 1\]"):
         FrameClusterMatcher.make_params(level_quantile=1.5)
 
 

@@ -39,13 +39,14 @@ from numba import njit
 
 from cvstereo.matchers._shared.consistency import BORDER_OFF as OFF
 from cvstereo.matchers._shared.consistency import BORDER_VOTES as VOTES
+from cvstereo.matchers.constraints import DeclaredParams, param
 
 #: Time before the first match: no evidence yet.
 _NEVER = np.iinfo(np.int64).min // 2
 
 
 @dataclass(frozen=True, kw_only=True)
-class BorderParams:
+class BorderParams(metaclass=DeclaredParams):
     """The border rule's fields, shared by every matcher that has it (:mod:`cvstereo.matchers._shared.border`).
 
     Attributes
@@ -56,19 +57,8 @@ class BorderParams:
         Rows above and below a match whose evidence counts (a surface spans rows; a rig's rows may be 1-2 apart).
     """
 
-    border_horizon_us: int = OFF
-    border_rows: int = 1
-
-    def __post_init__(self):
-        where = type(self).__name__
-        if int(self.border_horizon_us) != self.border_horizon_us or self.border_horizon_us < 0:
-            raise ValueError(f"{where}: border_horizon_us must be a whole number >= 0 (0: no border rule), "
-                             f"got {self.border_horizon_us}.")
-        if int(self.border_rows) != self.border_rows or self.border_rows < 0:
-            raise ValueError(f"{where}: border_rows must be a whole number >= 0, got {self.border_rows}.")
-        parent = super()
-        if hasattr(parent, "__post_init__"):
-            parent.__post_init__()
+    border_horizon_us: int = param(OFF, ge=0, note="0: no border rule")
+    border_rows: int = param(1, ge=0)
 
 
 def border_rule_for(params, resolution) -> BorderRule | None:

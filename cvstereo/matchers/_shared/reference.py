@@ -6,7 +6,7 @@ One module per matcher (:mod:`.frame_clusters`, :mod:`.frame_area`, :mod:`.event
 time-ordered matches array. They are slow (use them on short inputs) and exist so that tests can hold the fast
 matchers to them: same anchors, same disparities, bit for bit. They share with the fast matchers only what is
 not code of a kernel: the parameter classes
-(:mod:`cvstereo.matchers._shared.thesis_params`), named constants (:mod:`cvstereo.matchers._shared.consistency`,
+(``cvstereo.matchers.<name>.params``), named constants (:mod:`cvstereo.matchers._shared.consistency`,
 :mod:`cvstereo.frames.dynamic_limits`) and, in relative threshold mode, the signal-level estimator
 (:class:`cvstereo.matchers._shared.signal_level.SignalLevel`), which they feed with the values they compute,
 window by window (the event references one event at a time, through

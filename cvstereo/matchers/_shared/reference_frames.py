@@ -21,10 +21,10 @@ from collections.abc import Callable, Iterator
 import numpy as np
 
 from cvstereo.frames.dynamic_limits import FORGET_TICKS, RENORM
+from cvstereo.frames.dynamic_params import DynamicFrameParams
 from cvstereo.matchers._shared.reference_border import border_rule_of
 from cvstereo.matchers._shared.reference_windows import gaussian_kernel
 from cvstereo.matchers._shared.signal_level import SignalLevel
-from cvstereo.matchers._shared.thesis_params import DynamicFrameParams
 from cvstereo.model.events import DEFAULT_RESOLUTION
 from cvstereo.model.matches import empty_matches, make_matches
 from cvstereo.model.polarity import ON, slot_of_p

@@ -53,6 +53,7 @@ from typing import Literal
 import numpy as np
 
 from cvstereo.matchers._shared.sorted_runs import SortedRuns
+from cvstereo.matchers.constraints import DeclaredParams, param
 
 #: Threshold modes: the thesis' absolute numbers, or a multiple of the recording's signal level.
 THRESHOLD_MODES = ("absolute", "relative")
@@ -66,7 +67,7 @@ _TRACE_EVERY = 25
 
 
 @dataclass(frozen=True, kw_only=True)
-class SignalLevelParams:
+class SignalLevelParams(metaclass=DeclaredParams):
     """The relative-threshold fields every thesis matcher's parameter class has (besides ``threshold``).
 
     Attributes
@@ -89,32 +90,12 @@ class SignalLevelParams:
     """
 
     threshold_mode: Literal["absolute", "relative"] = "absolute"
-    threshold_scale: float = 1.0
-    level_quantile: float = 0.9
-    level_windows: int = 25
-    level_window_us: int = 40_000
-    level_warmup: int = 200
-    level_floor: float = 1.0
-
-    def __post_init__(self):
-        where = type(self).__name__
-        if self.threshold_mode not in THRESHOLD_MODES:
-            raise ValueError(f"{where}: threshold_mode must be 'absolute' or 'relative', got {self.threshold_mode!r}.")
-        if not self.threshold_scale > 0:
-            raise ValueError(f"{where}: threshold_scale must be > 0, got {self.threshold_scale}.")
-        if not 0 < self.level_quantile <= 1:
-            raise ValueError(f"{where}: level_quantile must lie in (0, 1] (e.g. 0.9), got {self.level_quantile}.")
-        for name in ("level_windows", "level_window_us"):
-            value = getattr(self, name)
-            if int(value) != value or value < 1:
-                raise ValueError(f"{where}: {name} must be a whole number >= 1, got {value}.")
-        if int(self.level_warmup) != self.level_warmup or self.level_warmup < 1:
-            raise ValueError(f"{where}: level_warmup must be a whole number >= 1 (e.g. 200), got {self.level_warmup}.")
-        if not self.level_floor >= 0:
-            raise ValueError(f"{where}: level_floor must be >= 0, got {self.level_floor}.")
-        parent = super()
-        if hasattr(parent, "__post_init__"):
-            parent.__post_init__()
+    threshold_scale: float = param(1.0, gt=0)
+    level_quantile: float = param(0.9, gt=0, le=1, note="e.g. 0.9")
+    level_windows: int = param(25, ge=1)
+    level_window_us: int = param(40_000, ge=1)
+    level_warmup: int = param(200, ge=1, note="e.g. 200")
+    level_floor: float = param(1.0, ge=0)
 
     @property
     def relative(self) -> bool:

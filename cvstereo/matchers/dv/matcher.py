@@ -11,57 +11,25 @@ scene at disparities larger by ``width / 128`` (up to a quarter of the width in 
 comparison gets the OpenCV baselines' range rule (:func:`cvstereo.matchers.opencv.matcher.opencv_range`: 0 .. 47 at
 128 px, 0 .. 95 at 240, 0 .. 143 at 346, 0 .. 239 at 640). dv-processing's Python API cannot set its matcher's range, so
 beyond its own 48 the same edge maps (dv-processing's ``EdgeMapAccumulator``, as its matcher builds them) go to
-OpenCV's SGBM configured as dv-processing's (:data:`DV_SGBM`, with the wider range); at 48 disparities that
-configuration gives dv-processing's own disparity on 99.4 % of the pixels (six windows of two generalization
-recordings), and the 128 px sensor keeps dv-processing's own matcher (bit for bit the published figures).
+OpenCV's SGBM configured as dv-processing's (:data:`~cvstereo.matchers.dv.params.DV_SGBM`, with the wider range);
+at 48 disparities that configuration gives dv-processing's own disparity on 99.4 % of the pixels (six windows of two
+generalization recordings), and the 128 px sensor keeps dv-processing's own matcher (bit for bit the published figures).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
 from cvstereo.errors import require_extra
 from cvstereo.frames.accumulate import polarity_counts
-from cvstereo.frames.windows import FrameMatcher, Window, check_window_us
+from cvstereo.frames.windows import FrameMatcher, Window
+from cvstereo.matchers.dv.params import DV_MAX_DISPARITY, DV_SGBM, DvSemiDenseParams
 from cvstereo.matchers.opencv.matcher import DISP_SCALE, matches_at_left_events, opencv_range
 from cvstereo.model.matches import empty_matches
 
 __all__ = ["DvSemiDenseMatcher", "DvSemiDenseParams"]
-
-#: dv-processing's own range: 48 disparities (0 .. 47), minimum 0.
-DV_MAX_DISPARITY = 47
-#: OpenCV SGBM settings that reproduce dv-processing's matcher (block 11, P1 = 8 * 11^2, P2 = 32 * 11^2, uniqueness
-#: 15, speckle window 200 and range 1, three-way mode), found by comparing disparity maps (module docstring).
-DV_SGBM = {"blockSize": 11, "P1": 8 * 11 * 11, "P2": 32 * 11 * 11, "uniquenessRatio": 15,
-           "speckleWindowSize": 200, "speckleRange": 1, "mode": 2}
-
-
-@dataclass(frozen=True)
-class DvSemiDenseParams:
-    """Parameters of the dv-processing comparison.
-
-    Attributes
-    ----------
-    window_us : int
-        Window length, us (40 ms as the thesis' frame matchers).
-    max_disparity : int
-        Largest disparity searched, px (0 .. max_disparity): dv-processing's 47 on a 128 px wide sensor, scaled
-        with the width by the OpenCV baselines' rule (module docstring); ``max_disparity + 1`` must be a multiple
-        of 16 (OpenCV's rule).
-    """
-
-    window_us: int = 40_000
-    max_disparity: int = DV_MAX_DISPARITY
-
-    def __post_init__(self):
-        check_window_us(self.window_us, "DvSemiDenseParams")
-        if int(self.max_disparity) != self.max_disparity or self.max_disparity < 15 or (self.max_disparity + 1) % 16:
-            raise ValueError(f"DvSemiDenseParams: max_disparity + 1 must be a positive multiple of 16 (OpenCV's "
-                             f"rule; e.g. 47, dv-processing's own range), got max_disparity {self.max_disparity}.")
-
 
 class DvSemiDenseMatcher(FrameMatcher):
     """dv-processing's ``SemiDenseStereoMatcher`` per 40 ms window (method ``dv-semidense``).

@@ -63,7 +63,7 @@ from numba import njit
 from cvstereo.frames.dynamic import tick_due
 from cvstereo.matchers._shared.event_common import MergedEventMatcher, emit_match
 from cvstereo.matchers._shared.frame_bounds import SUM_REBUILD, advance_due_summed, column_sums, splat_summed, sum_drift
-from cvstereo.matchers._shared.thesis_params import EventAreaParams
+from cvstereo.matchers.event_area.params import EventAreaParams
 
 __all__ = ["EventAreaMatcher"]
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from cvstereo.matchers._shared.reference_frames import DynamicFrames, match_merged
-from cvstereo.matchers._shared.thesis_params import EventAreaParams
+from cvstereo.matchers.event_area.params import EventAreaParams
 from cvstereo.model.events import DEFAULT_RESOLUTION
 
 __all__ = ["event_area_reference"]

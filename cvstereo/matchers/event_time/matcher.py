@@ -58,7 +58,7 @@ from numba import njit
 
 from cvstereo.frames.dynamic import FrameBank, dynamic_unit, event_matrix
 from cvstereo.matchers._shared.signal_level import SignalLevel
-from cvstereo.matchers._shared.thesis_params import EventTimeParams
+from cvstereo.matchers.event_time.params import EventTimeParams
 from cvstereo.matchers.protocol import StreamMatcher
 from cvstereo.model.events import paired_window_segments
 from cvstereo.model.matches import empty_matches

@@ -8,7 +8,7 @@ from cvstereo.matchers._shared.reference import sign
 from cvstereo.matchers._shared.reference_border import border_rule_of
 from cvstereo.matchers._shared.reference_frames import DynamicFrames, dynamic_unit
 from cvstereo.matchers._shared.signal_level import SignalLevel
-from cvstereo.matchers._shared.thesis_params import EventTimeParams
+from cvstereo.matchers.event_time.params import EventTimeParams
 from cvstereo.model.events import DEFAULT_RESOLUTION
 from cvstereo.model.matches import empty_matches, make_matches
 

@@ -12,7 +12,7 @@ the sign of D(x, y) count **[choice]**, without it every x2 does, as Algorithm 4
 the threshold has an empty run of its own: its vector points to the nearest above-threshold pixels). Cost
 ``|a1 - a2| + |b1 - b2|``; the least cost below ``max_cost`` wins, ties to the smallest disparity.
 
-Beyond the thesis (each a field of :class:`~cvstereo.matchers._shared.thesis_params.EventVectorParams` whose default
+Beyond the thesis (each a field of :class:`~cvstereo.matchers.event_vector.params.EventVectorParams` whose default
 switches it off): ``run_ends`` extends each vector by how many pixels of the pixel's own run lie left and right of it,
 so that the cost also places a candidate within its run; ``cost_slack`` and ``cost_ratio`` bound the least cost by a
 slack plus a multiple of the event vector's length; ``tie_break="centre"`` reports the middle of the disparities of
@@ -60,7 +60,7 @@ from cvstereo.matchers._shared.frame_bounds import (
     skip_below,
     splat_bounded,
 )
-from cvstereo.matchers._shared.thesis_params import EventVectorParams
+from cvstereo.matchers.event_vector.params import EventVectorParams
 
 __all__ = ["EventVectorMatcher"]
 

@@ -6,7 +6,7 @@ import numpy as np
 
 from cvstereo.matchers._shared.reference import sign
 from cvstereo.matchers._shared.reference_frames import DynamicFrames, match_merged
-from cvstereo.matchers._shared.thesis_params import EventVectorParams
+from cvstereo.matchers.event_vector.params import EventVectorParams
 from cvstereo.model.events import DEFAULT_RESOLUTION
 
 __all__ = ["accumulation_vector", "choose", "event_vector_reference", "run_sides"]

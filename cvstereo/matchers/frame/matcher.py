@@ -46,7 +46,7 @@ from cvstereo.frames.windows import FrameMatcher, Window
 from cvstereo.matchers._shared.signal_level import SignalLevel
 from cvstereo.matchers._shared.sparse_frames import SparseFrames, bit_positions
 from cvstereo.matchers._shared.support import supported
-from cvstereo.matchers._shared.thesis_params import WIDTH_EPS, FrameClusterParams
+from cvstereo.matchers.frame.params import WIDTH_EPS, FrameClusterParams
 from cvstereo.model.matches import empty_matches, make_matches
 from cvstereo.model.polarity import slot_of_p
 

@@ -24,7 +24,7 @@ from cvstereo.matchers._shared.reference_windows import (
     window_events,
 )
 from cvstereo.matchers._shared.signal_level import SignalLevel
-from cvstereo.matchers._shared.thesis_params import WIDTH_EPS, FrameClusterParams
+from cvstereo.matchers.frame.params import WIDTH_EPS, FrameClusterParams
 from cvstereo.model.events import DEFAULT_RESOLUTION
 from cvstereo.model.matches import empty_matches, make_matches
 from cvstereo.model.polarity import frame_signs

@@ -44,7 +44,7 @@ from cvstereo.frames.windows import FrameMatcher, Window
 from cvstereo.matchers._shared.signal_level import SignalLevel
 from cvstereo.matchers._shared.sparse_frames import SparseFrames, band_of_rows, bit_positions
 from cvstereo.matchers._shared.support import lr_consistent
-from cvstereo.matchers._shared.thesis_params import FrameAreaParams
+from cvstereo.matchers.frame_area.params import FrameAreaParams
 from cvstereo.model.matches import empty_matches, make_matches
 from cvstereo.model.polarity import slot_of_p
 

@@ -20,7 +20,7 @@ from cvstereo.matchers._shared.reference_windows import (
     window_events,
 )
 from cvstereo.matchers._shared.signal_level import SignalLevel
-from cvstereo.matchers._shared.thesis_params import FrameAreaParams
+from cvstereo.matchers.frame_area.params import FrameAreaParams
 from cvstereo.model.events import DEFAULT_RESOLUTION
 from cvstereo.model.matches import empty_matches, make_matches
 from cvstereo.model.polarity import frame_signs

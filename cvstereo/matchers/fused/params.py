@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from cvstereo.frames.windows import check_window_us
+from cvstereo.matchers.constraints import DeclaredParams, param
 
 __all__ = ["FusedParams"]
 
@@ -19,7 +19,7 @@ BORDER_MIN_ANSWERS = 8
 
 
 @dataclass(frozen=True)
-class FusedParams:
+class FusedParams(metaclass=DeclaredParams):
     """Parameters of :class:`cvstereo.matchers.fused.matcher.FusedMatcher` (the module docstring gives each one's
     reason).
 
@@ -91,67 +91,29 @@ class FusedParams:
         occlusion test or the partner test fails; the default 0.5 keeps the consistent matches, 1 keeps all.
     """
 
-    window_us: int = 40_000
-    tau_us: int = 80_000
-    support_radius: int = 1
-    max_disparity: int = 63
-    row_tolerance: int = 1
-    p1: float = 3.0
-    p2: float = 12.0
-    path_radius: int = 3
-    sgm_paths: int = 4
-    temporal_weight: float = 0.5
-    lr_tolerance: int = 1
-    fill_radius: int = 12
+    window_us: int = param(40_000, gt=0, note="the thesis uses 40000")
+    tau_us: int = param(80_000, gt=0, note="e.g. 80000")
+    support_radius: int = param(1, ge=0, le=5, note="e.g. 1")
+    max_disparity: int = param(63, ge=1, le=255, note="e.g. 63")
+    row_tolerance: int = param(1, ge=0, le=3, note="e.g. 1")
+    p1: float = param(3.0, ge=0, note="e.g. 3")
+    p2: float = param(12.0, ge=0, note="e.g. 12, at least p1")
+    path_radius: int = param(3, ge=0, le=5, note="e.g. 3")
+    sgm_paths: int = param(4, choices=(0, 2, 4))
+    temporal_weight: float = param(0.5, ge=0, note="0: off")
+    lr_tolerance: int = param(1, ge=-1, note="-1: off")
+    fill_radius: int = param(12, ge=0, le=16, note="0: off")
     fill_confirms: bool = True
     subpixel: bool = True
-    min_neighbours: int = 2
-    isolated_max_uncertainty: float = 0.1
-    occlusion_margin: float = 1.0
-    occlusion_support: int = 2
-    border_rows: int = 2
-    max_uncertainty: float = 0.5
+    min_neighbours: int = param(2, ge=1, le=9, note="1: off")
+    isolated_max_uncertainty: float = param(0.1, ge=0, le=1, note="0: isolated pixels never answer")
+    occlusion_margin: float = param(1.0, ge=0, le=16, off=-1, note="px, e.g. 1")
+    occlusion_support: int = param(2, ge=1, le=8, note="e.g. 2")
+    border_rows: int = param(2, ge=-1, le=16, note="-1: off; e.g. 2")
+    max_uncertainty: float = param(0.5, gt=0, le=1, note="0.5: consistent matches, 1: all")
 
-    def __post_init__(self):
-        where = type(self).__name__
-        check_window_us(self.window_us, where)
-        if int(self.tau_us) != self.tau_us or self.tau_us <= 0:
-            raise ValueError(f"{where}: tau_us must be a positive whole number of microseconds (e.g. 80000), "
-                             f"got {self.tau_us}.")
-        if not 0 <= self.support_radius <= 5:
-            raise ValueError(f"{where}: support_radius must be in 0..5 (e.g. 1), got {self.support_radius}.")
-        if int(self.max_disparity) != self.max_disparity or not 1 <= self.max_disparity <= 255:
-            raise ValueError(f"{where}: max_disparity must be a whole number in 1..255 (e.g. 63), "
-                             f"got {self.max_disparity}.")
-        if not 0 <= self.row_tolerance <= 3:
-            raise ValueError(f"{where}: row_tolerance must be in 0..3 (e.g. 1), got {self.row_tolerance}.")
-        if not (self.p1 >= 0 and self.p2 >= self.p1):
-            raise ValueError(f"{where}: need 0 <= p1 <= p2 (e.g. p1=3, p2=12), got p1={self.p1}, p2={self.p2}.")
-        if not 0 <= self.path_radius <= 5:
-            raise ValueError(f"{where}: path_radius must be in 0..5 (e.g. 3), got {self.path_radius}.")
-        if self.sgm_paths not in (0, 2, 4):
-            raise ValueError(f"{where}: sgm_paths must be 0, 2 or 4, got {self.sgm_paths}.")
-        if not self.temporal_weight >= 0:
-            raise ValueError(f"{where}: temporal_weight must be >= 0 (0: off), got {self.temporal_weight}.")
-        if int(self.lr_tolerance) != self.lr_tolerance or self.lr_tolerance < -1:
-            raise ValueError(f"{where}: lr_tolerance must be a whole number >= -1 (-1: off), "
-                             f"got {self.lr_tolerance}.")
-        if not 0 <= self.fill_radius <= 16:
-            raise ValueError(f"{where}: fill_radius must be in 0..16 (0: off), got {self.fill_radius}.")
-        if not 1 <= self.min_neighbours <= 9:
-            raise ValueError(f"{where}: min_neighbours must be in 1..9 (1: off), got {self.min_neighbours}.")
-        if not 0 <= self.isolated_max_uncertainty <= 1:
-            raise ValueError(f"{where}: isolated_max_uncertainty must be in [0, 1] (0: isolated pixels never answer), "
-                             f"got {self.isolated_max_uncertainty}.")
-        if not (self.occlusion_margin == -1 or 0 <= self.occlusion_margin <= 16):
-            raise ValueError(f"{where}: occlusion_margin must be -1 (off) or in [0, 16] px (e.g. 1), "
-                             f"got {self.occlusion_margin}.")
-        if int(self.occlusion_support) != self.occlusion_support or not 1 <= self.occlusion_support <= 8:
-            raise ValueError(f"{where}: occlusion_support must be a whole number in 1..8 (e.g. 2), "
-                             f"got {self.occlusion_support}.")
-        if int(self.border_rows) != self.border_rows or not -1 <= self.border_rows <= 16:
-            raise ValueError(f"{where}: border_rows must be a whole number in -1..16 (-1: off; e.g. 2), "
-                             f"got {self.border_rows}.")
-        if not 0 < self.max_uncertainty <= 1:
-            raise ValueError(f"{where}: max_uncertainty must be in (0, 1] (0.5: consistent matches, 1: all), "
-                             f"got {self.max_uncertainty}.")
+    def check_rules(self):
+        """The rule between fields: the penalty of a larger step is at least that of a 1 px step."""
+        if self.p2 < self.p1:
+            raise ValueError(f"{type(self).__name__}: need 0 <= p1 <= p2 (e.g. p1=3, p2=12), got p1={self.p1}, "
+                             f"p2={self.p2}.")

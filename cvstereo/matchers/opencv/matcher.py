@@ -22,16 +22,14 @@ from __future__ import annotations
 
 import abc
 import math
-from dataclasses import dataclass
-from typing import ClassVar, Literal
+from typing import ClassVar
 
 import cv2
 import numpy as np
 
 from cvstereo.frames.accumulate import event_mask, gaussian_filter, polarity_counts, polarity_frames
-from cvstereo.frames.windows import FrameMatcher, Window, WindowFrameParams
-from cvstereo.matchers._shared.border import BorderParams
-from cvstereo.matchers.params import Alias
+from cvstereo.frames.windows import FrameMatcher, Window
+from cvstereo.matchers.opencv.params import StereoBMParams, StereoSGBMParams
 from cvstereo.model.matches import empty_matches, make_matches
 from cvstereo.model.polarity import OFF, ON
 
@@ -58,124 +56,6 @@ def opencv_range(default: int, width: int, low: int = 0) -> int:
     """
     count = 16 * math.ceil((default - low + 1) * width / 128 / 16)
     return low + count - 1
-
-
-@dataclass(frozen=True, kw_only=True)
-class _OpenCVParams(BorderParams, WindowFrameParams):
-    """Parameters common to both baselines (see the module docstring for the image mapping).
-
-    The window and Gaussian fields (window_us, gaussian, kernel_sigma, kernel_size) are those of
-    :class:`~cvstereo.frames.windows.WindowFrameParams`, the border rule's (border_horizon_us, border_rows) those of
-    :class:`~cvstereo.matchers._shared.border.BorderParams`.
-
-    Attributes
-    ----------
-    image : {"filtered", "count"}
-        Image mapping: signed Gaussian-filtered frame around mid-grey, or event count.
-    gain : float
-        Grey levels per unit of frame value.
-    min_disparity : int
-        Smallest disparity searched, px.
-    max_disparity : int
-        Largest disparity searched, px; ``max_disparity - min_disparity + 1`` must be a positive multiple of 16
-        (OpenCV's rule). Old name: ``num_disparities``, the count (``max_disparity = min_disparity + count - 1``).
-    block_size : int
-        Odd matching block side, px.
-    uniqueness_ratio : int
-        OpenCV's uniquenessRatio, percent (0 disables the check).
-    speckle_window_size, speckle_range : int
-        OpenCV's speckle filter (0: off).
-    pad : bool
-        Pad both images on the left with :attr:`num_disparities` mid-grey columns, so that the left strip gets
-        results.
-    """
-
-    aliases: ClassVar[dict] = {"num_disparities": Alias("max_disparity",
-                                                        lambda n, given: given.get("min_disparity", 0) + int(n) - 1)}
-
-    image: Literal["filtered", "count"] = "filtered"
-    gain: float = 32.0
-    min_disparity: int = 0
-    max_disparity: int = 63
-    block_size: int = 9
-    uniqueness_ratio: int = 10
-    speckle_window_size: int = 0
-    speckle_range: int = 0
-    pad: bool = True
-
-    def __post_init__(self):
-        super().__post_init__()
-        where = type(self).__name__
-        if self.image not in ("filtered", "count"):
-            raise ValueError(f"{where}: image must be 'filtered' or 'count', got '{self.image}'.")
-        if not self.gain > 0:
-            raise ValueError(f"{where}: gain must be > 0 (e.g. 32), got {self.gain}.")
-        if self.num_disparities <= 0 or self.num_disparities % 16:
-            raise ValueError(f"{where}: max_disparity - min_disparity + 1 (the number of disparities OpenCV searches) "
-                             f"must be a positive multiple of 16 (OpenCV's rule), e.g. max_disparity 47 or 63; got "
-                             f"{self.num_disparities} (max_disparity {self.max_disparity}, min_disparity "
-                             f"{self.min_disparity}).")
-        if self.block_size < 1 or self.block_size % 2 == 0:
-            raise ValueError(f"{where}: block_size must be a positive odd number (e.g. 9), got {self.block_size}.")
-        if self.uniqueness_ratio < 0:
-            raise ValueError(f"{where}: uniqueness_ratio must be >= 0, got {self.uniqueness_ratio}.")
-
-    @property
-    def num_disparities(self) -> int:
-        """OpenCV's numDisparities: how many disparities are searched."""
-        return self.max_disparity - self.min_disparity + 1
-
-
-@dataclass(frozen=True, kw_only=True)
-class StereoBMParams(_OpenCVParams):
-    """Parameters of :class:`StereoBMMatcher`: the common ones (see ``_OpenCVParams``) and BM's own.
-
-    Attributes
-    ----------
-    texture_threshold : int
-        OpenCV's textureThreshold: blocks with less texture get no result.
-    prefilter_cap : int
-        OpenCV's preFilterCap (1..63).
-    """
-
-    texture_threshold: int = 10
-    prefilter_cap: int = 31
-
-    def __post_init__(self):
-        super().__post_init__()
-        if not 5 <= self.block_size <= 255:
-            raise ValueError(f"StereoBMParams: block_size must be an odd number in 5..255 for StereoBM, "
-                             f"got {self.block_size}.")
-        if not 1 <= self.prefilter_cap <= 63:
-            raise ValueError(f"StereoBMParams: prefilter_cap must be in 1..63, got {self.prefilter_cap}.")
-
-
-@dataclass(frozen=True, kw_only=True)
-class StereoSGBMParams(_OpenCVParams):
-    """Parameters of :class:`StereoSGBMMatcher`: the common ones (see ``_OpenCVParams``) and SGBM's own.
-
-    Attributes
-    ----------
-    block_size : int
-        Odd block side (SGBM works with small blocks; default 5).
-    p1, p2 : int
-        Smoothness penalties; 0 = automatic: OpenCV's usual ``8 * block_size**2`` and ``32 * block_size**2``.
-    disp12_max_diff : int
-        Left-right consistency tolerance, px (-1: off).
-    mode : {"sgbm", "hh", "3way"}
-        OpenCV's mode (5-direction SGBM, full 8-direction, 3-way).
-    """
-
-    block_size: int = 5
-    p1: int = 0
-    p2: int = 0
-    disp12_max_diff: int = 1
-    mode: Literal["sgbm", "hh", "3way"] = "sgbm"
-
-    def __post_init__(self):
-        super().__post_init__()
-        if self.p1 and self.p2 and self.p2 <= self.p1:
-            raise ValueError(f"StereoSGBMParams: p2 must exceed p1 (OpenCV's rule), got p1={self.p1}, p2={self.p2}.")
 
 
 class _OpenCVMatcher(FrameMatcher):
