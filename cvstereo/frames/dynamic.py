@@ -43,7 +43,7 @@ import cv2
 import numpy as np
 from numba import njit
 
-from cvstereo.frames.accumulate import check_filter_params
+from cvstereo.frames.accumulate import check_filter_params, polarity_sign
 from cvstereo.matchers.params import AliasedParams
 from cvstereo.model.events import DEFAULT_RESOLUTION
 from cvstereo.model.polarity import Polarity, check_polarity, slot_of_p
@@ -234,7 +234,7 @@ def process_events(stored, scale, clock, cam, t, x, y, p, slot_of_p, kernel, dec
             advance_due(stored, scale, clock, cam, t[i], decay, period)
         if not read_after:
             out[i] = stored[cam, slot, y[i], x[i]] * scale[cam]
-        splat(stored, scale, clock, cam, slot, x[i], y[i], 1.0 if p[i] > 0 else -1.0, kernel)
+        splat(stored, scale, clock, cam, slot, x[i], y[i], polarity_sign(p[i]), kernel)
         if read_after:
             out[i] = stored[cam, slot, y[i], x[i]] * scale[cam]
 

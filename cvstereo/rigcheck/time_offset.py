@@ -16,6 +16,7 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
+from cvstereo.model.polarity import sign
 from cvstereo.rigcheck.params import RigCheckParams
 from cvstereo.rigcheck.peaks import contrast, fft_len, half_width, smooth_lags, subsample_peak, support
 
@@ -242,7 +243,7 @@ def _window_stack(ev, starts, width, height, window_us, blur_px):
     ok = (k >= 0) & (ev["t"] < starts[np.maximum(k, 0)] + window_us)
     n = starts.size
     flat = (k[ok] * height + ev["y"][ok].astype(np.int64)) * width + ev["x"][ok]
-    f = np.bincount(flat, weights=2.0 * ev["p"][ok] - 1.0, minlength=n * height * width)
+    f = np.bincount(flat, weights=sign(ev["p"][ok]), minlength=n * height * width)
     f = f.astype(np.float32).reshape(n, height, width)
     for i in range(n):
         # Smoothing makes the correlation peak broad enough to interpolate without locking to whole pixels.

@@ -8,6 +8,8 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
+from cvstereo.model.polarity import sign
+
 __all__ = ["WindowFrames", "signed_frame", "window_frames"]
 
 
@@ -25,7 +27,7 @@ class WindowFrames(NamedTuple):
 def signed_frame(ev, width, height):
     """(height, width) float32 sum of event signs (ON +1, OFF -1) per pixel."""
     f = np.zeros(height * width, np.float32)
-    np.add.at(f, ev["y"].astype(np.int64) * width + ev["x"], 2.0 * ev["p"] - 1.0)
+    np.add.at(f, ev["y"].astype(np.int64) * width + ev["x"], sign(ev["p"]))
     return f.reshape(height, width)
 
 

@@ -60,6 +60,7 @@ from typing import ClassVar
 import numpy as np
 from numba import njit
 
+from cvstereo.frames.accumulate import polarity_sign
 from cvstereo.frames.dynamic import tick_due
 from cvstereo.matchers._shared.event_common import MergedEventMatcher, emit_match
 from cvstereo.matchers._shared.frame_bounds import SUM_REBUILD, advance_due_summed, column_sums, splat_summed, sum_drift
@@ -236,7 +237,7 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
                         best = -1
                         break
             n = emit_match(out_cam, out_index, out_disparity, n, cam, i, best)
-        splat_summed(stored, scale, clock, sums, mass, pending, half, cam, slot, x, y, 1.0 if p > 0 else -1.0, kernel)
+        splat_summed(stored, scale, clock, sums, mass, pending, half, cam, slot, x, y, polarity_sign(p), kernel)
     return n
 
 

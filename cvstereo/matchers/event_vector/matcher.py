@@ -51,6 +51,7 @@ import numpy as np
 from numba import njit
 from numba.cpython.unsafe.numbers import leading_zeros, trailing_zeros
 
+from cvstereo.frames.accumulate import polarity_sign
 from cvstereo.frames.dynamic import tick_due
 from cvstereo.matchers._shared.event_common import MergedEventMatcher, emit_match
 from cvstereo.matchers._shared.frame_bounds import (
@@ -369,8 +370,7 @@ def _event_vector_kernel(stream, stored, scale, clock, bound, kernel, decay, per
                          max_cost, run_ends, cost_ratio, cost_slack, centre, out_cam, out_index, out_disparity,
                          values_l, values_r):
     """Process the merged stream (:func:`cvstereo.matchers._shared.merge_order.merged_stream`); one output row per
-    matched
-    event; returns the count."""
+    matched event; returns the count."""
     width = stored.shape[3]
     row = np.empty(width)
     vec_a = np.empty(width, dtype=np.int64)
@@ -413,7 +413,7 @@ def _event_vector_kernel(stream, stored, scale, clock, bound, kernel, decay, per
             limit = cost_slack + cost_ratio * length if cost_ratio > 0 else -1.0
             disparity = _choose(best, d_lo, d_hi, max_cost, limit, centre)
             n = emit_match(out_cam, out_index, out_disparity, n, cam, i, disparity)
-        splat_bounded(stored, scale, clock, bound, cam, slot, x, y, 1.0 if p > 0 else -1.0, kernel)
+        splat_bounded(stored, scale, clock, bound, cam, slot, x, y, polarity_sign(p), kernel)
     return n
 
 
