@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 from cvstereo.frames.dynamic import FrameBank, dynamic_unit
-from cvstereo.matchers._shared.merge_order import merged_stream
+from cvstereo.matchers._shared.merge_order import STREAM_ROWS, merged_stream
 from cvstereo.matchers._shared.signal_level import SignalLevel
 from cvstereo.matchers.protocol import StreamMatcher
 from cvstereo.model.events import count_before, empty_events, paired_window_segments
@@ -148,7 +148,7 @@ class MergedEventMatcher(StreamMatcher):
         thresholds = self._level.thresholds(k)
         # Merged straight from the events' fields: no int64 copy of the columns first (half the merge's time).
         stream = merged_stream(*_fields(left), *_fields(right), self._bank.slot_of_p,
-                               scratch.take("stream", 7 * n, np.int64))
+                               scratch.take("stream", STREAM_ROWS * n, np.int64))
         m = self._run_kernel(stream, thresholds, out_cam, out_index, out_disparity, values)
         for cam in (0, 1):
             self._level.add(k, cam, values[cam])

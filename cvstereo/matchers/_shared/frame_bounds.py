@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from cvstereo.frames.dynamic import advance_due
+from cvstereo.frames.dynamic import TOUCHED, advance_due
 
 __all__ = ["BOUND_SHIFT", "SUM_REBUILD", "advance_due_bounded", "advance_due_summed", "block_bounds", "column_sums",
            "rebuild_bounds", "rebuild_sums", "skip_below", "splat_bounded", "splat_summed", "sum_drift"]
@@ -90,7 +90,7 @@ def splat_bounded(stored, scale, clock, bound, cam, slot, x, y, sign, kernel):
                 m = bound[cam, slot, yy, b]
             m = max(m, abs(v))
         bound[cam, slot, yy, b] = m
-    clock[cam, 1] = 1
+    clock[cam, TOUCHED] = 1
 
 
 @njit(cache=True, inline="always")
@@ -204,4 +204,4 @@ def splat_summed(stored, scale, clock, sums, mass, pending, half, cam, slot, x, 
                 sums[cam, slot, rr, xx] += v
     mass[cam] += added
     pending[cam] += 1
-    clock[cam, 1] = 1
+    clock[cam, TOUCHED] = 1

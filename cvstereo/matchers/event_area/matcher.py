@@ -61,9 +61,10 @@ import numpy as np
 from numba import njit
 
 from cvstereo.frames.accumulate import polarity_sign
-from cvstereo.frames.dynamic import tick_due
+from cvstereo.frames.dynamic import NEXT_TICK, TOUCHED, tick_due
 from cvstereo.matchers._shared.event_common import MergedEventMatcher, emit_match
 from cvstereo.matchers._shared.frame_bounds import SUM_REBUILD, advance_due_summed, column_sums, splat_summed, sum_drift
+from cvstereo.matchers._shared.merge_order import ROW_CAM, ROW_INDEX, ROW_P, ROW_SLOT, ROW_T, ROW_X, ROW_Y
 from cvstereo.matchers._shared.thesis_params import EventAreaParams
 
 __all__ = ["EventAreaMatcher"]
@@ -98,13 +99,13 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
     rival = 1.0 + uniqueness  # a candidate within this factor of the best SAD, > 1 px away, makes it ambiguous
     n = 0
     for k in range(stream.shape[1]):
-        cam, i, t, x, y, p, slot = stream[0, k], stream[1, k], stream[2, k], stream[3, k], stream[4, k], \
-            stream[5, k], stream[6, k]
+        cam, i, t = stream[ROW_CAM, k], stream[ROW_INDEX, k], stream[ROW_T, k]
+        x, y, p, slot = stream[ROW_X, k], stream[ROW_Y, k], stream[ROW_P, k], stream[ROW_SLOT, k]
         other = 1 - cam
         # The test here, the call below only about once per decay tick: an inlined helper holding both kept
         # atomic reference counting of the six state arrays around every event (12 calls).
         for c in (cam, other):
-            if tick_due(clock[c, 0], clock[c, 1], t, period) or pending[c] >= SUM_REBUILD:
+            if tick_due(clock[c, NEXT_TICK], clock[c, TOUCHED], t, period) or pending[c] >= SUM_REBUILD:
                 advance_due_summed(stored, scale, clock, sums, mass, pending, c, t, decay, period, half)
         c1 = scale[cam]
         c2 = scale[other]

@@ -52,7 +52,7 @@ from numba import njit
 from numba.cpython.unsafe.numbers import leading_zeros, trailing_zeros
 
 from cvstereo.frames.accumulate import polarity_sign
-from cvstereo.frames.dynamic import tick_due
+from cvstereo.frames.dynamic import NEXT_TICK, TOUCHED, tick_due
 from cvstereo.matchers._shared.event_common import MergedEventMatcher, emit_match
 from cvstereo.matchers._shared.frame_bounds import (
     BOUND_SHIFT,
@@ -61,6 +61,7 @@ from cvstereo.matchers._shared.frame_bounds import (
     skip_below,
     splat_bounded,
 )
+from cvstereo.matchers._shared.merge_order import ROW_CAM, ROW_INDEX, ROW_P, ROW_SLOT, ROW_T, ROW_X, ROW_Y
 from cvstereo.matchers._shared.thesis_params import EventVectorParams
 
 __all__ = ["EventVectorMatcher"]
@@ -363,8 +364,8 @@ def _choose(best, d_lo, d_hi, max_cost, limit, centre):
     return 0.5 * (d_lo + d_hi) if centre else float(d_lo)
 
 
-# error_model="numpy": the splat's division by the (positive) scale then has no zero check, whose exception
-# path kept numba's reference counting of the frame arrays around every splat.
+# error_model="numpy": no zero check of the splat's division by the (positive) scale, whose exception path kept
+# numba's reference counting of the frame arrays around every splat.
 @njit(cache=True, error_model="numpy")
 def _event_vector_kernel(stream, stored, scale, clock, bound, kernel, decay, period, thresholds, require, max_d,
                          max_cost, run_ends, cost_ratio, cost_slack, centre, out_cam, out_index, out_disparity,
@@ -373,21 +374,19 @@ def _event_vector_kernel(stream, stored, scale, clock, bound, kernel, decay, per
     matched event; returns the count."""
     width = stored.shape[3]
     row = np.empty(width)
-    vec_a = np.empty(width, dtype=np.int64)
-    vec_b = np.empty(width, dtype=np.int64)
-    vec_l = np.empty(width, dtype=np.int64)
-    vec_r = np.empty(width, dtype=np.int64)
+    vec_a, vec_b = np.empty(width, dtype=np.int64), np.empty(width, dtype=np.int64)
+    vec_l, vec_r = np.empty(width, dtype=np.int64), np.empty(width, dtype=np.int64)
     above = np.empty(max_d // 64 + 2, dtype=np.uint64)  # masks of a candidate range (_search_runs)
     cand = np.empty(max_d // 64 + 2, dtype=np.uint64)
     n = 0
     for j in range(stream.shape[1]):
-        cam, i, t, x, y, p, slot = stream[0, j], stream[1, j], stream[2, j], stream[3, j], stream[4, j], \
-            stream[5, j], stream[6, j]
+        cam, i, t = stream[ROW_CAM, j], stream[ROW_INDEX, j], stream[ROW_T, j]
+        x, y, p, slot = stream[ROW_X, j], stream[ROW_Y, j], stream[ROW_P, j], stream[ROW_SLOT, j]
         other = 1 - cam
         # The test here, advance_due_bounded only when due: an inlined helper holding both bound the four arrays
         # to new variables and numba kept their atomic reference counting on every event (8 atomics, ~30 ns).
         for cc in (cam, other):
-            if tick_due(clock[cc, 0], clock[cc, 1], t, period):
+            if tick_due(clock[cc, NEXT_TICK], clock[cc, TOUCHED], t, period):
                 advance_due_bounded(stored, scale, clock, bound, cc, t, decay, period)
         c1 = scale[cam]
         value = stored[cam, slot, y, x] * c1
