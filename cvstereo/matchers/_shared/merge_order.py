@@ -66,6 +66,17 @@ ROW_CAM, ROW_INDEX, ROW_T, ROW_X, ROW_Y, ROW_P, ROW_SLOT = range(7)
 STREAM_ROWS = 7
 
 
+@njit(cache=True, inline="always")
+def stream_event(stream, k):
+    """The k-th event of a :func:`merged_stream`: ``(camera, index, t, x, y, p, slot)``, its rows in order.
+
+    Inlined into the kernels' loops; it has no loop of its own, so that numba's pass that drops the reference
+    counting of the inlined ``stream`` removes it (a helper with loops kept it around every event).
+    """
+    return (stream[ROW_CAM, k], stream[ROW_INDEX, k], stream[ROW_T, k], stream[ROW_X, k], stream[ROW_Y, k],
+            stream[ROW_P, k], stream[ROW_SLOT, k])
+
+
 def merged_stream(tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p, buffer=None):
     """Both cameras' events as one stream in the merged order, the kernels' input.
 

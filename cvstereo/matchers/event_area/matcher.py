@@ -64,7 +64,7 @@ from cvstereo.frames.accumulate import polarity_sign
 from cvstereo.frames.dynamic import NEXT_TICK, TOUCHED, tick_due
 from cvstereo.matchers._shared.event_common import MergedEventMatcher, emit_match
 from cvstereo.matchers._shared.frame_bounds import SUM_REBUILD, advance_due_summed, column_sums, splat_summed, sum_drift
-from cvstereo.matchers._shared.merge_order import ROW_CAM, ROW_INDEX, ROW_P, ROW_SLOT, ROW_T, ROW_X, ROW_Y
+from cvstereo.matchers._shared.merge_order import stream_event
 from cvstereo.matchers._shared.thesis_params import EventAreaParams
 
 __all__ = ["EventAreaMatcher"]
@@ -73,14 +73,15 @@ __all__ = ["EventAreaMatcher"]
 @njit(cache=True)
 def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift, kernel, decay, period, thresholds,
                        half, max_d, max_cost, all_frames, own_ratio, uniqueness, out_cam, out_index, out_disparity,
-                       values_l, values_r):
+                       values, right_start):
     """Process the merged stream (:func:`cvstereo.matchers._shared.merge_order.merged_stream`); one output row per
-    matched
-    event; returns the count. ``all_frames``: the SAD sums over all of a camera's frames (``sad_frames="all"``),
-    else it compares the event's own frame only. ``sums``, ``mass``, ``pending``: the frames' column sums of
-    ``block`` rows (:func:`cvstereo.matchers._shared.frame_bounds.column_sums`); ``drift``: the bound of their drift
-    per unit of
-    mass of all the entries one lower bound sums (:func:`cvstereo.matchers._shared.frame_bounds.sum_drift`)."""
+    matched event; returns the count. ``all_frames``: the SAD sums over all of a camera's frames
+    (``sad_frames="all"``), else it compares the event's own frame only. ``sums``, ``mass``, ``pending``: the
+    frames' column sums of ``block`` rows (:func:`cvstereo.matchers._shared.frame_bounds.column_sums`); ``drift``:
+    the bound of their drift per unit of mass of all the entries one lower bound sums
+    (:func:`cvstereo.matchers._shared.frame_bounds.sum_drift`). ``values``, ``right_start``: each event's |D|
+    before its update, the right camera's from ``right_start`` on
+    (:meth:`cvstereo.matchers._shared.event_common.MergedEventMatcher._run_kernel`)."""
     n_frames = stored.shape[1]
     height = stored.shape[2]
     width = stored.shape[3]
@@ -99,8 +100,7 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
     rival = 1.0 + uniqueness  # a candidate within this factor of the best SAD, > 1 px away, makes it ambiguous
     n = 0
     for k in range(stream.shape[1]):
-        cam, i, t = stream[ROW_CAM, k], stream[ROW_INDEX, k], stream[ROW_T, k]
-        x, y, p, slot = stream[ROW_X, k], stream[ROW_Y, k], stream[ROW_P, k], stream[ROW_SLOT, k]
+        cam, i, t, x, y, p, slot = stream_event(stream, k)
         other = 1 - cam
         # The test here, the call below only about once per decay tick: an inlined helper holding both kept
         # atomic reference counting of the six state arrays around every event (12 calls).
@@ -110,10 +110,7 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
         c1 = scale[cam]
         c2 = scale[other]
         value = stored[cam, slot, y, x] * c1
-        if cam == 0:
-            values_l[i] = abs(value)
-        else:
-            values_r[i] = abs(value)
+        values[cam * right_start + i] = abs(value)
         if abs(value) >= thresholds[cam] and half <= x < width - half and half <= y < height - half:
             # The frames compared: the event's own (plane 0 is frame ``slot``), or all of them in slot order.
             first_slot = 0 if all_frames else slot

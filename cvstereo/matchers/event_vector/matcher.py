@@ -61,7 +61,7 @@ from cvstereo.matchers._shared.frame_bounds import (
     skip_below,
     splat_bounded,
 )
-from cvstereo.matchers._shared.merge_order import ROW_CAM, ROW_INDEX, ROW_P, ROW_SLOT, ROW_T, ROW_X, ROW_Y
+from cvstereo.matchers._shared.merge_order import stream_event
 from cvstereo.matchers._shared.thesis_params import EventVectorParams
 
 __all__ = ["EventVectorMatcher"]
@@ -369,9 +369,9 @@ def _choose(best, d_lo, d_hi, max_cost, limit, centre):
 @njit(cache=True, error_model="numpy")
 def _event_vector_kernel(stream, stored, scale, clock, bound, kernel, decay, period, thresholds, require, max_d,
                          max_cost, run_ends, cost_ratio, cost_slack, centre, out_cam, out_index, out_disparity,
-                         values_l, values_r):
+                         values, right_start):
     """Process the merged stream (:func:`cvstereo.matchers._shared.merge_order.merged_stream`); one output row per
-    matched event; returns the count."""
+    matched event; returns the count. ``values``, ``right_start``: as for the event-area kernel."""
     width = stored.shape[3]
     row = np.empty(width)
     vec_a, vec_b = np.empty(width, dtype=np.int64), np.empty(width, dtype=np.int64)
@@ -380,8 +380,7 @@ def _event_vector_kernel(stream, stored, scale, clock, bound, kernel, decay, per
     cand = np.empty(max_d // 64 + 2, dtype=np.uint64)
     n = 0
     for j in range(stream.shape[1]):
-        cam, i, t = stream[ROW_CAM, j], stream[ROW_INDEX, j], stream[ROW_T, j]
-        x, y, p, slot = stream[ROW_X, j], stream[ROW_Y, j], stream[ROW_P, j], stream[ROW_SLOT, j]
+        cam, i, t, x, y, p, slot = stream_event(stream, j)
         other = 1 - cam
         # The test here, advance_due_bounded only when due: an inlined helper holding both bound the four arrays
         # to new variables and numba kept their atomic reference counting on every event (8 atomics, ~30 ns).
@@ -390,10 +389,7 @@ def _event_vector_kernel(stream, stored, scale, clock, bound, kernel, decay, per
                 advance_due_bounded(stored, scale, clock, bound, cc, t, decay, period)
         c1 = scale[cam]
         value = stored[cam, slot, y, x] * c1
-        if cam == 0:
-            values_l[i] = abs(value)
-        else:
-            values_r[i] = abs(value)
+        values[cam * right_start + i] = abs(value)
         if abs(value) >= thresholds[cam]:
             a1, b1, l1, r1 = _own_vector(stored, bound, cam, slot, y, x, c1, thresholds[cam])
             lo = x if cam == 1 else max(0, x - max_d)  # the candidate pixels lo..hi of the other row
