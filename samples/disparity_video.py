@@ -12,12 +12,12 @@ Run:
 import argparse
 
 from calibration_free import match
-from cvstereo.geometry.depth import DepthModel
+from cvstereo.geometry.rig import THESIS_RIG
 from cvstereo.io import read_recording
 from cvstereo.viz import write_video
 
-#: The thesis' rig, for the distance shown in the overlay.
-RIG = DepthModel.from_rig(focal_px=160.0, baseline_m=0.10, offset_px=2.5)
+#: The thesis rig's depth model (10 cm baseline, its focal length and axis offset; the simulator's rig too).
+RIG = THESIS_RIG.depth_model()
 
 
 def main(argv=None):

@@ -13,10 +13,10 @@ import argparse
 import contextlib
 
 from calibration_free import create_matcher
-from cvstereo.geometry.depth import DepthModel
+from cvstereo.geometry.rig import THESIS_RIG
 
-#: The thesis' rig: 10 cm baseline, about 160 px focal length, 2.5 px from axes not quite parallel.
-RIG = DepthModel.from_rig(focal_px=160.0, baseline_m=0.10, offset_px=2.5)
+#: The thesis rig's depth model (10 cm baseline, its focal length and axis offset; the simulator's rig too).
+RIG = THESIS_RIG.depth_model()
 
 
 def main(argv=None):

@@ -26,10 +26,10 @@ import numpy as np
 
 from cvstereo.errors import EventFormatError
 from cvstereo.model.events import DEFAULT_RESOLUTION
-from cvstereo.model.polarity import OFF, ON, Polarity, frame_signs, slot_of_p
+from cvstereo.model.polarity import OFF, ON, Polarity, frame_signs, sign, slot_of_p
 
 __all__ = ["OFF_SENSOR", "check_filter_params", "event_channel", "event_mask", "filtered_unit", "frame_shape",
-           "gaussian_filter", "polarity_counts", "polarity_frames", "signed_frame", "stacked_frames"]
+           "gaussian_filter", "polarity_counts", "polarity_frames", "polarity_sign", "signed_frame", "stacked_frames"]
 
 
 def frame_shape(resolution: tuple[int, int]) -> tuple[int, int]:
@@ -169,6 +169,9 @@ def stacked_frames(cameras: Sequence[np.ndarray], *, polarity: Polarity = "share
 #: :func:`event_channel` of an event outside the sensor.
 OFF_SENSOR = -2
 
+#: :func:`cvstereo.model.polarity.sign` compiled for the kernels (inlined: an event's sign costs no call).
+polarity_sign = numba.njit(cache=True, nogil=True, inline="always")(sign)
+
 
 @numba.njit(cache=True, nogil=True, inline="always")
 def event_channel(x, y, p, i, channel_of, width, height):  # pragma: no cover - compiled
@@ -193,7 +196,7 @@ def _stack_events(x, y, p, channel_of, first_frame, pitch, height, width, stack,
         if c < 0:
             continue  # a polarity the mode drops
         xi, yi = np.int64(x[i]), np.int64(y[i])
-        stack[(first_frame + c) * pitch + yi, xi] += np.float32(1.0) if p[i] else np.float32(-1.0)
+        stack[(first_frame + c) * pitch + yi, xi] += np.float32(polarity_sign(p[i]))
         if mark_seen:
             seen[c * height + yi, xi] = True
     return -1

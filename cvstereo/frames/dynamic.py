@@ -41,13 +41,15 @@ import cv2
 import numpy as np
 from numba import njit
 
+from cvstereo.frames.accumulate import polarity_sign
 from cvstereo.frames.dynamic_limits import FORGET_TICKS, RENORM
 from cvstereo.frames.dynamic_params import DynamicFrameParams
 from cvstereo.model.events import DEFAULT_RESOLUTION
 from cvstereo.model.polarity import slot_of_p
 
-__all__ = ["FORGET_TICKS", "RENORM", "DynamicFrameParams", "FrameBank", "advance", "advance_due", "dynamic_unit",
-           "event_columns", "event_matrix", "process_events", "splat", "tick_due", "update_kernel"]
+__all__ = ["FORGET_TICKS", "NEXT_TICK", "RENORM", "TOUCHED", "DynamicFrameParams", "FrameBank", "advance",
+           "advance_due", "dynamic_unit", "event_columns", "event_matrix", "process_events", "splat", "tick_due",
+           "update_kernel"]
 
 
 def update_kernel(params: DynamicFrameParams) -> np.ndarray:
@@ -80,9 +82,14 @@ def dynamic_unit(params) -> float:
     return float(kernel[kernel.shape[0] // 2, kernel.shape[1] // 2])
 
 
+#: The columns of a :class:`FrameBank`'s ``clock`` (one row per camera): the index k of the camera's next decay
+#: tick (at t = k * period), and whether its frames were touched since they were made or forgotten (0 or 1).
+NEXT_TICK, TOUCHED = 0, 1
+
+
 # ----------------------------------------------------------------------------------------------------------
 # The same operations as the reference DynamicFrames, on state arrays of several cameras, in numba.
-# State of camera ``cam``: stored[cam] (n_frames, H, W), scale[cam], clock[cam] = (next_tick, touched).
+# State of camera ``cam``: stored[cam] (n_frames, H, W), scale[cam], clock[cam, NEXT_TICK], clock[cam, TOUCHED].
 # The per-event helpers are inlined into their callers: a numba call with array arguments costs atomic
 # reference counting on every array, which made a 9-pixel splat ten times slower. Inlining does not always
 # remove it either: numba binds the arrays to new variables and relies on an LLVM pass to drop the
@@ -101,15 +108,15 @@ def advance_due(stored, scale, clock, cam, t, decay, period):
     does not tell: a reset while the scale is still 1.0 (no tick since the last one) leaves it unchanged.
     """
     rewritten = False
-    if clock[cam, 1] != 0 and t // period + 1 - clock[cam, 0] > FORGET_TICKS:
+    if clock[cam, TOUCHED] != 0 and t // period + 1 - clock[cam, NEXT_TICK] > FORGET_TICKS:
         stored[cam] = 0.0
         scale[cam] = 1.0
-        clock[cam, 1] = 0
+        clock[cam, TOUCHED] = 0
         rewritten = True
-    if clock[cam, 1] == 0:
-        clock[cam, 0] = t // period + 1
+    if clock[cam, TOUCHED] == 0:
+        clock[cam, NEXT_TICK] = t // period + 1
         return rewritten
-    k = clock[cam, 0]
+    k = clock[cam, NEXT_TICK]
     while k * period <= t:
         scale[cam] = scale[cam] * decay
         if scale[cam] < RENORM:
@@ -122,7 +129,7 @@ def advance_due(stored, scale, clock, cam, t, decay, period):
             scale[cam] = 1.0
             rewritten = True
         k += 1
-    clock[cam, 0] = k
+    clock[cam, NEXT_TICK] = k
     return rewritten
 
 
@@ -131,8 +138,8 @@ def tick_due(next_tick, touched, t, period):
     """Whether :func:`advance_due` has anything to do at time ``t``: a decay tick at or before ``t``, or frames
     never touched (``next_tick``, ``touched``: a camera's row of the clock).
 
-    Scalars only: a kernel calls it with ``clock[cam, 0], clock[cam, 1]``, so that inlining it binds no array
-    (an inlined helper taking the arrays kept numba's atomic reference counting around every event).
+    Scalars only: a kernel calls it with ``clock[cam, NEXT_TICK], clock[cam, TOUCHED]``, so that inlining it binds
+    no array (an inlined helper taking the arrays kept numba's atomic reference counting around every event).
     """
     return touched == 0 or next_tick * period <= t
 
@@ -144,7 +151,7 @@ def advance(stored, scale, clock, cam, t, decay, period):
     Otherwise (most events: a tick every 250 us) the next tick lies after ``t``, so neither a tick nor the
     forgetting of a long gap applies. The work stays in a function of its own, not inlined (see above).
     """
-    if tick_due(clock[cam, 0], clock[cam, 1], t, period):
+    if tick_due(clock[cam, NEXT_TICK], clock[cam, TOUCHED], t, period):
         advance_due(stored, scale, clock, cam, t, decay, period)
 
 
@@ -165,7 +172,7 @@ def splat(stored, scale, clock, cam, slot, x, y, sign, kernel):
             if xx < 0 or xx >= width:
                 continue
             stored[cam, slot, yy, xx] += sign * kernel[j, i] / c
-    clock[cam, 1] = 1
+    clock[cam, TOUCHED] = 1
 
 
 @njit(cache=True)
@@ -180,11 +187,11 @@ def process_events(stored, scale, clock, cam, t, x, y, p, slot_of_p, kernel, dec
         if slot < 0:
             out[i] = np.nan
             continue
-        if tick_due(clock[cam, 0], clock[cam, 1], t[i], period):
+        if tick_due(clock[cam, NEXT_TICK], clock[cam, TOUCHED], t[i], period):
             advance_due(stored, scale, clock, cam, t[i], decay, period)
         if not read_after:
             out[i] = stored[cam, slot, y[i], x[i]] * scale[cam]
-        splat(stored, scale, clock, cam, slot, x[i], y[i], 1.0 if p[i] > 0 else -1.0, kernel)
+        splat(stored, scale, clock, cam, slot, x[i], y[i], polarity_sign(p[i]), kernel)
         if read_after:
             out[i] = stored[cam, slot, y[i], x[i]] * scale[cam]
 
@@ -220,7 +227,7 @@ class FrameBank:
     stored : (n_cameras, n_frames, H, W) float64 ndarray
     scale : (n_cameras,) float64 ndarray
     clock : (n_cameras, 2) int64 ndarray
-        Per camera: index of the next decay tick, and 1 once touched.
+        Per camera: columns :data:`NEXT_TICK` (index of the next decay tick) and :data:`TOUCHED` (1 once touched).
     kernel : (k, k) float64 ndarray
     slot_of_p : (2,) int64 ndarray
     """

@@ -26,12 +26,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from cvstereo.geometry.depth import DepthModel
+from cvstereo.geometry.rig import THESIS_RIG
 
 __all__ = ["POINT_DTYPE", "THESIS_FOCAL_PX", "Intrinsics", "depth_per_match", "point_cloud", "window_point_clouds",
            "write_ply"]
 
-#: The thesis rig's focal length, px (the simulator's ``Rig.focal_px``).
-THESIS_FOCAL_PX = 165.0
+#: The thesis rig's focal length, px: :data:`cvstereo.geometry.rig.THESIS_RIG`'s, under the name 0.3 exported.
+THESIS_FOCAL_PX = THESIS_RIG.focal_px
 
 #: The PLY vertex: position (m), the match's disparity (px), time (us) and anchoring camera.
 POINT_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("disparity", "<f4"), ("t", "<i8"),

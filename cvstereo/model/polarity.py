@@ -25,7 +25,7 @@ from typing import Literal
 
 import numpy as np
 
-__all__ = ["OFF", "ON", "POLARITY_MODES", "Polarity", "check_polarity", "frame_signs", "slot_of_p"]
+__all__ = ["OFF", "ON", "POLARITY_MODES", "Polarity", "check_polarity", "frame_signs", "sign", "slot_of_p"]
 
 #: ``p`` of an ON event (brightness up) and of an OFF event.
 ON, OFF = 1, 0
@@ -41,6 +41,22 @@ _FRAME_SIGNS: dict[str, tuple[tuple[int, ...], ...]] = {
     "on": ((1,),),
     "off": ((-1,),),
 }
+
+
+def sign(p):
+    """The sign an event of polarity ``p`` adds to a frame: +1.0 for ON (``p = 1``), -1.0 for OFF (``p = 0``).
+
+    The one place where docs/formats.md's stored ``p`` (1 / 0) becomes the thesis' sign s (+1 / -1,
+    docs/algorithms.md). ``p`` is a scalar or an array (an array of signs comes back, float64). Plain arithmetic
+    rather than a branch, so that numba kernels compile this same function
+    (:data:`cvstereo.frames.accumulate.polarity_sign`).
+
+    >>> sign(ON), sign(OFF)
+    (1.0, -1.0)
+    >>> sign(np.array([1, 0, 1], np.int8)).tolist()
+    [1.0, -1.0, 1.0]
+    """
+    return 2.0 * (p > OFF) - 1.0
 
 
 def check_polarity(mode: str, where: str = "polarity") -> None:

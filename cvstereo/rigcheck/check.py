@@ -16,14 +16,10 @@ from cvstereo.rigcheck.rows import row_offsets
 from cvstereo.rigcheck.stats import count_statistics
 from cvstereo.rigcheck.time_offset import time_offset
 
-__all__ = ["MAX_WINDOW_US", "MIN_WINDOW_US", "STAGES", "check_rig"]
+__all__ = ["STAGES", "check_rig"]
 
 #: The stages :func:`check_rig` reports to its ``progress`` callback, in order (the two repeats may be skipped).
 STAGES = ("row offset", "time offset", "row offset again", "time offset again", "side and disparity", "counts")
-
-#: Bounds of the accumulation window when it follows the event rate, us. The shortest is also the shortest
-#: recording checked: rates, bursts and time offsets over less are not estimates but divisions by almost nothing.
-MIN_WINDOW_US, MAX_WINDOW_US = 10_000, 1_000_000
 
 
 def check_rig(recording: Recording, params: RigCheckParams | None = None, *,
@@ -49,7 +45,7 @@ def check_rig(recording: Recording, params: RigCheckParams | None = None, *,
     Raises
     ------
     ValueError
-        Too few events in a camera, a recording shorter than :data:`MIN_WINDOW_US`, or options out of range.
+        Too few events in a camera, a recording shorter than ``min_window_us``, or options out of range.
     TypeError
         An override that is no field of :class:`RigCheckParams`.
     """
@@ -63,18 +59,18 @@ def check_rig(recording: Recording, params: RigCheckParams | None = None, *,
                 "needed (give a longer recording, or check that both cameras were read)."
             )
     span_us = recording.t_end - recording.t_start
-    if span_us < MIN_WINDOW_US:
+    if span_us < params.min_window_us:
         raise ValueError(
             f"check_rig: the recording's events span {span_us} us (from t = {recording.t_start} us); the rig check "
-            f"needs a duration of at least {MIN_WINDOW_US / 1000:g} ms to tell event rates, noise and time offsets "
-            "(give a longer recording)."
+            f"needs a duration of at least {params.min_window_us / 1000:g} ms to tell event rates, noise and time "
+            "offsets (give a longer recording)."
         )
     width, height = res = recording.resolution
     left, right = recording.left, recording.right
     window_us = params.window_us
     if window_us is None:
         rate = min(left.size, right.size) / recording.duration_s
-        window_us = int(np.clip(params.window_events / rate * 1e6, MIN_WINDOW_US, MAX_WINDOW_US))
+        window_us = int(np.clip(params.window_events / rate * 1e6, params.min_window_us, params.max_window_us))
     settings = dataclasses.asdict(dataclasses.replace(params, window_us=window_us))
 
     # 1. Row offset from the 2-D overlay of accumulated frames over (dx, dy): windows long against any time
@@ -85,7 +81,8 @@ def check_rig(recording: Recording, params: RigCheckParams | None = None, *,
     #    disparity changed.
     frame_opts = {"resolution": res, "max_row_offset": min(params.max_row_offset, height - 1),
                   "max_disparity": min(params.max_disparity, width - 1), "window_us": window_us,
-                  "max_windows": params.max_windows, "n_bands": params.n_bands}
+                  "max_windows": params.max_windows, "n_bands": params.n_bands,
+                  "min_events": params.window_min_events, "blur_px": params.blur_px}
     stage = progress or (lambda name: None)
     stage(STAGES[0])
     rows = row_offsets(left, right, **frame_opts)
@@ -107,8 +104,11 @@ def check_rig(recording: Recording, params: RigCheckParams | None = None, *,
     stage(STAGES[4])
     overlays = disparity_overlays(left, _shifted(right, row_offset, time_offset_us, res), resolution=res,
                                   max_disparity=params.max_disparity, window_us=window_us,
-                                  max_windows=params.max_windows, block=params.block, min_ncc=params.min_ncc)
-    disp = side_and_disparity(overlays, params.disparity_percentiles)
+                                  max_windows=params.max_windows, block=params.block, min_ncc=params.min_ncc,
+                                  min_events=params.window_min_events, blur_px=params.blur_px,
+                                  max_points=params.local_max_points)
+    disp = side_and_disparity(overlays, params.disparity_percentiles, max_peaks=params.profile_max_peaks,
+                              peak_mads=params.profile_peak_mads, peak_share=params.profile_peak_share)
 
     # 5. Counts, in the orientation the report speaks of.
     if disp.swap:
@@ -118,9 +118,11 @@ def check_rig(recording: Recording, params: RigCheckParams | None = None, *,
         alternatives = tuple(-a for a in alternatives)
     stage(STAGES[5])
     counts = count_statistics(left, right, duration_s=recording.duration_s, resolution=res,
-                              noise_window_us=params.noise_window_us, burst_window_us=params.burst_window_us)
-    confident = [b for b, c in zip(band_offsets, rows2.band_confidences, strict=True) if c >= 0.3]
-    varies = bool(len(confident) >= 2 and max(confident) - min(confident) > 1.0)
+                              noise_window_us=params.noise_window_us, burst_window_us=params.burst_window_us,
+                              burst_min_events=params.burst_min_events)
+    confident = [b for b, c in zip(band_offsets, rows2.band_confidences, strict=True)
+                 if c >= params.band_min_confidence]
+    varies = bool(len(confident) >= 2 and max(confident) - min(confident) > params.band_varies_rows)
     pct = disp.percentiles
     return RigReport(
         swap=disp.swap, swap_confidence=disp.swap_confidence,

@@ -40,7 +40,7 @@ class DisparityFindings(NamedTuple):
 
 
 def disparity_overlays(left, right, *, resolution, max_disparity, window_us, max_windows, block,
-                       min_ncc) -> Overlays:
+                       min_ncc, min_events, blur_px, max_points) -> Overlays:
     """Global overlay profile over shifts -D..D (D = ``max_disparity`` within the sensor) and local best shifts."""
     d = int(min(max_disparity, resolution[0] - 1))
     profile = np.zeros(2 * d + 1)
@@ -48,15 +48,15 @@ def disparity_overlays(left, right, *, resolution, max_disparity, window_us, max
     bw, bh = block
     nfft = fft_len(2 * resolution[0])
     for gl, gr, mask in window_frames(left, right, resolution=resolution, window_us=window_us,
-                                      max_windows=max_windows):
+                                      max_windows=max_windows, min_events=min_events, blur_px=blur_px):
         c = row_correlation(gl, gr, max_shift=d, nfft=nfft)
         if c is not None:
             profile += c
-        local.append(_local_best(gl, gr, mask, d, bw, bh, min_ncc, max_points=200))
+        local.append(_local_best(gl, gr, mask, d, bw, bh, min_ncc, max_points=max_points))
     return Overlays(profile, np.concatenate(local) if local else np.zeros(0))
 
 
-def side_and_disparity(overlays: Overlays, percentiles) -> DisparityFindings:
+def side_and_disparity(overlays: Overlays, percentiles, *, max_peaks, peak_mads, peak_share) -> DisparityFindings:
     """Decide the side from the profile, then orient the disparities by it (the possible side is >= 0).
 
     ``percentiles`` of the local disparities on the possible side are reported (NaN without any); the
@@ -67,7 +67,8 @@ def side_and_disparity(overlays: Overlays, percentiles) -> DisparityFindings:
     swap, swap_conf = side_of_profile(profile)
     sign = -1 if swap else 1
     peak = sign * subsample_peak(profile, int(np.argmax(profile))) - sign * d
-    peaks = tuple(sign * (s - d) for s in _profile_peaks(profile))
+    found = _profile_peaks(profile, max_peaks=max_peaks, mads=peak_mads, share=peak_share)
+    peaks = tuple(sign * (s - d) for s in found)
     peaks = tuple(float(p) for p in peaks if p >= 0)
     oriented = sign * local
     possible = oriented[oriented >= 0]
@@ -107,15 +108,16 @@ def _local_best(gl, gr, mask, d, bw, bh, min_ncc, max_points):
     return (d - k[ok]).astype(float)
 
 
-def _profile_peaks(profile, *, max_peaks=5):
-    """Indices (sub-sample) of local maxima standing out from the profile's background, strongest first."""
+def _profile_peaks(profile, *, max_peaks, mads, share):
+    """Indices (sub-sample) of local maxima standing out from the profile's background (by more than ``mads``
+    median absolute deviations and ``share`` of the highest's height), strongest first."""
     base = float(np.median(profile))
     spread = float(np.median(np.abs(profile - base))) + 1e-12
     top = float(profile.max())
     out = []
     for i in range(1, profile.size - 1):
         v = profile[i]
-        if v >= profile[i - 1] and v > profile[i + 1] and v - base > max(6 * spread, 0.25 * (top - base)):
+        if v >= profile[i - 1] and v > profile[i + 1] and v - base > max(mads * spread, share * (top - base)):
             out.append((v, subsample_peak(profile, i)))
     out.sort(reverse=True)
     return [p for _, p in out[:max_peaks]]

@@ -30,17 +30,39 @@ class RigCheckParams:
         Horizontal bands of the image for which the row offset is estimated separately.
     window_us : int or None
         Accumulation window of the frames for the row and disparity stages; None: long enough for about
-        ``window_events`` events per camera (between 10 ms and 1 s).
+        ``window_events`` events per camera (between ``min_window_us`` and ``max_window_us``).
+    min_window_us, max_window_us : int
+        Bounds of the automatic window, us. The shortest is also the shortest recording checked: rates, bursts
+        and time offsets over less are not estimates but divisions by almost nothing.
+    window_min_events : int
+        A window enters the row and disparity stages only with at least this many events in each camera.
+    blur_px : float
+        Gaussian smoothing (sigma, px; a 3x3 kernel) of those windows' frames, so that events one pixel apart
+        still overlay (jitter, distortion).
     max_windows : int
         At most this many windows (evenly spread over the recording) enter the row and disparity stages.
     block : (width, height)
         Block over which local overlays are scored (normalised cross-correlation of signed frames).
     min_ncc : float
         A local overlay counts when its best normalised cross-correlation reaches this.
+    local_max_points : int
+        Local overlays scored per window at most (evenly picked among its event pixels): bounds the cost.
+    profile_max_peaks : int
+        At most this many peaks of the global overlay profile are reported, the strongest first.
+    profile_peak_mads, profile_peak_share : float
+        A local maximum of the profile is a peak when it stands above the profile's median by more than this many
+        median absolute deviations and by more than this share of the highest maximum's height.
+    band_min_confidence : float
+        A band's row offset counts for ``row_offset_varies`` when its confidence reaches this.
+    band_varies_rows : float
+        The row offset varies when the counted bands' offsets spread over more than this many rows.
     noise_window_us : int
         An event is noise when no neighbouring pixel fired within this time either side.
     burst_window_us : int
         Window of the burst ratio (the thesis saw the cameras' counts differ up to 3x within a few ms).
+    burst_min_events : int
+        A window enters the burst ratio only with at least this many events in each camera: the ratio of fewer
+        is mostly counting noise.
     max_seconds : float or None
         Analyse at most this many seconds from the start (bounds time and memory); None: everything.
     disparity_percentiles : tuple of int
@@ -99,6 +121,11 @@ class RigCheckParams:
     rows_again_share : float
         The rows are estimated once more with the time offset removed only when the offset is at least this
         share of the frames' window: a smaller one moves too few events across window edges to change them.
+    pairs_max_events : int
+        The pixel-coincidence histogram pairs at most this many left events (evenly picked): bounds its memory
+        and time, and a few hundred thousand pairs pin the peak.
+    pairs_smooth_bins : float
+        Gaussian smoothing (sigma, bins) of that histogram before its peak is found.
     pairs_sharp_us : int
         The pixel-coincidence histogram is trusted over the regression when its peak's half width at half
         height is at most this (sensor jitter and latency spread a true coincidence peak by a few hundred us;
@@ -108,6 +135,8 @@ class RigCheckParams:
         height (or by two standard deviations of their Poisson counts) are taken as equal: a periodic scene
         (a fan's blades) gives one per period, the search prefers the one nearest zero offset, and the time
         offset is then ambiguous (reported, and not applied by ``match --auto``).
+    time_equal_sigmas : float
+        The "two standard deviations" of ``time_equal_share``.
     time_apply_confidence : float
         Confidence a time offset needs before :meth:`RigReport.match_kwargs` (and so ``match --auto``)
         applies it. Higher than for rows: on the simulated arms, whose depth wobbles, wrong time offsets of
@@ -122,11 +151,22 @@ class RigCheckParams:
     time_bin_us: int = 200
     n_bands: int = 4
     window_us: int | None = None
+    min_window_us: int = 10_000
+    max_window_us: int = 1_000_000
+    window_min_events: int = 10
+    blur_px: float = 0.8
     max_windows: int = 100
     block: tuple[int, int] = (9, 5)
     min_ncc: float = 0.5
+    local_max_points: int = 200
+    profile_max_peaks: int = 5
+    profile_peak_mads: float = 6.0
+    profile_peak_share: float = 0.25
+    band_min_confidence: float = 0.3
+    band_varies_rows: float = 1.0
     noise_window_us: int = 5_000
     burst_window_us: int = 5_000
+    burst_min_events: int = 5
     max_seconds: float | None = 60.0
     disparity_percentiles: tuple[int, ...] = (5, 25, 50, 75, 95)
     window_events: int = 300
@@ -149,18 +189,25 @@ class RigCheckParams:
     reg_se_scale_us: float = 250.0
     reg_min_confidence: float = 0.1
     rows_again_share: float = 0.05
+    pairs_max_events: int = 200_000
+    pairs_smooth_bins: float = 1.5
     pairs_sharp_us: int = 1_000
     time_equal_share: float = 0.1
+    time_equal_sigmas: float = 2.0
     time_apply_confidence: float = 0.6
 
     def __post_init__(self) -> None:
         positive = ("max_disparity", "max_time_offset_us", "time_bin_us", "n_bands", "max_windows",
                     "noise_window_us", "burst_window_us", "window_events", "min_events", "reg_window_us",
                     "reg_gap", "reg_chunk", "reg_upsample", "reg_iterations", "reg_min_windows", "reg_max_windows",
-                    "reg_run_windows")
+                    "reg_run_windows", "min_window_us", "max_window_us", "window_min_events", "local_max_points",
+                    "profile_max_peaks", "burst_min_events", "pairs_max_events")
         for name in positive + (("window_us",) if self.window_us is not None else ()):
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"check_rig: {name}={getattr(self, name)} is out of range; give a positive value.")
+        if self.max_window_us < self.min_window_us:
+            raise ValueError(f"check_rig: max_window_us={self.max_window_us} is below min_window_us="
+                             f"{self.min_window_us}; give max_window_us >= min_window_us.")
         if int(self.max_row_offset) < 0:
             raise ValueError(f"check_rig: max_row_offset={self.max_row_offset} is out of range; give 0 or more.")
         if self.max_seconds is not None and not self.max_seconds > 0:

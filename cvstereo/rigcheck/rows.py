@@ -28,7 +28,7 @@ class RowOffsets(NamedTuple):
 
 
 def row_offsets(left, right, *, resolution, max_row_offset, max_disparity, window_us, max_windows,
-                n_bands) -> RowOffsets:
+                n_bands, min_events, blur_px) -> RowOffsets:
     """Row offset from the 2-D cross-correlation of accumulated signed frames over (dx, dy), also per band.
 
     For every row shift the best horizontal shift counts (whatever the disparity); the row shift where that
@@ -42,7 +42,7 @@ def row_offsets(left, right, *, resolution, max_row_offset, max_disparity, windo
     shape = (fft_len(height + max_row_offset + 1), fft_len(width + max_disparity + 1))
     acc = np.zeros((n_bands, shape[0], shape[1] // 2 + 1), np.complex128)
     for fl, fr, _ in window_frames(left, right, resolution=resolution, window_us=window_us,
-                                   max_windows=max_windows):
+                                   max_windows=max_windows, min_events=min_events, blur_px=blur_px):
         norm = np.sqrt(float((fl * fl).sum()) * float((fr * fr).sum()))
         if norm > 0:
             # c[a, b] = sum L(y + a, x + b) R(y, x): a = y_left - y_right, b = x_left - x_right. A band's 2-D

@@ -8,7 +8,10 @@ import numpy as np
 
 from cvstereo.rigcheck.peaks import clip01
 
-__all__ = ["CountStatistics", "burst_ratio", "count_statistics", "isolated_events"]
+__all__ = ["BURST_PERCENTILE", "CountStatistics", "burst_ratio", "count_statistics", "isolated_events"]
+
+#: The percentile of the burst ratio: the report's ``burst_ratio_p95`` is named for it.
+BURST_PERCENTILE = 95
 
 
 class CountStatistics(NamedTuple):
@@ -25,14 +28,14 @@ class CountStatistics(NamedTuple):
     noise_confidence: float
 
 
-def count_statistics(left, right, *, duration_s, resolution, noise_window_us,
-                     burst_window_us) -> CountStatistics:
+def count_statistics(left, right, *, duration_s, resolution, noise_window_us, burst_window_us,
+                     burst_min_events) -> CountStatistics:
     """Rate ratio, burst ratio, ON share and isolated-event noise, each with its confidence."""
     n_l, n_r = int(left.size), int(right.size)
     rate_conf = clip01(1.0 - np.sqrt(1.0 / n_l + 1.0 / n_r) / 0.1)
     on = (float(left["p"].mean()), float(right["p"].mean()))
     on_conf = clip01(1.0 - max(np.sqrt(f * (1 - f) / n) for f, n in zip(on, (n_l, n_r), strict=True)) / 0.05)
-    burst = burst_ratio(left, right, window_us=burst_window_us)
+    burst = burst_ratio(left, right, window_us=burst_window_us, min_events=burst_min_events)
     iso = [isolated_events(ev, window_us=noise_window_us, resolution=resolution) for ev in (left, right)]
     return CountStatistics(
         events=(n_l, n_r), rate_ratio=float(n_r / n_l), rate_ratio_confidence=rate_conf,
@@ -43,18 +46,18 @@ def count_statistics(left, right, *, duration_s, resolution, noise_window_us,
     )
 
 
-def burst_ratio(left, right, *, window_us):
-    """95th percentile, over windows with at least 5 events in each camera, of the larger count over the
-    smaller; NaN without such a window."""
+def burst_ratio(left, right, *, window_us, min_events):
+    """:data:`BURST_PERCENTILE` percentile, over windows with at least ``min_events`` events in each camera, of the
+    larger count over the smaller; NaN without such a window."""
     t0 = min(int(left["t"][0]), int(right["t"][0]))
     n = (max(int(left["t"][-1]), int(right["t"][-1])) - t0) // window_us + 1
     a = np.bincount((left["t"] - t0) // window_us, minlength=n)
     b = np.bincount((right["t"] - t0) // window_us, minlength=n)
-    both = (a >= 5) & (b >= 5)
+    both = (a >= min_events) & (b >= min_events)
     if not both.any():
         return float("nan")
     r = np.maximum(a[both] / b[both], b[both] / a[both])
-    return float(np.percentile(r, 95))
+    return float(np.percentile(r, BURST_PERCENTILE))
 
 
 def isolated_events(ev, *, window_us, resolution):

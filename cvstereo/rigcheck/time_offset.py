@@ -16,11 +16,19 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
+from cvstereo.model.polarity import sign
 from cvstereo.rigcheck.params import RigCheckParams
 from cvstereo.rigcheck.peaks import contrast, fft_len, half_width, smooth_lags, subsample_peak, support
 
 __all__ = ["PAIRS", "REGRESSION", "PairsEstimate", "RowSpectra", "SlopeFit", "TimeOffset", "equal_peaks",
            "time_offset", "time_offset_pairs", "time_offset_regression"]
+
+# The defaults of the pixel-coincidence options, for callers of time_offset_pairs without a RigCheckParams.
+_DEFAULTS = RigCheckParams()
+# The regression fits its speeds in px/ms rather than px/us (columns of similar size: conditioning).
+_US_PER_MS = 1e3
+# A median absolute deviation times this is the standard deviation of normally distributed residuals.
+_MAD_TO_SIGMA = 1.4826
 
 PAIRS = "pixel coincidences"
 REGRESSION = "shift-velocity regression"
@@ -69,7 +77,8 @@ def time_offset(left, right, *, row, disparity, resolution, params: RigCheckPara
     """
     pairs = time_offset_pairs(left, right, row=row, disparity=disparity, resolution=resolution,
                               max_lag_us=params.max_time_offset_us, bin_us=params.time_bin_us,
-                              equal_share=params.time_equal_share)
+                              equal_share=params.time_equal_share, equal_sigmas=params.time_equal_sigmas,
+                              max_events=params.pairs_max_events, smooth_bins=params.pairs_smooth_bins)
     # The histogram is biased by (disparity error) / speed on moving scenes, and then also broad: pairs at the
     # neighbouring disparities land (1 px) / speed away. A sharp peak means the disparities were right (or the
     # scene nearly static) and the histogram is the more precise; a broad one defers to the regression, which
@@ -242,7 +251,7 @@ def _window_stack(ev, starts, width, height, window_us, blur_px):
     ok = (k >= 0) & (ev["t"] < starts[np.maximum(k, 0)] + window_us)
     n = starts.size
     flat = (k[ok] * height + ev["y"][ok].astype(np.int64)) * width + ev["x"][ok]
-    f = np.bincount(flat, weights=2.0 * ev["p"][ok] - 1.0, minlength=n * height * width)
+    f = np.bincount(flat, weights=sign(ev["p"][ok]), minlength=n * height * width)
     f = f.astype(np.float32).reshape(n, height, width)
     for i in range(n):
         # Smoothing makes the correlation peak broad enough to interpolate without locking to whole pixels.
@@ -290,10 +299,10 @@ def _fixed_effects_slope(tile, s, v, w, n_tiles, params: RigCheckParams) -> Slop
             return None
         sw = np.sqrt(w[good])
         # Scale v to px/ms so that the columns are of similar size (conditioning).
-        a = design[good] * np.append(np.ones(n_tiles), 1e3)
+        a = design[good] * np.append(np.ones(n_tiles), _US_PER_MS)
         coef, *_ = np.linalg.lstsq(a * sw[:, None], s[good] * sw, rcond=None)
-        res = s - design @ (coef * np.append(np.ones(n_tiles), 1e3))
-        spread = 1.4826 * float(np.median(np.abs(res[good])))
+        res = s - design @ (coef * np.append(np.ones(n_tiles), _US_PER_MS))
+        spread = _MAD_TO_SIGMA * float(np.median(np.abs(res[good])))
         new = np.isfinite(s) & np.isfinite(v) & (w > 0) & (np.abs(res) <= params.reg_trim_mad * max(spread, 1e-3))
         if np.array_equal(new, good):
             break
@@ -315,11 +324,13 @@ def _fixed_effects_slope(tile, s, v, w, n_tiles, params: RigCheckParams) -> Slop
     if same.sum() > 2:
         rho = float(np.clip(np.corrcoef(rg[1:][same], rg[:-1][same])[0, 1], 0.0, 0.95))
     se = np.sqrt(sigma2 / sxx * (1 + rho) / (1 - rho))
-    return SlopeFit(float(coef[-1] * 1e3), float(se))
+    return SlopeFit(float(coef[-1] * _US_PER_MS), float(se))
 
 
-def time_offset_pairs(left, right, *, row, disparity, resolution, max_lag_us, bin_us, equal_share=0.1,
-                      max_events=200_000) -> PairsEstimate:
+def time_offset_pairs(left, right, *, row, disparity, resolution, max_lag_us, bin_us,
+                      equal_share=_DEFAULTS.time_equal_share, equal_sigmas=_DEFAULTS.time_equal_sigmas,
+                      max_events=_DEFAULTS.pairs_max_events,
+                      smooth_bins=_DEFAULTS.pairs_smooth_bins) -> PairsEstimate:
     """How much later the right camera fires than the left at corresponding pixels.
 
     For every left event at (x, y), the right events of the same polarity at (x - d, y - row) for d within one
@@ -362,11 +373,11 @@ def time_offset_pairs(left, right, *, row, disparity, resolution, max_lag_us, bi
         hist += np.bincount(np.round(dt / bin_us).astype(np.int64) + lag, minlength=2 * lag + 1)[:2 * lag + 1]
     if hist.sum() == 0:
         return PairsEstimate(0.0, 0.0, float("inf"))
-    sigma = 1.5
+    sigma = smooth_bins
     corr = smooth_lags(hist - np.median(hist), sigma=sigma)
     # Counts are Poisson: the smoothed histogram's variance is the counts smoothed by the squared kernel.
     var = smooth_lags(hist, sigma=sigma / np.sqrt(2)) / (2 * np.sqrt(np.pi) * sigma)
-    equal = equal_peaks(corr, var, equal_share=equal_share)
+    equal = equal_peaks(corr, var, equal_share=equal_share, z=equal_sigmas)
     k = min(equal, key=lambda i: (abs(i - lag), i))
     time = float((subsample_peak(corr, k) - lag) * bin_us)
     # The lags where the peak stays above half its height belong to the peak itself (the sensors' latencies
@@ -379,7 +390,7 @@ def time_offset_pairs(left, right, *, row, disparity, resolution, max_lag_us, bi
                          tuple(float((subsample_peak(corr, i) - lag) * bin_us) for i in others), period)
 
 
-def equal_peaks(v, var, *, equal_share, z=2.0):
+def equal_peaks(v, var, *, equal_share, z=_DEFAULTS.time_equal_sigmas):
     """Indices of the local maxima of ``v`` as high as its highest within their uncertainty, the highest first.
 
     A peak is as high when it falls short of the highest by at most ``equal_share`` of the highest's height

@@ -8,6 +8,8 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
+from cvstereo.model.polarity import sign
+
 __all__ = ["WindowFrames", "signed_frame", "window_frames"]
 
 
@@ -25,14 +27,15 @@ class WindowFrames(NamedTuple):
 def signed_frame(ev, width, height):
     """(height, width) float32 sum of event signs (ON +1, OFF -1) per pixel."""
     f = np.zeros(height * width, np.float32)
-    np.add.at(f, ev["y"].astype(np.int64) * width + ev["x"], 2.0 * ev["p"] - 1.0)
+    np.add.at(f, ev["y"].astype(np.int64) * width + ev["x"], sign(ev["p"]))
     return f.reshape(height, width)
 
 
-def window_frames(left, right, *, resolution, window_us, max_windows) -> Iterator[WindowFrames]:
-    """Yield :class:`WindowFrames` for windows of ``window_us`` with at least 10 events in each camera.
+def window_frames(left, right, *, resolution, window_us, max_windows, min_events, blur_px) -> Iterator[WindowFrames]:
+    """Yield :class:`WindowFrames` for windows of ``window_us`` with at least ``min_events`` events in each camera.
 
-    At most ``max_windows`` windows, evenly spread over the recording.
+    At most ``max_windows`` windows, evenly spread over the recording; frames smoothed by a 3x3 Gaussian of sigma
+    ``blur_px``.
     """
     width, height = resolution
     t0 = min(int(left["t"][0]), int(right["t"][0]))
@@ -40,11 +43,11 @@ def window_frames(left, right, *, resolution, window_us, max_windows) -> Iterato
     starts = np.arange(t0 - t0 % window_us, t1, window_us)
     edges = np.append(starts, starts[-1] + window_us)
     idx = [np.searchsorted(ev["t"], edges) for ev in (left, right)]
-    busy = np.flatnonzero((np.diff(idx[0]) >= 10) & (np.diff(idx[1]) >= 10))
+    busy = np.flatnonzero((np.diff(idx[0]) >= min_events) & (np.diff(idx[1]) >= min_events))
     if busy.size > max_windows:
         busy = busy[np.linspace(0, busy.size - 1, max_windows).round().astype(int)]
     for k in busy:
         frames = [signed_frame(ev[i[k]:i[k + 1]], width, height) for ev, i in ((left, idx[0]), (right, idx[1]))]
         # A little smoothing so that events one pixel apart still overlay (jitter, distortion).
-        gl, gr = (cv2.GaussianBlur(f, (3, 3), 0.8, borderType=cv2.BORDER_CONSTANT) for f in frames)
+        gl, gr = (cv2.GaussianBlur(f, (3, 3), blur_px, borderType=cv2.BORDER_CONSTANT) for f in frames)
         yield WindowFrames(gl, gr, frames[0] != 0)

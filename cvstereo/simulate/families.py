@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cvstereo.geometry.rig import THESIS_RIG
 from cvstereo.simulate import surfaces, textures
 from cvstereo.simulate.motion import Motion
 from cvstereo.simulate.scenes import LayeredScene, PlaneLayer
@@ -38,12 +39,12 @@ TEXELS_PER_PIXEL = 2.0
 #: Nearest plane (metres): with the rigs of the suite (10 cm, the thesis' view angle) about a fifth of the
 #: width in disparity, so that roll, focal mismatch and the axis offset keep every disparity below a quarter.
 Z_NEAR_M = 0.62
-#: The rig's baseline the plans assume (metres): the suite's rigs all have it.
-BASELINE_M = 0.10
+#: The rig's baseline the plans assume (metres): the suite's rigs all have the thesis rig's.
+BASELINE_M = THESIS_RIG.baseline_m
 #: Focal length (px) whose pixel is the unit of the patterns' features (:func:`~cvstereo.simulate.surfaces.pattern`'s
 #: ``grain``): the thesis' DVS128. A sensor with more pixels across the same view sees the same surfaces, their
 #: features over more pixels (and an event rate that grows with the pixels, not with their square).
-GRAIN_FOCAL_PX = 165.0
+GRAIN_FOCAL_PX = THESIS_RIG.focal_px
 #: Views are widened by this much on every side: distortion and roll bring rays from beyond the nominal view.
 _VIEW_MARGIN = 1.12
 

@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cvstereo.model.events import DEFAULT_RESOLUTION
+from cvstereo.geometry.rig import THESIS_RIG
 
 __all__ = ["EDVS1_RIGHT", "EDVS2_LEFT", "MAX_ROLL_DEG", "SENSORS", "Camera", "Rig", "SensorModel"]
 
@@ -207,7 +207,8 @@ class Camera:
 
 @dataclass(frozen=True)
 class Rig:
-    """Two DVS128 side by side with parallel optical axes, as in the thesis (10 cm apart, f about 160 px).
+    """Two DVS128 side by side with parallel optical axes: by default the thesis rig
+    (:data:`cvstereo.geometry.rig.THESIS_RIG`: baseline, focal length, axis offset, resolution).
 
     Parameters
     ----------
@@ -238,15 +239,12 @@ class Rig:
         The right lens' own distortion coefficient; None: ``distortion_k1``, as the left one.
     """
 
-    baseline_m: float = 0.10
-    # f and c are tuned so that arms at 50, 100, 150 cm give 28-30, 13-14, 7-8 px as the thesis measured
-    # (a least-squares fit of its means gives f*B = 16.1 px*m, c = 2.9 px; barrel distortion lowers the
-    # disparity off-centre by about 2 %, hence f = 165).
-    focal_px: float = 165.0
-    axis_offset_px: float = 3.0
+    baseline_m: float = THESIS_RIG.baseline_m
+    focal_px: float = THESIS_RIG.focal_px
+    axis_offset_px: float = THESIS_RIG.axis_offset_px
     vertical_offset_px: float = 1.0
     distortion_k1: float = -0.08
-    resolution: tuple[int, int] = DEFAULT_RESOLUTION
+    resolution: tuple[int, int] = THESIS_RIG.resolution
     left: SensorModel = EDVS2_LEFT
     right: SensorModel = EDVS1_RIGHT
     time_offset_us: float = 0.0

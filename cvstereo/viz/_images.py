@@ -17,6 +17,7 @@ from cvstereo.geometry.depth import depth_from_meta  # noqa: F401  (re-exported 
 from cvstereo.geometry.disparity_maps import disparity_image, match_window_slice, pixel_mean  # noqa: F401
 from cvstereo.model.events import time_slice
 from cvstereo.model.matches import MatchResult
+from cvstereo.model.polarity import OFF, ON
 from cvstereo.model.recording import Recording
 from cvstereo.viz.colormaps import DISPARITY_CMAP, disparity_lut
 
@@ -71,8 +72,8 @@ def event_frame_rgb(events: np.ndarray, *, resolution: tuple[int, int]) -> np.nd
     img = np.zeros((h * w, 3), dtype=np.uint8)
     on = np.zeros(h * w, dtype=bool)
     off = np.zeros(h * w, dtype=bool)
-    on[idx[events["p"] == 1]] = True
-    off[idx[events["p"] == 0]] = True
+    on[idx[events["p"] == ON]] = True
+    off[idx[events["p"] == OFF]] = True
     img[on] = ON_RGB
     img[off] = OFF_RGB
     img[on & off] = BOTH_RGB

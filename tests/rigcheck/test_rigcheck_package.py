@@ -153,3 +153,30 @@ def test_real_files_detected_retina_and_shift_are_pinned(tum_dir, name, left_ret
     assert meta["left_retina"] == left_retina
     assert meta["overlay_shift_px"] == shift
     assert meta["overlay_score"] == pytest.approx(score, abs=1e-4)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The estimators' constants are RigCheckParams fields, and the estimators follow them
+
+
+def test_burst_ratio_follows_its_minimum_count():
+    from cvstereo.model.events import make_events
+    from cvstereo.rigcheck.stats import burst_ratio
+
+    def camera(counts):  # counts[k] events in window k of 1000 us
+        t = np.concatenate([np.full(c, 1000 * k + 10) for k, c in enumerate(counts)])
+        return make_events(t, np.zeros(t.size, int), np.zeros(t.size, int), np.ones(t.size, int))
+
+    left, right = camera([5, 10, 2]), camera([10, 5, 9])
+    # Windows with >= 5 in both: ratios 2 and 2. With >= 2: 2, 2, 4.5, whose 95th percentile is 2 + 0.9 * 2.5.
+    assert burst_ratio(left, right, window_us=1000, min_events=5) == pytest.approx(2.0)
+    assert burst_ratio(left, right, window_us=1000, min_events=2) == pytest.approx(4.25)
+    assert math.isnan(burst_ratio(left, right, window_us=1000, min_events=11))
+
+
+def test_shortest_recording_is_min_window_us(patches):
+    longer_ms = (patches.t_end - patches.t_start) // 1000 + 100
+    with pytest.raises(ValueError, match=f"at least {longer_ms} ms"):
+        check_rig(patches, min_window_us=longer_ms * 1000, max_window_us=10_000_000)
+    with pytest.raises(ValueError, match="max_window_us=5000 is below min_window_us=10000"):
+        RigCheckParams(max_window_us=5000)

@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 from cvstereo.frames.dynamic import FrameBank, dynamic_unit
-from cvstereo.matchers._shared.merge_order import merged_stream
+from cvstereo.matchers._shared.merge_order import STREAM_ROWS, merged_stream
 from cvstereo.matchers._shared.signal_level import SignalLevel
 from cvstereo.matchers.protocol import StreamMatcher
 from cvstereo.model.events import count_before, empty_events, paired_window_segments
@@ -121,10 +121,11 @@ class MergedEventMatcher(StreamMatcher):
 
     @abc.abstractmethod
     def _run_kernel(self, stream: np.ndarray, thresholds: np.ndarray, out_cam: np.ndarray, out_index: np.ndarray,
-                    out_disparity: np.ndarray, out_values: tuple[np.ndarray, np.ndarray]) -> int:
+                    out_disparity: np.ndarray, out_values: tuple[np.ndarray, int]) -> int:
         """Run the merged events (``stream``: :func:`cvstereo.matchers._shared.merge_order.merged_stream`) through the
         kernel with the thresholds of each camera; write one row per match into the outputs, each event's |D| before its
-        update into ``out_values`` (left, right; NaN where its polarity is dropped) and return the number of
+        update into ``out_values`` = ``(values, right_start)`` (the left camera's i-th event at ``values[i]``, the
+        right camera's at ``values[right_start + i]``; NaN where its polarity is dropped) and return the number of
         matches."""
 
     def _process(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:
@@ -142,16 +143,15 @@ class MergedEventMatcher(StreamMatcher):
         scratch = self._scratch
         out_cam, out_index = scratch.take("cam", n, np.int64), scratch.take("index", n, np.int64)
         out_disparity = scratch.take("disparity", n, np.float64)
-        values = (scratch.take("values_l", left.size, np.float64), scratch.take("values_r", right.size, np.float64))
-        for v in values:
-            v.fill(np.nan)  # where the kernel writes nothing (a dropped polarity)
+        values = scratch.take("values", n, np.float64)  # the left camera's events, then the right camera's
+        values.fill(np.nan)  # where the kernel writes nothing (a dropped polarity)
         thresholds = self._level.thresholds(k)
         # Merged straight from the events' fields: no int64 copy of the columns first (half the merge's time).
         stream = merged_stream(*_fields(left), *_fields(right), self._bank.slot_of_p,
-                               scratch.take("stream", 7 * n, np.int64))
-        m = self._run_kernel(stream, thresholds, out_cam, out_index, out_disparity, values)
-        for cam in (0, 1):
-            self._level.add(k, cam, values[cam])
+                               scratch.take("stream", STREAM_ROWS * n, np.int64))
+        m = self._run_kernel(stream, thresholds, out_cam, out_index, out_disparity, (values, left.size))
+        self._level.add(k, 0, values[:left.size])
+        self._level.add(k, 1, values[left.size:])
         return matches_at((left, right), out_cam[:m], out_index[:m], out_disparity[:m])
 
     def _feed(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:

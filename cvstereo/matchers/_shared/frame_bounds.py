@@ -10,13 +10,15 @@ frames themselves (which the plots draw too) stay in the core.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
-from cvstereo.frames.dynamic import advance_due
+from cvstereo.frames.dynamic import TOUCHED, advance_due
 
-__all__ = ["BOUND_SHIFT", "SUM_REBUILD", "advance_due_bounded", "advance_due_summed", "block_bounds", "column_sums",
-           "rebuild_bounds", "rebuild_sums", "skip_below", "splat_bounded", "splat_summed", "sum_drift"]
+__all__ = ["BOUND_SHIFT", "SUM_REBUILD", "SummedFrames", "advance_due_bounded", "advance_due_summed", "block_bounds",
+           "column_sums", "rebuild_bounds", "rebuild_sums", "skip_below", "splat_bounded", "splat_summed", "sum_drift"]
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -90,7 +92,7 @@ def splat_bounded(stored, scale, clock, bound, cam, slot, x, y, sign, kernel):
                 m = bound[cam, slot, yy, b]
             m = max(m, abs(v))
         bound[cam, slot, yy, b] = m
-    clock[cam, 1] = 1
+    clock[cam, TOUCHED] = 1
 
 
 @njit(cache=True, inline="always")
@@ -139,6 +141,21 @@ def column_sums(stored: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     pending : (n_cameras,) int64 ndarray
     """
     return np.zeros(stored.shape), np.zeros(stored.shape[0]), np.zeros(stored.shape[0], dtype=np.int64)
+
+
+class SummedFrames(NamedTuple):
+    """Dynamic frames with their kept column sums: the state event-area's kernel carries, passed as one unit.
+
+    The kernel unpacks it once per call, so that its per-event code indexes the same six arrays as before
+    (:func:`splat_summed` and :func:`advance_due_summed` take them one by one).
+    """
+
+    stored: np.ndarray  #: (n_cameras, n_frames, H, W) float64: the frames, in units of ``scale``
+    scale: np.ndarray  #: (n_cameras,) float64: each camera's pending decay factor
+    clock: np.ndarray  #: (n_cameras, 2) int64: columns NEXT_TICK and TOUCHED (cvstereo.frames.dynamic)
+    sums: np.ndarray  #: like ``stored``: column sums of ``block`` rows (:func:`column_sums`)
+    mass: np.ndarray  #: (n_cameras,) float64: the magnitude bound of the sums' drift
+    pending: np.ndarray  #: (n_cameras,) int64: splats since the sums were last rebuilt
 
 
 def sum_drift(mass: float, rows: int) -> float:
@@ -204,4 +221,4 @@ def splat_summed(stored, scale, clock, sums, mass, pending, half, cam, slot, x, 
                 sums[cam, slot, rr, xx] += v
     mass[cam] += added
     pending[cam] += 1
-    clock[cam, 1] = 1
+    clock[cam, TOUCHED] = 1

@@ -61,6 +61,24 @@ def merged_events(left: np.ndarray, right: np.ndarray) -> Iterator[tuple[int, in
             j += 1
 
 
+#: The rows of :func:`merged_stream`'s array, one column per event: the camera (0 left, 1 right), the index into
+#: that camera's array, t, x, y, p, and the frame slot of p (:func:`cvstereo.model.polarity.slot_of_p`).
+ROW_CAM, ROW_INDEX, ROW_T, ROW_X, ROW_Y, ROW_P, ROW_SLOT = range(7)
+#: How many rows.
+STREAM_ROWS = 7
+
+
+@njit(cache=True, inline="always")
+def stream_event(stream, k):
+    """The k-th event of a :func:`merged_stream`: ``(camera, index, t, x, y, p, slot)``, its rows in order.
+
+    Inlined into the kernels' loops; it has no loop of its own, so that numba's pass that drops the reference
+    counting of the inlined ``stream`` removes it (a helper with loops kept it around every event).
+    """
+    return (stream[ROW_CAM, k], stream[ROW_INDEX, k], stream[ROW_T, k], stream[ROW_X, k], stream[ROW_Y, k],
+            stream[ROW_P, k], stream[ROW_SLOT, k])
+
+
 def merged_stream(tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p, buffer=None):
     """Both cameras' events as one stream in the merged order, the kernels' input.
 
@@ -72,23 +90,23 @@ def merged_stream(tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p, buffer=None):
     slot_of_p : (2,) int64 ndarray
         Frame slot of p = 0 (OFF) and p = 1 (ON); -1 where the polarity mode drops it.
     buffer : 1-D int64 ndarray, optional
-        Memory to build the stream in, at least ``7 * (len(tl) + len(tr))`` long (a caller that merges once per
-        window reuses one instead of allocating one per window); a fresh array by default.
+        Memory to build the stream in, at least ``STREAM_ROWS * (len(tl) + len(tr))`` long (a caller that merges
+        once per window reuses one instead of allocating one per window); a fresh array by default.
 
     Returns
     -------
-    (7, M) int64 ndarray
-        Rows camera, index into that camera's array, t, x, y, p, slot, for the M events whose polarity is kept
-        (a view of ``buffer`` when one is given).
+    (STREAM_ROWS, M) int64 ndarray
+        Rows :data:`ROW_CAM`, :data:`ROW_INDEX`, :data:`ROW_T`, :data:`ROW_X`, :data:`ROW_Y`, :data:`ROW_P`,
+        :data:`ROW_SLOT`, for the M events whose polarity is kept (a view of ``buffer`` when one is given).
     """
     n = tl.shape[0] + tr.shape[0]
-    out = np.empty((7, n), np.int64) if buffer is None else buffer[: 7 * n].reshape(7, n)
+    out = np.empty((STREAM_ROWS, n), np.int64) if buffer is None else buffer[: STREAM_ROWS * n].reshape(STREAM_ROWS, n)
     return out[:, : _merge_into(out, tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p)]
 
 
 @njit(cache=True)
 def _merge_into(out, tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p):  # pragma: no cover - compiled
-    """Write :func:`merged_stream`'s rows into the columns of ``out`` (7, >= M); return M."""
+    """Write :func:`merged_stream`'s rows into the columns of ``out`` (STREAM_ROWS, >= M); return M."""
     nl, nr = tl.shape[0], tr.shape[0]
     il = ir = m = 0
     while il < nl or ir < nr:
@@ -100,7 +118,8 @@ def _merge_into(out, tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p):  # pragma: no c
             ir += 1
         slot = slot_of_p[1 if p > 0 else 0]
         if slot >= 0:
-            out[0, m], out[1, m], out[2, m], out[3, m], out[4, m], out[5, m], out[6, m] = cam, i, t, x, y, p, slot
+            out[ROW_CAM, m], out[ROW_INDEX, m], out[ROW_T, m] = cam, i, t
+            out[ROW_X, m], out[ROW_Y, m], out[ROW_P, m], out[ROW_SLOT, m] = x, y, p, slot
             m += 1
     return m
 

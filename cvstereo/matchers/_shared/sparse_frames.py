@@ -34,7 +34,7 @@ from numba.cpython.unsafe.numbers import trailing_zeros
 from numba.extending import intrinsic
 
 from cvstereo.errors import EventFormatError
-from cvstereo.frames.accumulate import OFF_SENSOR, event_channel, frame_shape, gaussian_filter
+from cvstereo.frames.accumulate import OFF_SENSOR, event_channel, frame_shape, gaussian_filter, polarity_sign
 
 #: Kernel side the sparse Gaussian reproduces (the thesis' 5x5).
 SPARSE_KERNEL_SIZE = 5
@@ -199,7 +199,7 @@ def _accumulate(x, y, p, channel_of, first_plane, height, width, acc, touched): 
         if c >= 0:  # (a negative channel: a polarity the mode drops)
             plane = first_plane + c
             xi, yi = np.int64(x[i]), np.int64(y[i])
-            acc[plane, yi, xi] += np.float32(1.0) if p[i] else np.float32(-1.0)
+            acc[plane, yi, xi] += np.float32(polarity_sign(p[i]))
             touched[plane, yi, xi >> 6] |= np.uint64(1) << np.uint64(xi & 63)
     return -1
 

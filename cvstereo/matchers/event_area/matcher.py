@@ -60,25 +60,35 @@ from typing import ClassVar
 import numpy as np
 from numba import njit
 
-from cvstereo.frames.dynamic import tick_due
+from cvstereo.frames.accumulate import polarity_sign
+from cvstereo.frames.dynamic import NEXT_TICK, TOUCHED, tick_due
 from cvstereo.matchers._shared.event_common import MergedEventMatcher, emit_match
-from cvstereo.matchers._shared.frame_bounds import SUM_REBUILD, advance_due_summed, column_sums, splat_summed, sum_drift
+from cvstereo.matchers._shared.frame_bounds import (
+    SUM_REBUILD,
+    SummedFrames,
+    advance_due_summed,
+    column_sums,
+    splat_summed,
+    sum_drift,
+)
+from cvstereo.matchers._shared.merge_order import stream_event
 from cvstereo.matchers.event_area.params import EventAreaParams
 
 __all__ = ["EventAreaMatcher"]
 
 
 @njit(cache=True)
-def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift, kernel, decay, period, thresholds,
-                       half, max_d, max_cost, all_frames, own_ratio, uniqueness, out_cam, out_index, out_disparity,
-                       values_l, values_r):
+def _event_area_kernel(stream, state, drift, kernel, decay, period, thresholds, half, max_d, max_cost, all_frames,
+                       own_ratio, uniqueness, out_cam, out_index, out_disparity, values, right_start):
     """Process the merged stream (:func:`cvstereo.matchers._shared.merge_order.merged_stream`); one output row per
-    matched
-    event; returns the count. ``all_frames``: the SAD sums over all of a camera's frames (``sad_frames="all"``),
-    else it compares the event's own frame only. ``sums``, ``mass``, ``pending``: the frames' column sums of
-    ``block`` rows (:func:`cvstereo.matchers._shared.frame_bounds.column_sums`); ``drift``: the bound of their drift
-    per unit of
-    mass of all the entries one lower bound sums (:func:`cvstereo.matchers._shared.frame_bounds.sum_drift`)."""
+    matched event; returns the count. ``state``: the frames and their column sums of ``block`` rows
+    (:class:`cvstereo.matchers._shared.frame_bounds.SummedFrames`). ``all_frames``: the SAD sums over all of a
+    camera's frames (``sad_frames="all"``), else it compares the event's own frame only. ``drift``:
+    the bound of their drift per unit of mass of all the entries one lower bound sums
+    (:func:`cvstereo.matchers._shared.frame_bounds.sum_drift`). ``values``, ``right_start``: each event's |D|
+    before its update, the right camera's from ``right_start`` on
+    (:meth:`cvstereo.matchers._shared.event_common.MergedEventMatcher._run_kernel`)."""
+    stored, scale, clock, sums, mass, pending = state  # once per call: the loop below indexes the arrays themselves
     n_frames = stored.shape[1]
     height = stored.shape[2]
     width = stored.shape[3]
@@ -97,21 +107,17 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
     rival = 1.0 + uniqueness  # a candidate within this factor of the best SAD, > 1 px away, makes it ambiguous
     n = 0
     for k in range(stream.shape[1]):
-        cam, i, t, x, y, p, slot = stream[0, k], stream[1, k], stream[2, k], stream[3, k], stream[4, k], \
-            stream[5, k], stream[6, k]
+        cam, i, t, x, y, p, slot = stream_event(stream, k)
         other = 1 - cam
         # The test here, the call below only about once per decay tick: an inlined helper holding both kept
         # atomic reference counting of the six state arrays around every event (12 calls).
         for c in (cam, other):
-            if tick_due(clock[c, 0], clock[c, 1], t, period) or pending[c] >= SUM_REBUILD:
+            if tick_due(clock[c, NEXT_TICK], clock[c, TOUCHED], t, period) or pending[c] >= SUM_REBUILD:
                 advance_due_summed(stored, scale, clock, sums, mass, pending, c, t, decay, period, half)
         c1 = scale[cam]
         c2 = scale[other]
         value = stored[cam, slot, y, x] * c1
-        if cam == 0:
-            values_l[i] = abs(value)
-        else:
-            values_r[i] = abs(value)
+        values[cam * right_start + i] = abs(value)
         if abs(value) >= thresholds[cam] and half <= x < width - half and half <= y < height - half:
             # The frames compared: the event's own (plane 0 is frame ``slot``), or all of them in slot order.
             first_slot = 0 if all_frames else slot
@@ -236,7 +242,7 @@ def _event_area_kernel(stream, stored, scale, clock, sums, mass, pending, drift,
                         best = -1
                         break
             n = emit_match(out_cam, out_index, out_disparity, n, cam, i, best)
-        splat_summed(stored, scale, clock, sums, mass, pending, half, cam, slot, x, y, 1.0 if p > 0 else -1.0, kernel)
+        splat_summed(stored, scale, clock, sums, mass, pending, half, cam, slot, x, y, polarity_sign(p), kernel)
     return n
 
 
@@ -264,12 +270,13 @@ class EventAreaMatcher(MergedEventMatcher):
     def __init__(self, params=None, *, resolution=(128, 128)):
         super().__init__(params, resolution=resolution)
         # The column sums of ``block`` rows of the frames, kept by the kernel for its lower bound of the SAD.
-        self._sums = column_sums(self._bank.stored)
+        self._state = SummedFrames(self._bank.stored, self._bank.scale, self._bank.clock,
+                                   *column_sums(self._bank.stored))
 
     def _run_kernel(self, stream, thresholds, out_cam, out_index, out_disparity, out_values) -> int:
         prm, bank = self.params, self._bank
         drift = sum_drift(1.0, prm.block) * prm.block * prm.compared_frames  # all entries of one lower bound
-        return int(_event_area_kernel(stream, bank.stored, bank.scale, bank.clock, *self._sums, drift, bank.kernel,
+        return int(_event_area_kernel(stream, self._state, drift, bank.kernel,
                                       *bank.decay_args, thresholds, prm.block // 2,
                                       int(prm.max_disparity), prm.max_costs(thresholds), prm.sad_frames == "all",
                                       float(prm.own_ratio), float(prm.uniqueness), out_cam, out_index,

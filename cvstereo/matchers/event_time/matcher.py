@@ -56,6 +56,7 @@ from typing import ClassVar
 import numpy as np
 from numba import njit
 
+from cvstereo.frames.accumulate import polarity_sign
 from cvstereo.frames.dynamic import FrameBank, dynamic_unit, event_matrix
 from cvstereo.matchers._shared.signal_level import SignalLevel
 from cvstereo.matchers.event_time.params import EventTimeParams
@@ -258,7 +259,7 @@ def _passing(value, p, threshold, signed):
         v = value[i]
         if not abs(v) >= threshold:
             continue
-        if signed and (v > 0) - (v < 0) != 2 * p[i] - 1:
+        if signed and (v > 0) - (v < 0) != polarity_sign(p[i]):
             continue
         out[n] = i
         n += 1

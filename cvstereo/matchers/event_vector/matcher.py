@@ -51,7 +51,8 @@ import numpy as np
 from numba import njit
 from numba.cpython.unsafe.numbers import leading_zeros, trailing_zeros
 
-from cvstereo.frames.dynamic import tick_due
+from cvstereo.frames.accumulate import polarity_sign
+from cvstereo.frames.dynamic import NEXT_TICK, TOUCHED, tick_due
 from cvstereo.matchers._shared.event_common import MergedEventMatcher, emit_match
 from cvstereo.matchers._shared.frame_bounds import (
     BOUND_SHIFT,
@@ -60,6 +61,7 @@ from cvstereo.matchers._shared.frame_bounds import (
     skip_below,
     splat_bounded,
 )
+from cvstereo.matchers._shared.merge_order import stream_event
 from cvstereo.matchers.event_vector.params import EventVectorParams
 
 __all__ = ["EventVectorMatcher"]
@@ -362,39 +364,32 @@ def _choose(best, d_lo, d_hi, max_cost, limit, centre):
     return 0.5 * (d_lo + d_hi) if centre else float(d_lo)
 
 
-# error_model="numpy": the splat's division by the (positive) scale then has no zero check, whose exception
-# path kept numba's reference counting of the frame arrays around every splat.
+# error_model="numpy": no zero check of the splat's division by the (positive) scale, whose exception path kept
+# numba's reference counting of the frame arrays around every splat.
 @njit(cache=True, error_model="numpy")
 def _event_vector_kernel(stream, stored, scale, clock, bound, kernel, decay, period, thresholds, require, max_d,
                          max_cost, run_ends, cost_ratio, cost_slack, centre, out_cam, out_index, out_disparity,
-                         values_l, values_r):
+                         values, right_start):
     """Process the merged stream (:func:`cvstereo.matchers._shared.merge_order.merged_stream`); one output row per
-    matched
-    event; returns the count."""
+    matched event; returns the count. ``values``, ``right_start``: as for the event-area kernel."""
     width = stored.shape[3]
     row = np.empty(width)
-    vec_a = np.empty(width, dtype=np.int64)
-    vec_b = np.empty(width, dtype=np.int64)
-    vec_l = np.empty(width, dtype=np.int64)
-    vec_r = np.empty(width, dtype=np.int64)
+    vec_a, vec_b = np.empty(width, dtype=np.int64), np.empty(width, dtype=np.int64)
+    vec_l, vec_r = np.empty(width, dtype=np.int64), np.empty(width, dtype=np.int64)
     above = np.empty(max_d // 64 + 2, dtype=np.uint64)  # masks of a candidate range (_search_runs)
     cand = np.empty(max_d // 64 + 2, dtype=np.uint64)
     n = 0
     for j in range(stream.shape[1]):
-        cam, i, t, x, y, p, slot = stream[0, j], stream[1, j], stream[2, j], stream[3, j], stream[4, j], \
-            stream[5, j], stream[6, j]
+        cam, i, t, x, y, p, slot = stream_event(stream, j)
         other = 1 - cam
         # The test here, advance_due_bounded only when due: an inlined helper holding both bound the four arrays
         # to new variables and numba kept their atomic reference counting on every event (8 atomics, ~30 ns).
         for cc in (cam, other):
-            if tick_due(clock[cc, 0], clock[cc, 1], t, period):
+            if tick_due(clock[cc, NEXT_TICK], clock[cc, TOUCHED], t, period):
                 advance_due_bounded(stored, scale, clock, bound, cc, t, decay, period)
         c1 = scale[cam]
         value = stored[cam, slot, y, x] * c1
-        if cam == 0:
-            values_l[i] = abs(value)
-        else:
-            values_r[i] = abs(value)
+        values[cam * right_start + i] = abs(value)
         if abs(value) >= thresholds[cam]:
             a1, b1, l1, r1 = _own_vector(stored, bound, cam, slot, y, x, c1, thresholds[cam])
             lo = x if cam == 1 else max(0, x - max_d)  # the candidate pixels lo..hi of the other row
@@ -413,7 +408,7 @@ def _event_vector_kernel(stream, stored, scale, clock, bound, kernel, decay, per
             limit = cost_slack + cost_ratio * length if cost_ratio > 0 else -1.0
             disparity = _choose(best, d_lo, d_hi, max_cost, limit, centre)
             n = emit_match(out_cam, out_index, out_disparity, n, cam, i, disparity)
-        splat_bounded(stored, scale, clock, bound, cam, slot, x, y, 1.0 if p > 0 else -1.0, kernel)
+        splat_bounded(stored, scale, clock, bound, cam, slot, x, y, polarity_sign(p), kernel)
     return n
 
 

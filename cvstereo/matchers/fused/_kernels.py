@@ -47,6 +47,14 @@ from numba import njit
 from numba.core import cgutils
 from numba.extending import intrinsic
 
+from cvstereo.matchers.fused._constants import (
+    LR_PENALTY,
+    NOISE_RADIUS,
+    RATIO_UNCERTAINTY,
+    SECOND_BEST_GAP_PX,
+    SUBPIXEL_MAX_SHIFT_PX,
+    TEMPORAL_CAP_PX,
+)
 from cvstereo.matchers.fused._features import order_stats
 
 
@@ -135,7 +143,7 @@ def _row_pass(fl, right_rev, prior, index, ax, yy, k_first, k_stop, step, row_to
             pr = prior[yy, xx]
             if temporal_weight > 0.0 and not np.isnan(pr):
                 for d in range(nd):
-                    costs[k, d] = costs[k, d] + np.float32(temporal_weight * min(abs(d - pr), 2.0))
+                    costs[k, d] = costs[k, d] + np.float32(temporal_weight * min(abs(d - pr), TEMPORAL_CAP_PX))
         if paths == 0:
             for d in range(nd):
                 total[k, d] = costs[k, d]
@@ -325,30 +333,30 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
             i = slot
             slot += 1
             neighbours = 0
-            for y2 in range(max(yy - 1, 0), min(yy + 2, h)):
-                for x2 in range(max(xx - 1, 0), min(xx + 2, w)):
+            for y2 in range(max(yy - NOISE_RADIUS, 0), min(yy + NOISE_RADIUS + 1, h)):
+                for x2 in range(max(xx - NOISE_RADIUS, 0), min(xx + NOISE_RADIUS + 1, w)):
                     if recent[y2, x2]:
                         neighbours += 1
             isolated = neighbours < min_neighbours
             if isolated and isolated_below <= 0.0:
                 continue  # no isolated pixel can answer: skip the work
-            # The first least disparity (argmin's), then the least more than 1 px away from it.
+            # The first least disparity (argmin's), then the least more than SECOND_BEST_GAP_PX away from it.
             low = _min_of(total, k, 0, nd)
             best = 0
             while total[k, best] != low:
                 best += 1
             second = np.inf
-            if best >= 2:
-                second = _min_of(total, k, 0, best - 1)
-            if best + 2 < nd:
-                second = min(second, _min_of(total, k, best + 2, nd))
+            if best > SECOND_BEST_GAP_PX:
+                second = _min_of(total, k, 0, best - SECOND_BEST_GAP_PX)
+            if best + SECOND_BEST_GAP_PX + 1 < nd:
+                second = min(second, _min_of(total, k, best + SECOND_BEST_GAP_PX + 1, nd))
             ratio = 1.0 if second == 0.0 else np.float64(total[k, best]) / second
             consistent = True
             if lr_tol >= 0:
                 xr = xx - best
                 best_r = right_d[w - 1 - xr] if xr >= 0 else -1
                 consistent = best_r >= 0 and abs(best_r - best) <= lr_tol
-            u = 0.5 * ratio if consistent else 0.5 * ratio + 0.5
+            u = RATIO_UNCERTAINTY * ratio if consistent else RATIO_UNCERTAINTY * ratio + LR_PENALTY
             if isolated and not u < isolated_below:
                 continue
             disp = float(best)
@@ -357,7 +365,7 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
                 den = (a - 2.0 * b) + c
                 if den > 0.0:
                     delta = (a - c) / (2.0 * den)
-                    disp = disp + min(max(delta, -0.5), 0.5)
+                    disp = disp + min(max(delta, -SUBPIXEL_MAX_SHIFT_PX), SUBPIXEL_MAX_SHIFT_PX)
             out_x[i] = xx
             out_y[i] = yy
             out_p[i] = 1 if counts[1, yy, xx] >= counts[0, yy, xx] else 0
@@ -407,7 +415,7 @@ def match_features(fl, fr, counts, active, recent, prior, max_d, row_tol, p1, p2
             if c > 0:
                 med = median_of(vals, c, hist, picked)
                 if confirm and abs(out_d[i] - med) <= lr_tol:
-                    out_u[i] = out_u[i] - 0.5  # confirmed by the consistent answers around it
+                    out_u[i] = out_u[i] - LR_PENALTY  # confirmed by the consistent answers around it
                 else:
                     out_d[i] = med
     return out_x, out_y, out_p, out_d, out_u

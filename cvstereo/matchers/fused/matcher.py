@@ -100,6 +100,7 @@ import numpy as np
 from numba import njit
 
 from cvstereo.frames.windows import FrameMatcher, Window
+from cvstereo.matchers.fused._constants import CONSISTENT_MAX_UNCERTAINTY, LR_PENALTY, RECENT_WINDOWS
 from cvstereo.matchers.fused._features import NEVER, divide, nonzero_values, surface_features, window_masks
 from cvstereo.matchers.fused._kernels import match_features
 from cvstereo.matchers.fused.params import BORDER_MIN_ANSWERS, PRIOR_MAX_UNCERTAINTY, FusedParams
@@ -137,7 +138,7 @@ def occluded(x, y, disparity, uncertainty, margin, support):
     for i in range(m - 1, -1, -1):
         if i == m - 1 or y[i] != y[i + 1]:
             lowest[:] = np.inf
-        if uncertainty[i] <= 0.5:
+        if uncertainty[i] <= CONSISTENT_MAX_UNCERTAINTY:
             r = x[i] - disparity[i]
             out[i] = lowest[support - 1] <= r - margin
             k = support - 1
@@ -182,7 +183,7 @@ def unpartnered(x, y, disparity, uncertainty, rows):
             continue
         c = 0
         for i in range(start[max(yy - rows, 0)], start[min(yy + rows + 1, h)]):
-            if uncertainty[i] <= 0.5:
+            if uncertainty[i] <= CONSISTENT_MAX_UNCERTAINTY:
                 vals[c] = disparity[i]
                 c += 1
         if c < BORDER_MIN_ANSWERS:
@@ -243,8 +244,9 @@ def finish_window(t_end, x, y, pol, disparity, uncertainty, max_uncertainty, mar
     unc = uncertainty.copy()
     hidden = occluded(x, y, disparity, uncertainty, margin, support) if margin >= 0 else np.zeros(m, np.bool_)
     for i in range(m):
-        if hidden[i] or (outside[i] and uncertainty[i] <= 0.5):  # one penalty at most: uncertainty stays <= 1
-            unc[i] = uncertainty[i] + 0.5
+        # One penalty at most: the uncertainty stays <= 1.
+        if hidden[i] or (outside[i] and uncertainty[i] <= CONSISTENT_MAX_UNCERTAINTY):
+            unc[i] = uncertainty[i] + LR_PENALTY
     n = 0
     for i in range(m):
         n += unc[i] <= max_uncertainty
@@ -383,8 +385,9 @@ class FusedMatcher(FrameMatcher):
             if n:
                 divide(f, buf.values, buf.value_at, n, level_of(buf.values[:n]))
         left = window.left
-        n_active = window_masks(left["x"], left["y"], left["p"], state.last[0], window.t_end - 2 * prm.window_us,
-                                prm.path_radius, buf.counts, buf.active, buf.recent)
+        n_active = window_masks(left["x"], left["y"], left["p"], state.last[0],
+                                window.t_end - RECENT_WINDOWS * prm.window_us, prm.path_radius, buf.counts,
+                                buf.active, buf.recent)
         work = buf.work_for(n_active)
         answers = match_features(
             buf.features[0], buf.features[1], buf.counts, buf.active, buf.recent,

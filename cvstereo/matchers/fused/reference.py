@@ -11,6 +11,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from cvstereo.matchers.fused._constants import (
+    CONSISTENT_MAX_UNCERTAINTY,
+    LR_PENALTY,
+    NOISE_RADIUS,
+    RATIO_UNCERTAINTY,
+    RECENT_WINDOWS,
+    SECOND_BEST_GAP_PX,
+    SUBPIXEL_MAX_SHIFT_PX,
+    TEMPORAL_CAP_PX,
+)
 from cvstereo.matchers.fused.params import BORDER_MIN_ANSWERS, PRIOR_MAX_UNCERTAINTY, FusedParams
 from cvstereo.matchers.fused.signal import signal_level
 from cvstereo.model.events import DEFAULT_RESOLUTION
@@ -75,7 +85,8 @@ def cost_volume(fl, fr, prior, prm: FusedParams) -> np.ndarray:
             cost[:, :, d] = np.minimum(cost[:, :, d], c)
         if prm.temporal_weight > 0:
             has = ~np.isnan(prior)
-            term = (prm.temporal_weight * np.minimum(np.abs(d - np.where(has, prior, 0.0)), 2.0)).astype(np.float32)
+            distance = np.minimum(np.abs(d - np.where(has, prior, 0.0)), TEMPORAL_CAP_PX)
+            term = (prm.temporal_weight * distance).astype(np.float32)
             cost[:, :, d] = np.where(has, cost[:, :, d] + term, cost[:, :, d])
     return cost
 
@@ -129,10 +140,11 @@ def choose(total, active, counts, recent, prm: FusedParams):
     for y, x in zip(*np.nonzero(counts.sum(axis=0)), strict=True):
         if not active[y, x]:
             continue
-        isolated = recent[max(y - 1, 0):y + 2, max(x - 1, 0):x + 2].sum() < prm.min_neighbours
+        r = NOISE_RADIUS
+        isolated = recent[max(y - r, 0):y + r + 1, max(x - r, 0):x + r + 1].sum() < prm.min_neighbours
         s = total[y, x]
         best = int(np.argmin(s))
-        far = np.abs(np.arange(nd) - best) > 1
+        far = np.abs(np.arange(nd) - best) > SECOND_BEST_GAP_PX
         second = s[far].min() if far.any() else np.inf
         ratio = 1.0 if second == 0.0 else float(s[best]) / float(second)
         consistent = True
@@ -146,7 +158,7 @@ def choose(total, active, counts, recent, prm: FusedParams):
                 best_r = int(np.argmin(cand)) if np.isfinite(cand).any() else -1
             consistent = best_r >= 0 and abs(best_r - best) <= prm.lr_tolerance
         # Inconsistent winners rank behind every consistent one (design part 7).
-        u = 0.5 * ratio if consistent else 0.5 * ratio + 0.5
+        u = RATIO_UNCERTAINTY * ratio if consistent else RATIO_UNCERTAINTY * ratio + LR_PENALTY
         if isolated and not u < prm.isolated_max_uncertainty:
             continue  # the noise filter (design part 12): an isolated pixel answers only with a clear match
         disp = float(best)
@@ -154,7 +166,7 @@ def choose(total, active, counts, recent, prm: FusedParams):
             a, b, c = float(s[best - 1]), float(s[best]), float(s[best + 1])
             den = (a - 2.0 * b) + c
             if den > 0.0:
-                disp = disp + min(max((a - c) / (2.0 * den), -0.5), 0.5)
+                disp = disp + min(max((a - c) / (2.0 * den), -SUBPIXEL_MAX_SHIFT_PX), SUBPIXEL_MAX_SHIFT_PX)
         out.append([x, y, 1 if counts[1, y, x] >= counts[0, y, x] else 0, disp, u, consistent])
     # Inconsistent winners: the median of the consistent answers within fill_radius, where there are any; a
     # winner that agrees with it is confirmed instead.
@@ -173,7 +185,7 @@ def choose(total, active, counts, recent, prm: FusedParams):
         if c:
             med = float(vals[c // 2]) if c % 2 else (float(vals[c // 2 - 1]) + float(vals[c // 2])) / 2.0
             if prm.fill_confirms and abs(row[3] - med) <= prm.lr_tolerance:
-                row[4] = row[4] - 0.5  # confirmed by the consistent answers around it: no left-right penalty
+                row[4] = row[4] - LR_PENALTY  # confirmed by the consistent answers around it: no left-right penalty
             else:
                 row[3] = med
     # Partner test: an answer left of the median disparity of the consistent answers in its band of rows has its
@@ -181,7 +193,8 @@ def choose(total, active, counts, recent, prm: FusedParams):
     outside = [False] * len(out)
     if prm.border_rows >= 0:
         for i, row in enumerate(out):
-            band = np.sort([r[3] for r in out if abs(r[1] - row[1]) <= prm.border_rows and r[4] <= 0.5])
+            band = np.sort([r[3] for r in out
+                            if abs(r[1] - row[1]) <= prm.border_rows and r[4] <= CONSISTENT_MAX_UNCERTAINTY])
             c = band.size
             if c >= BORDER_MIN_ANSWERS:
                 d = band[c // 2] if c % 2 else (band[c // 2 - 1] + band[c // 2]) / 2.0
@@ -191,12 +204,13 @@ def choose(total, active, counts, recent, prm: FusedParams):
     # The next window's prior is the answers before the test (design part 9) that have a partner.
     prior = [tuple(row[:5]) for row, off in zip(out, outside, strict=True)
              if row[4] <= min(prm.max_uncertainty, PRIOR_MAX_UNCERTAINTY) and not off]
-    hides = [(row[1], row[0], row[0] - row[3]) for row in out if row[4] <= 0.5]
+    hides = [(row[1], row[0], row[0] - row[3]) for row in out if row[4] <= CONSISTENT_MAX_UNCERTAINTY]
     for row, off in zip(out, outside, strict=True):
         x, y, r = row[0], row[1], row[0] - row[3]
         crossing = sum(y2 == y and x2 > x and r2 <= r - prm.occlusion_margin for y2, x2, r2 in hides)
-        if row[4] <= 0.5 and (off or (prm.occlusion_margin >= 0 and crossing >= prm.occlusion_support)):
-            row[4] = row[4] + 0.5
+        hidden = prm.occlusion_margin >= 0 and crossing >= prm.occlusion_support
+        if row[4] <= CONSISTENT_MAX_UNCERTAINTY and (off or hidden):
+            row[4] = row[4] + LR_PENALTY
     return [tuple(row[:5]) for row in out if row[4] <= prm.max_uncertainty], prior
 
 
@@ -229,7 +243,7 @@ def fused_reference(left: np.ndarray, right: np.ndarray, params: FusedParams | N
             feats.append(signal_level(support_sum(time_surfaces(last[cam], t_end, prm.tau_us), prm.support_radius)))
         counts = np.zeros((2, h, w), dtype=np.int64)
         np.add.at(counts, (wl["p"].astype(np.intp), wl["y"].astype(np.intp), wl["x"].astype(np.intp)), 1)
-        recent = (last[0] >= t_end - 2 * prm.window_us).any(axis=0)
+        recent = (last[0] >= t_end - RECENT_WINDOWS * prm.window_us).any(axis=0)
         # Active: within path_radius (Chebyshev) of a left event of the window.
         anchors = counts.sum(axis=0) > 0
         r = prm.path_radius
