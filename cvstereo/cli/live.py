@@ -12,6 +12,7 @@ import json
 import sys
 
 from cvstereo.cli._common import add_matcher_options, matcher_overrides
+from cvstereo.geometry.rig import THESIS_RIG
 from cvstereo.sensors.session import add_rig_arguments, end_finished_streams, open_rig, stop_on_signals
 
 __all__ = ["WARM_UP_EVENTS", "WARM_UP_SPAN_US", "add_parser", "compile_before_streaming", "run"]
@@ -22,9 +23,12 @@ def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
                               description=__doc__)
     add_rig_arguments(p)
     add_matcher_options(p)
-    p.add_argument("--focal-px", type=float, default=160.0, help="focal length in px (default 160)")
-    p.add_argument("--baseline-m", type=float, default=0.10, help="baseline in m (default 0.10)")
-    p.add_argument("--offset-px", type=float, default=2.5, help="axis offset c in px (default 2.5)")
+    p.add_argument("--focal-px", type=float, default=THESIS_RIG.focal_px,
+                   help=f"focal length in px (default {THESIS_RIG.focal_px:g}, the thesis rig's)")
+    p.add_argument("--baseline-m", type=float, default=THESIS_RIG.baseline_m,
+                   help=f"baseline in m (default {THESIS_RIG.baseline_m:g})")
+    p.add_argument("--offset-px", type=float, default=THESIS_RIG.axis_offset_px,
+                   help=f"axis offset c in px (default {THESIS_RIG.axis_offset_px:g})")
     p.add_argument("--depth", nargs="+", default=None, metavar="A C | MODEL.json",
                    help="d = A/Z - C fitted by `cvstereo depth-fit`, as two numbers or its -o file (overrides the "
                    "three rig options above)")

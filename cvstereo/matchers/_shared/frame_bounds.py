@@ -72,9 +72,9 @@ def splat_bounded(stored, scale, clock, bound, cam, slot, x, y, sign, kernel):
 
     The same float64 operations as :func:`splat`, in one loop over the kernel's window on the sensor rather than
     :func:`splat` followed by a second loop: in that form numba kept atomic reference counting of the arrays
-    around every call (~30 ns an event). A block's bound is read and written once per row of the window (raised
-    to the largest new |stored| of the row's pixels in it) rather than compared per pixel: the same bounds,
-    ~10 % less time an event with the 5x5 splat. (Caching ``kernel / c`` between decay ticks instead of
+    around every call. A block's bound is read and written once per row of the window (raised
+    to the largest new |stored| of the row's pixels in it) rather than compared per pixel: the same bounds in
+    less time an event (bench/results/docstring-figures.md). (Caching ``kernel / c`` between decay ticks instead of
     dividing per pixel measured slower, not faster.)
     """
     r = kernel.shape[0] // 2

@@ -383,7 +383,7 @@ def _event_vector_kernel(stream, stored, scale, clock, bound, kernel, decay, per
         cam, i, t, x, y, p, slot = stream_event(stream, j)
         other = 1 - cam
         # The test here, advance_due_bounded only when due: an inlined helper holding both bound the four arrays
-        # to new variables and numba kept their atomic reference counting on every event (8 atomics, ~30 ns).
+        # to new variables and numba kept their atomic reference counting on every event (8 atomics).
         for cc in (cam, other):
             if tick_due(clock[cc, NEXT_TICK], clock[cc, TOUCHED], t, period):
                 advance_due_bounded(stored, scale, clock, bound, cc, t, decay, period)
