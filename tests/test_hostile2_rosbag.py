@@ -5,8 +5,8 @@ The bags are written with rosbags' writers around message bytes packed by hand (
 ``.bag``, ROS 2 folders in sqlite3 and MCAP storage, 2,000 ``dvs_msgs`` events per camera on a 128x128 sensor.
 Then they are spoilt as bags are in practice: cut short (a recording killed), random bytes named ``.bag``, a
 topic name mistyped, no event topics at all, one camera only, three event topics, a message whose bytes were
-damaged, a message of another sensor size, events that go back in time from one message to the next, a folder
-without its ``metadata.yaml``.
+damaged, a message of another sensor size, an MCAP file named ``.dat``, events that go back in time from one
+message to the next, a folder without its ``metadata.yaml``.
 
 Failures say their kind (``tests/_hostile.py``), so that ``bench/hostile_tally.py`` tallies old and new code.
 """
@@ -53,6 +53,7 @@ def base(tmp_path_factory) -> Path:
     (d / "cut.bag").write_bytes(data[: len(data) // 2])
     (d / "garbage.bag").write_bytes(np.random.default_rng(3).integers(0, 256, 5000, np.uint8).tobytes())
     (d / "empty.bag").write_bytes(b"")
+    (d / "storage.dat").write_bytes((d / "goodmcap" / "goodmcap.mcap").read_bytes())
     _stereo(d / "cut2", ros2=True)
     db3 = d / "cut2" / "cut2.db3"
     db3.write_bytes(db3.read_bytes()[:3000])
@@ -103,6 +104,7 @@ CASES = {
     "cut-ros1": case("info cut.bag", 1, ("cut.bag", "ROS bag")),
     "garbage-named-bag": case("info garbage.bag", 1, ("garbage.bag", "not a ROS bag")),
     "empty-bag": case("info empty.bag", 1, ("empty.bag", "ROS bag")),
+    "mcap-under-another-name": case("info storage.dat", 1, ("storage.dat", ".mcap")),
     "cut-ros2-db3": case("info cut2", 1, ("cut2", "ROS bag")),
     "folder-without-metadata": case("info nometa", 1, ("nometa", "metadata.yaml")),
     "match-cut-leaves-nothing": case("match cut.bag -o m.npz", 1, ("cut.bag",), absent="m.npz"),

@@ -35,8 +35,11 @@ __all__ = ["FORMAT", "open_rosbag", "parse_topics", "sniff_rosbag"]
 
 FORMAT = "rosbag"
 ROS1_MAGIC = b"#ROSBAG V2.0"
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+SQLITE_MAGIC = b"SQLite format 3\x00"
 #: The first bytes of ROS 2's storage files, and the extension rosbags needs to read each.
-ROS2_STORAGE = {b"\x89MCAP0\r\n": ".mcap", b"SQLite format 3\x00": ".db3"}
+ROS2_STORAGE = {MCAP_MAGIC: ".mcap", SQLITE_MAGIC: ".db3"}
+HEAD_BYTES = max(len(magic) for magic in (ROS1_MAGIC, *ROS2_STORAGE))
 #: Name pairs that tell the left camera's topic from the right one's, in order of preference.
 SIDE_NAMES = (("left", "right"), ("cam0", "cam1"))
 
@@ -46,9 +49,9 @@ def sniff_rosbag(path: str | os.PathLike, head: bytes = b"") -> bool:
     an MCAP or SQLite ``.db3`` storage file, or a ROS 2 bag folder."""
     if is_ros2_folder(path):
         return True
-    if head.startswith(ROS1_MAGIC) or head.startswith(next(iter(ROS2_STORAGE))):
+    if head.startswith(ROS1_MAGIC) or head.startswith(MCAP_MAGIC):
         return True
-    return head.startswith(b"SQLite format 3\x00") and Path(path).suffix.lower() == ".db3"
+    return head.startswith(SQLITE_MAGIC) and Path(path).suffix.lower() == ".db3"  # not every SQLite file
 
 
 def parse_topics(topics, *, source: str = "--topics") -> tuple[str, str] | None:
@@ -75,10 +78,10 @@ def _reader(path: str):
         require_input(path)  # a ROS 2 bag folder, else says what is missing
         return rosbags.rosbag2.Reader(Path(path)), True
     with open(require_regular_file(path), "rb") as fh:
-        head = fh.read(len(ROS1_MAGIC))
+        head = fh.read(HEAD_BYTES)
     if head.startswith(ROS1_MAGIC):
         return rosbags.rosbag1.Reader(Path(path)), False
-    suffix = next((s for magic, s in ROS2_STORAGE.items() if head.startswith(magic[:len(head)]) and head), None)
+    suffix = next((s for magic, s in ROS2_STORAGE.items() if head.startswith(magic)), None)
     if suffix is None:
         raise CorruptFileError(f"{path}: not a ROS bag (no '#ROSBAG V2.0' at the start, not an MCAP or SQLite "
                                "storage file of a ROS 2 bag).")
@@ -109,7 +112,8 @@ def _choose_topics(path: str, given: tuple[str, str] | None, connections) -> tup
     if given is not None:
         for topic in given:
             if topic not in events:
-                what = "is not in the bag" if all(c.topic != topic for c in connections) else "holds no events"
+                kinds = sorted({c.msgtype for c in connections if c.topic == topic})
+                what = f"holds {', '.join(kinds)}, no event messages" if kinds else "is not in the bag"
                 raise ValueError(f"{path}: topic {topic} {what}; the bag holds {listing}.")
         return given
     if len(events) == 2:
@@ -125,7 +129,8 @@ def _choose_topics(path: str, given: tuple[str, str] | None, connections) -> tup
 
 
 def _messages(path: str, topic: str, label: str):
-    """``(decoder, message, msgtype, index)`` of one topic's messages in the bag's order, read anew."""
+    """``(message, msgtype, index)`` of one topic's messages, deserialised, in the bag's order; the bag is opened
+    anew for each call, so that the two cameras are read side by side."""
     reader, ros2 = _reader(path)
     try:
         reader.open()
