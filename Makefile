@@ -11,14 +11,17 @@ $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
-# Stamp files: reinstall only when pyproject.toml changes.
+# Stamp files: reinstall only when pyproject.toml changes. After installing, `cvstereo warm-up` compiles every
+# matcher's kernels into numba's cache, so that no later run (nor test) stalls compiling at its first match.
 $(VENV)/.demo-installed: pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e ".[viz,sweep]"
+	$(BIN)/python -m cvstereo warm-up
 	@echo "$(ON_PATH)"
 	touch $@
 
 $(VENV)/.test-installed: pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e ".[dev]"
+	$(BIN)/python -m cvstereo warm-up
 	@echo "$(ON_PATH)"
 	touch $@
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -56,3 +57,129 @@ def test_kernel_folders_are_the_folders_of_the_modules_with_cached_kernels():
     with_kernels = {path.parent.relative_to(package).as_posix() for path in package.rglob("*.py")
                     if path.name != "_numba_cache.py" and "cache=True" in path.read_text()}
     assert with_kernels == set(_numba_cache.KERNEL_FOLDERS) and "matchers/frame" in with_kernels
+
+
+# --- warm-up (issue 28 item 2): the cache filled in one process, used by the next; compilation said and untimed ---
+
+_WARM = """
+import json, sys
+from numba.core.registry import CPUDispatcher
+from cvstereo.cli import main
+code = main(["warm-up", "--method", "stereobm"])
+used = sorted({(name, obj.py_func.__qualname__, obj.py_func.__code__.co_firstlineno)
+               for name, mod in list(sys.modules.items()) if name.startswith("cvstereo")
+               for obj in list(vars(mod).values())
+               if isinstance(obj, CPUDispatcher) and obj.overloads and obj.__module__ == name})
+print(json.dumps({"code": code, "used": used}))
+"""
+
+_MATCH = """
+import json
+import numpy as np
+import cvstereo as cvs
+from cvstereo._compile_watch import compile_seconds, watch_compiles
+watch_compiles()
+rng = np.random.default_rng(5)  # another clip than the warm-up's
+t = np.sort(rng.integers(0, 300_000, 3000))
+x, y, p = rng.integers(10, 128, 3000), rng.integers(0, 128, 3000), rng.integers(0, 2, 3000)
+rec = cvs.Recording(cvs.make_events(t, x, y, p), cvs.make_events(t, x - 10, y, p))
+found = [len(cvs.match(rec, method="stereobm", param_set=s)) for s in ("adaptive", "thesis")]
+print(json.dumps({"compile_s": compile_seconds(), "found": found}))
+"""
+
+
+def _python(code: str, cache: Path) -> tuple[dict, str]:
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache)}
+    done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout.strip().splitlines()[-1]), done.stderr
+
+
+def test_warm_up_fills_a_cache_that_a_fresh_process_uses(tmp_path):
+    """In an empty cache, ``cvstereo warm-up`` compiles (and says so once) and leaves numba's index file of every
+    kernel it ran; a fresh process then matches another clip, under both parameter sets, compiling nothing."""
+    from cvstereo.warmup import COMPILE_MESSAGE
+
+    cache = tmp_path / "cache"
+    warmed, err = _python(_WARM, cache)
+    assert warmed["code"] == 0 and warmed["used"]
+    assert err.count("compiling") == 1 and COMPILE_MESSAGE.format(group="stereobm") in err
+    tag = f"py{sys.version_info.major}{sys.version_info.minor}"
+    indexes = {p.name for p in cache.rglob("*.nbi")}
+    for module, qualname, line in warmed["used"]:
+        assert f"{module.rsplit('.', 1)[1]}.{qualname}-{line}.{tag}.nbi" in indexes, (module, qualname)
+    used, err = _python(_MATCH, cache)
+    assert used["compile_s"] == 0.0 and "compiling" not in err
+    assert min(used["found"]) > 0
+
+
+def test_preparing_the_kernels_is_outside_the_reported_matching_time(monkeypatch):
+    """``create_matcher`` prepares a built-in method's kernels (where they compile) before ``match()`` starts its
+    clock: a preparation that takes 1 s leaves ``elapsed_s`` far below it."""
+    import time
+
+    import cvstereo as cvs
+    from cvstereo import _compile_watch
+
+    clip = _compile_watch.tiny_clip()
+    cvs.match(clip, method="stereobm")  # its kernels in memory: the timed run below loads none
+    calls = []
+
+    def slow(method, param_set, build):
+        calls.append((method, param_set))
+        time.sleep(1.0)
+
+    monkeypatch.setattr(_compile_watch, "prepare", slow)
+    result = cvs.match(clip, method="stereobm")
+    assert calls == [("stereobm", "adaptive")] and result.meta["elapsed_s"] < 1.0
+
+
+def test_compilation_announced_once_per_group_and_timed_outermost(capsys):
+    """Nested compilations (a kernel compiling the kernels it calls) are one; a group is announced once."""
+    from types import SimpleNamespace
+
+    from cvstereo._compile_watch import COMPILE_MESSAGE, _Watch
+
+    def event(module):
+        return SimpleNamespace(data={"dispatcher": SimpleNamespace(py_func=SimpleNamespace(__module__=module))})
+
+    watch = _Watch()
+    area = event("cvstereo.matchers.event_area.matcher")
+    watch.on_start(area)
+    watch.on_start(event("cvstereo.matchers._shared.sorted_runs"))  # nested: not announced, not timed twice
+    watch.on_end(area)
+    assert watch.total == 0.0  # still inside the outer compilation
+    watch.on_end(area)
+    first = watch.total
+    watch.on_start(area)
+    watch.on_end(area)
+    watch.on_start(event("cvstereo.matchers._shared.sorted_runs"))
+    watch.on_end(area)
+    assert first > 0 and watch.total > first
+    assert capsys.readouterr().err.splitlines() == [COMPILE_MESSAGE.format(group="event-area"),
+                                                   COMPILE_MESSAGE.format(group="shared matcher")]
+
+
+def test_live_prepares_the_kernels_before_it_opens_the_sensors(monkeypatch, tmp_path):
+    from cvstereo import _compile_watch
+    from cvstereo.cli import live
+    from tests._hostile import run_cli
+
+    order = []
+    monkeypatch.setattr(_compile_watch, "prepare", lambda method, param_set, build: order.append(("prepare", method)))
+
+    def no_rig(args):
+        order.append(("open", None))
+        raise OSError("no boards here")
+
+    monkeypatch.setattr(live, "open_rig", no_rig)
+    assert run_cli(["live", "--left", "/dev/null", "--right", "/dev/null", "-m", "event-area"]) == (1, "")
+    assert order == [("prepare", "event-area"), ("open", None)]
+
+
+def test_warm_up_unknown_method_is_one_line(capsys):
+    from tests._hostile import run_cli
+
+    assert run_cli(["warm-up", "--method", "nope"]) == (1, "")
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("cvstereo warm-up: error: --method nope") and "event-area" in err[0]

@@ -40,6 +40,7 @@ COMMANDS: dict[str, str] = {
     "rigcheck": "rigcheck",
     "simulate": "simulate",
     "sweep": "sweep",
+    "warm-up": "warm_up",
 }
 
 

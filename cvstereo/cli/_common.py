@@ -126,7 +126,7 @@ def matcher_overrides(args: argparse.Namespace) -> dict:
 
 
 def add_format_options(parser: argparse.ArgumentParser) -> None:
-    """``--format``, ``--left-retina``, ``--one-based``, ``--resolution``, ``--columns``."""
+    """``--format``, ``--left-retina``, ``--one-based``, ``--resolution``, ``--columns``, ``--topics``."""
     from cvstereo.io import FORMATS
 
     g = parser.add_argument_group("input format (where the file cannot tell)")
@@ -139,6 +139,9 @@ def add_format_options(parser: argparse.ArgumentParser) -> None:
                    help="sensor size (default: from the file, else 128x128)")
     g.add_argument("--columns", default=None, metavar="ORDER",
                    help="Metavision CSV: the column order, e.g. t,x,y,p (default: x,y,p,t, as Metavision writes)")
+    g.add_argument("--topics", default=None, metavar="LEFT,RIGHT",
+                   help="ROS bags: the left and right cameras' event topics (default: the two event topics whose "
+                        "names say left/right or cam0/cam1)")
 
 
 def _resolution(text: str) -> tuple[int, int]:
@@ -159,7 +162,7 @@ def format_options(args: argparse.Namespace) -> dict:
     opts = {}
     if getattr(args, "format", None):
         opts["format"] = args.format
-    for key in ("left_retina", "one_based", "resolution", "columns"):
+    for key in ("left_retina", "one_based", "resolution", "columns", "topics"):
         if getattr(args, key, None) is not None:
             opts[key] = getattr(args, key)
     return opts

@@ -100,6 +100,8 @@ def describe(stream) -> list[str]:
     if "one_based" in meta:
         start = 1 if meta["one_based"] else 0
         lines.append(f"{indent}coordinates count from {start} ({_FROM[meta['one_based_from']]})")
+    if "topics" in meta:
+        lines.append(f"  topics: left {meta['topics'][0]}, right {meta['topics'][1]}; clock: {meta['clock']}")
     if "special_events" in meta:
         lines.append(f"  special (sync) events skipped: {meta['special_events']:,}")
     rows = [_camera_stats(name, stream) for name in stream.cameras]
@@ -113,7 +115,8 @@ def describe(stream) -> list[str]:
     return [printable(line, collapse=False) for line in lines]
 
 
-_FROM = {"given": "given", "header": "from the file's header", "default": "default", "detected": "detected"}
+_FROM = {"given": "given", "header": "from the file's header", "default": "default", "detected": "detected",
+         "messages": "from the messages"}
 
 
 def _camera_stats(name: str, stream) -> dict:

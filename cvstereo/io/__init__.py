@@ -5,7 +5,8 @@ from ``format=`` or from the file (content, then extension; :func:`detect_format
 :mod:`~cvstereo.io.npz`, :mod:`~cvstereo.io.edvs_text`, :mod:`~cvstereo.io.aedat2`, and with the extras
 :mod:`~cvstereo.io.aedat4` (``aedat4``), :mod:`~cvstereo.io.hdf5` (``hdf5``: DSEC, MVSEC) and
 :mod:`~cvstereo.io.prophesee` (``prophesee``: EVT 2.0 / 2.1 / 3.0 ``.raw``, Prophesee ``.dat``; EVT 2.1 needs no
-extra), and :mod:`~cvstereo.io.metavision_csv`; the streaming object is :class:`~cvstereo.io.stream.RecordingStream`.
+extra), :mod:`~cvstereo.io.metavision_csv`, and :mod:`~cvstereo.io.rosbag` (``ros``: ROS 1 and ROS 2 bags of
+``dvs_msgs`` / ``event_camera_msgs`` events); the streaming object is :class:`~cvstereo.io.stream.RecordingStream`.
 """
 
 from __future__ import annotations
@@ -17,10 +18,11 @@ from pathlib import Path
 
 from cvstereo.io.aedat2 import open_aedat2, write_aedat2
 from cvstereo.io.edvs_text import open_edvs_merged, open_edvs_text, read_text_header, write_edvs_merged, write_edvs_pair
-from cvstereo.io.files import require_regular_file
+from cvstereo.io.files import is_ros2_folder, require_regular_file
 from cvstereo.io.metavision_csv import open_metavision_csv, sniff_metavision_csv
 from cvstereo.io.npz import read_matches, read_recording_npz, write_matches, write_recording_npz
 from cvstereo.io.prophesee import ENCODINGS, HEADER_LIMIT, open_prophesee, read_prophesee_header, sniff_prophesee
+from cvstereo.io.rosbag import open_rosbag, sniff_rosbag
 from cvstereo.io.stream import RecordingStream, open_npz
 from cvstereo.model.recording import Recording
 
@@ -29,6 +31,8 @@ TEXT_SUFFIXES = (".txt", ".dat", ".csv")
 AEDAT_SUFFIXES = (".aedat", ".aedat2")
 AEDAT4_SUFFIXES = (".aedat4",)
 HDF5_SUFFIXES = (".h5", ".hdf5")
+#: ROS 1 bags and ROS 2 storage files (a ROS 2 bag folder is told by its metadata.yaml).
+ROSBAG_SUFFIXES = (".bag", ".db3", ".mcap")
 
 
 @dataclass(frozen=True)
@@ -42,7 +46,8 @@ class Format:
     write : callable or None
         ``write(path, recording, **write_options)``; None: the format is read-only.
     options : tuple of str
-        Reader options that apply (``right``, ``left_retina``, ``one_based``, ``resolution``, ``columns``); any other
+        Reader options that apply (``right``, ``left_retina``, ``one_based``, ``resolution``, ``columns``,
+        ``topics``); any other
         option given is reported as a mistake.
     suffixes : tuple of str
         Extensions that imply the format (for writing, and for reading where the content need not be checked).
@@ -130,6 +135,7 @@ FORMAT_TABLE: dict[str, Format] = {
     # Prophesee's files are told by their header (.raw holds any EVT encoding; .dat is also eDVS text's name).
     **{name: Format(_prophesee_opener(name), None, ("right", "resolution")) for name in ENCODINGS},
     "metavision-csv": Format(open_metavision_csv, None, ("right", "resolution", "columns")),
+    "rosbag": Format(open_rosbag, None, ("topics", "resolution"), ROSBAG_SUFFIXES),
 }
 
 #: Format names accepted by ``format=`` and the CLI's ``--format``.
@@ -141,7 +147,9 @@ def detect_format(path: str | os.PathLike) -> str:
 
     ``#!AER-DAT4.0`` at the start (or ``.aedat4``) means AEDAT4, other ``#!AER-DAT`` AEDAT 2.0 (jAER also
     used ``.dat`` for it); a Prophesee ``% `` header names its format (EVT 2.0 / 2.1 / 3.0 ``.raw``, Prophesee
-    ``.dat``) whatever the extension (:func:`cvstereo.io.prophesee.sniff_prophesee`); ``.npz`` is a recording
+    ``.dat``) whatever the extension (:func:`cvstereo.io.prophesee.sniff_prophesee`); ``#ROSBAG V2.0`` at the
+    start, an MCAP or SQLite ``.db3`` file or a folder holding ``metadata.yaml`` is a ROS bag
+    (:func:`cvstereo.io.rosbag.sniff_rosbag`); ``.npz`` is a recording
     archive; ``.h5`` / ``.hdf5`` are DSEC, MVSEC or M3ED (told by the layout, :func:`cvstereo.io.hdf5.hdf5_layout`),
     a folder with ``events/left`` / ``events/right`` is a DSEC sequence (:mod:`cvstereo.io.dsec_sequence`);
     ``.txt`` / ``.dat`` / ``.csv`` are Metavision CSV when their content says so
@@ -162,11 +170,13 @@ def detect_format(path: str | os.PathLike) -> str:
     if is_dsec_sequence(path):
         return "dsec"
     suffix = path.suffix.lower()
+    if is_ros2_folder(path):
+        return "rosbag"
     if suffix in HDF5_SUFFIXES:
         from cvstereo.io.hdf5 import hdf5_layout
 
         return hdf5_layout(path)
-    known = suffix in TEXT_SUFFIXES + AEDAT_SUFFIXES + AEDAT4_SUFFIXES
+    known = suffix in TEXT_SUFFIXES + AEDAT_SUFFIXES + AEDAT4_SUFFIXES + ROSBAG_SUFFIXES
     if not known:
         for name, fmt in FORMAT_TABLE.items():
             if suffix in fmt.suffixes:
@@ -178,6 +188,8 @@ def detect_format(path: str | os.PathLike) -> str:
         return "aedat4"
     if head.startswith(b"#!AER-DAT"):
         return "aedat2"
+    if sniff_rosbag(path, head) or suffix in ROSBAG_SUFFIXES:
+        return "rosbag"  # a .bag that is no bag is told so by the reader, naming what it found
     prophesee = sniff_prophesee(head)
     if prophesee is not None:
         if prophesee.startswith("unknown"):
@@ -204,7 +216,8 @@ def detect_format(path: str | os.PathLike) -> str:
 
 def open_recording(path: str | os.PathLike, right: str | os.PathLike | None = None, *, format: str | None = None,
                    left_retina: int | None = None, one_based: bool | None = None,
-                   resolution: tuple[int, int] | None = None, columns: str | None = None) -> RecordingStream:
+                   resolution: tuple[int, int] | None = None, columns: str | None = None,
+                   topics: str | tuple[str, str] | None = None) -> RecordingStream:
     """Open a recording for streaming with bounded memory, in any supported format.
 
     Parameters
@@ -219,6 +232,8 @@ def open_recording(path: str | os.PathLike, right: str | os.PathLike | None = No
         Options of the text formats (see :mod:`cvstereo.io.edvs_text`); None: from the file or detected.
     columns : str, optional, keyword-only
         ``metavision-csv``: the column order, e.g. ``"t,x,y,p"`` (default ``x,y,p,t``).
+    topics : str or (str, str), optional, keyword-only
+        ``rosbag``: the left and right cameras' event topics, ``"LEFT,RIGHT"`` (default: found by name).
 
     Returns
     -------
@@ -234,16 +249,17 @@ def open_recording(path: str | os.PathLike, right: str | os.PathLike | None = No
     """
     name = format or detect_format(path)
     fmt = _format(name, path, right=right, left_retina=left_retina, one_based=one_based, resolution=resolution,
-                  columns=columns)
+                  columns=columns, topics=topics)
     given = {"right": right, "left_retina": left_retina, "one_based": one_based, "resolution": resolution,
-             "columns": columns}
+             "columns": columns, "topics": topics}
     stream = fmt.open(path, **{k: given[k] for k in fmt.options})
     return replace(stream, given=tuple(os.fspath(p) for p in (path, right) if p is not None))
 
 
 def read_recording(path: str | os.PathLike, right: str | os.PathLike | None = None, *, format: str | None = None,
                    left_retina: int | None = None, one_based: bool | None = None,
-                   resolution: tuple[int, int] | None = None, columns: str | None = None) -> Recording:
+                   resolution: tuple[int, int] | None = None, columns: str | None = None,
+                   topics: str | tuple[str, str] | None = None) -> Recording:
     """Read a stereo recording whole, in any supported format.
 
     Parameters
@@ -254,7 +270,7 @@ def read_recording(path: str | os.PathLike, right: str | os.PathLike | None = No
         The right camera's file.
     format : str, optional
         One of :data:`FORMATS`; default: :func:`detect_format`.
-    left_retina, one_based, resolution, columns
+    left_retina, one_based, resolution, columns, topics
         Format options (see :func:`open_recording`).
 
     Returns
@@ -266,11 +282,11 @@ def read_recording(path: str | os.PathLike, right: str | os.PathLike | None = No
     """
     name = format or detect_format(path)
     fmt = _format(name, path, right=right, left_retina=left_retina, one_based=one_based, resolution=resolution,
-                  columns=columns)
+                  columns=columns, topics=topics)
     if fmt.read is not None:
         return fmt.read(path)
     return open_recording(path, right, format=name, left_retina=left_retina, one_based=one_based,
-                          resolution=resolution, columns=columns).read()
+                          resolution=resolution, columns=columns, topics=topics).read()
 
 
 def _format(name: str, path, **given) -> Format:

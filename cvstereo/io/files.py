@@ -13,7 +13,7 @@ import re
 import stat
 from pathlib import Path
 
-__all__ = ["open_regular", "printable", "require_regular_file"]
+__all__ = ["ROS2_METADATA", "is_ros2_folder", "open_regular", "printable", "require_input", "require_regular_file"]
 
 _KINDS = ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
           (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
@@ -46,6 +46,31 @@ def require_regular_file(path: str | os.PathLike) -> Path:
     kind = next((name for test, name in _KINDS if test(mode)), "not a file")
     raise OSError(f"{path}: is {kind}, not a regular file; recordings are read by seeking and in several passes, "
                   "so save the stream to a file first.")
+
+
+#: The file that makes a folder a ROS 2 bag (the one recording format that is a folder).
+ROS2_METADATA = "metadata.yaml"
+
+
+def is_ros2_folder(path: str | os.PathLike) -> bool:
+    """Whether ``path`` is a folder holding a ROS 2 bag (its ``metadata.yaml``)."""
+    return Path(path).is_dir() and (Path(path) / ROS2_METADATA).is_file()
+
+
+def require_input(path: str | os.PathLike) -> Path:
+    """Return ``path`` as a Path if it names a recording input: a regular file, or a ROS 2 bag folder.
+
+    Raises
+    ------
+    FileNotFoundError, IsADirectoryError, OSError
+        As :func:`require_regular_file`, for anything else (a folder: one that holds no ROS 2 bag).
+    """
+    if is_ros2_folder(path):
+        return Path(path)
+    if Path(path).is_dir():
+        raise IsADirectoryError(f"{path}: is a directory without {ROS2_METADATA} (a ROS 2 bag folder holds one); "
+                                "give a recording file or a ROS 2 bag folder.")
+    return require_regular_file(path)
 
 
 def open_regular(path: str | os.PathLike):

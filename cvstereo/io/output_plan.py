@@ -3,15 +3,15 @@ published together once all are written.
 
 A command declares its inputs (:meth:`OutputPlan.read`) and outputs (:meth:`OutputPlan.write`,
 :meth:`OutputPlan.write_folder`), then does its work inside ``with plan:``. Entering checks everything at once,
-before a possibly long computation: every input is a regular file; no output is an input or another output
-(also through ``..``, symlinks and hard links); each output's name fits what is written into it (a known
-extension of its kind, or none: a name without extension gets the command's own format; devices and FIFOs
-are streams, whatever their names); its folder exists (or is a folder the plan creates) and a temporary file
-can be made there, so that a read-only folder is reported before the work, not after. Inside the block the
-writers write as they always do (:func:`cvstereo.io.atomic.atomic_path`), into the plan's temporary files.
-Leaving the block publishes every output that was written (:func:`cvstereo.io.atomic.publish`: all or none,
-previous versions restored); an exception or a signal instead removes the temporary files and the folders the
-plan created, so that a failed run leaves no output, half or whole. Every error names the user's path.
+before a possibly long computation: every input is a regular file (or a ROS 2 bag folder); no output is an input or
+another output (also through ``..``, symlinks and hard links); each output's name fits what is written into it (a
+known extension of its kind, or none: a name without extension gets the command's own format; devices and FIFOs are
+streams, whatever their names); its folder exists (or is a folder the plan creates) and a temporary file can be made
+there, so that a read-only folder is reported before the work, not after. Inside the block the writers write as they
+always do (:func:`cvstereo.io.atomic.atomic_path`), into the plan's temporary files. Leaving the block publishes
+every output that was written (:func:`cvstereo.io.atomic.publish`: all or none, previous versions restored); an
+exception or a signal instead removes the temporary files and the folders the plan created, so that a failed run
+leaves no output, half or whole. Every error names the user's path.
 
 >>> import os, tempfile
 >>> from pathlib import Path
@@ -48,7 +48,7 @@ from cvstereo.io.atomic import (
     publish,
     stage,
 )
-from cvstereo.io.files import require_regular_file
+from cvstereo.io.files import require_input
 from cvstereo.io.paths import OutputIsInputError, refuse_output_over_input, same_file
 
 
@@ -156,7 +156,7 @@ class OutputPlan:
         """
         for path in self.inputs:
             try:
-                require_regular_file(path)
+                require_input(path)
             except FileNotFoundError:
                 if path not in self._what:
                     raise

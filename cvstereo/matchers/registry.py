@@ -79,7 +79,9 @@ def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 
 
     ``param_set`` (:mod:`cvstereo.matchers.sets`): ``adaptive`` (default, thresholds relative to the recording's
     signal level, each method's best variant) or ``thesis`` (docs/algorithms.md's constants and default variants).
-    An explicit ``variant`` wins over the set's default variant; ``params`` override the set's values.
+    An explicit ``variant`` wins over the set's default variant; ``params`` override the set's values. The first
+    matcher of a built-in method in a process has its kernels compiled or loaded first
+    (:func:`cvstereo._compile_watch.prepare`), so that no caller times their compilation.
 
     Examples
     --------
@@ -88,7 +90,16 @@ def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 
     ('separate', 0.25)
     """
     variant, set_params = resolve(method, variant, param_set)
-    matcher = matcher_class(method).from_variant(variant, resolution=resolution, **{**set_params, **params})
+    cls = matcher_class(method)
+
+    if method in BUILTIN_METHODS:
+        from cvstereo import _compile_watch
+
+        # The set's default matcher on the built-in clip: its kernels compiled or loaded before any caller's clock.
+        default, default_params = resolve(method, None, param_set)
+        _compile_watch.prepare(method, param_set,
+                               lambda size: cls.from_variant(default, resolution=size, **default_params))
+    matcher = cls.from_variant(variant, resolution=resolution, **{**set_params, **params})
     matcher.param_set = param_set
     return matcher
 

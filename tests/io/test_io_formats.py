@@ -14,7 +14,7 @@ from cvstereo.model.recording import Recording
 def test_formats_are_the_table():
     assert cio.FORMATS == tuple(cio.FORMAT_TABLE) == ("npz", "edvs-text", "edvs-merged", "aedat2", "aedat4", "dsec",
                                                       "mvsec", "m3ed", "evt2", "evt21", "evt3", "prophesee-dat",
-                                                      "metavision-csv")
+                                                      "metavision-csv", "rosbag")
 
 
 def test_a_new_format_is_one_table_entry(tmp_path, monkeypatch):

@@ -1,0 +1,47 @@
+"""``cvstereo warm-up``: numba's compile cache filled for every method ahead of time.
+
+:mod:`cvstereo._compile_watch` makes each method's kernels ready at its first matcher in a process; on a new
+machine that first matcher still compiles them. :func:`warm_up` (``cvstereo warm-up``, run by ``make`` after
+installing) builds each available method's default matcher under both parameter sets now, so that numba's
+cache holds every kernel and later processes only load them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+
+from cvstereo._compile_watch import COMPILE_MESSAGE, compile_seconds, watch_compiles
+
+__all__ = ["COMPILE_MESSAGE", "PARAM_SETS", "compile_seconds", "warm_up"]
+
+#: The parameter sets whose default variants are warmed (docs/algorithms.md).
+PARAM_SETS = ("adaptive", "thesis")
+
+
+def warm_up(methods: Iterable[str] | None = None, param_sets: Iterable[str] = PARAM_SETS, *,
+            on_method: Callable[[str, str, float], None] | None = None) -> float:
+    """Fill numba's compile cache for ``methods`` (default: every available one) under each of ``param_sets``.
+
+    Parameters
+    ----------
+    methods : iterable of str, optional
+    param_sets : iterable of str
+    on_method : callable, optional, keyword-only
+        ``on_method(method, param_set, compile_s)`` after each, with the seconds spent compiling for it.
+
+    Returns
+    -------
+    float
+        Seconds spent compiling in all (0 when the cache held everything).
+    """
+    from cvstereo.matchers.registry import available_methods, create_matcher
+
+    watch_compiles()
+    start = compile_seconds()
+    for method in available_methods() if methods is None else methods:
+        for param_set in param_sets:
+            before = compile_seconds()
+            create_matcher(method, param_set=param_set)  # which prepares its kernels (see the module's text)
+            if on_method is not None:
+                on_method(method, param_set, compile_seconds() - before)
+    return compile_seconds() - start
