@@ -68,8 +68,9 @@ def require_input(path: str | os.PathLike) -> Path:
     if is_ros2_folder(path):
         return Path(path)
     if Path(path).is_dir():
-        raise IsADirectoryError(f"{path}: is a directory without {ROS2_METADATA} (a ROS 2 bag folder holds one); "
-                                "give a recording file or a ROS 2 bag folder.")
+        raise IsADirectoryError(f"{path}: is a directory, neither a DSEC sequence folder (events/left/events.h5 and "
+                                f"events/right/events.h5) nor a ROS 2 bag folder ({ROS2_METADATA}); give a recording "
+                                "file or one of those folders.")
     return require_regular_file(path)
 
 
