@@ -51,6 +51,7 @@ A third field, also off in the thesis set and on in ``adaptive``, keeps look-ali
 
 from __future__ import annotations
 
+import functools
 from typing import ClassVar
 
 import numpy as np
@@ -341,7 +342,7 @@ class EventTimeMatcher(StreamMatcher):
             threshold = self._level.thresholds(k)
             tolerance = self._level.relative(k, absolute=prm.value_tolerance, scale=prm.value_tolerance_scale)[ref]
             window = self._window(k)
-            gain = prm.value_gain(self._level.levels(k))
+            gain = prm.value_gain(functools.partial(self._level.levels, k))
             for cam in (ref, 1 - ref):
                 a, b = runs[cam]
                 if b > a:

@@ -116,12 +116,21 @@ class EventTimeParams(BorderParams, SignalLevelParams, DynamicFrameParams):
         """The estimator of the pace: the signal level's windows and warm-up, the median, no floor."""
         return dataclasses.replace(level_params(self), level_quantile=0.5, level_floor=0.0)
 
+    @property
+    def scales_values(self) -> bool:
+        """Whether D2 is brought into the reference camera's units (``value_units``, relative mode only)."""
+        return self.relative and self.value_units == "reference"
+
     def value_gain(self, levels) -> float:
         """The factor D2 is multiplied by before the value test (``value_units``), given the cameras' levels
-        in force (NaN while warming up): the reference camera's level over the other's, or 1."""
+        in force (NaN while warming up): the reference camera's level over the other's, or 1.
+
+        ``levels`` may be a callable returning them, called only where they are needed: in absolute mode the
+        signal level is not otherwise estimated, and estimating it per window would cost every event."""
         ref = self.reference_camera
-        if not (self.relative and self.value_units == "reference"):
+        if not self.scales_values:
             return 1.0
+        levels = levels() if callable(levels) else levels
         mine, other = float(levels[ref]), float(levels[1 - ref])
         return mine / other if np.isfinite(mine) and np.isfinite(other) and other > 0 else 1.0
 
