@@ -24,14 +24,16 @@ ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("cvstereo", "calibration_free")
 
 _NUM = r"~?\d+(?:[.,]\d+)?"
-_TIME_UNIT = r"(?:s|ms|us|µs|min)\b"
+_TIME_UNIT = r"(?:s|ms|us|µs|ns|min)\b"
 #: Each pattern is one kind of figure; its name is printed with the hit.
 FIGURES = {
     # A run's duration: a time after a verb of running, or a time per window / of CPU.
     # (A run of whitespace counts as one character of the gap, so that a line break does not hide a figure.)
     "duration": re.compile(rf"\b(?:took|takes?|ran|runs?\s+in|spent|costs?|adds?)\b(?:[^.;:\s]|\s+){{0,40}}?"
                            rf"{_NUM}\s*{_TIME_UNIT}"
-                           rf"|{_NUM}\s*{_TIME_UNIT}\s+(?:a|per|of)\s+(?:window|run|call|CPU|kernel|wall)",
+                           rf"|{_NUM}\s*{_TIME_UNIT}\s+(?:an?|per|of)\s+(?:window|run|call|CPU|kernel|wall|event|pixel)"
+                           # nanoseconds are never a setting here: a cost
+                           rf"|{_NUM}\s*ns\b",
                            re.IGNORECASE),
     "load": re.compile(rf"\bload(?:\s+average)?\s*[:=]?\s*{_NUM}", re.IGNORECASE),
     "events/s": re.compile(rf"{_NUM}\s*[kM]?\s*ev(?:ents?)?\s*/\s*s\b"),
@@ -100,7 +102,8 @@ def _package_files():
     "took about 1.53 ms of kernel", "cost 6-8 % of the fastest matchers' time at\n        40 ms packets",
     "a whole window's matching takes now (~1.5 ms)", "2.16 ms a window",
     "one CPU, load 0.7", "load average 4", "a 346x260 recording at 1 M ev/s", "20000 events/s",
-    "runs at 3.2 x real time", "coverage 88 -> 95 %", "0.18/0.17/0.20/0.24 -> 0.22/0.23/0.28/0.30",
+    "runs at 3.2 x real time", "around every call (~30 ns an event)", "(8 atomics, ~30 ns)",
+    "coverage 88 -> 95 %", "0.18/0.17/0.20/0.24 -> 0.22/0.23/0.28/0.30",
     "42 % → 99.6 %", "ran 3x faster with 40 ms", "a speed-up of 1.2", "bit for bit on this machine",
 ])
 def test_figures_are_found(text):

@@ -94,7 +94,7 @@ NEXT_TICK, TOUCHED = 0, 1
 # reference counting on every array, which made a 9-pixel splat ten times slower. Inlining does not always
 # remove it either: numba binds the arrays to new variables and relies on an LLVM pass to drop the
 # increments and decrements around them, which gives up when the inlined code holds nested loops or two
-# loops in a row (about 20 atomic operations an event in event-vector, ~100 ns at 640x480). Hence the shape
+# loops in a row (about 20 atomic operations an event in event-vector). Hence the shape
 # of the helpers below: the rare work of a decay tick in a function of its own behind a cheap test, and
 # :func:`splat_bounded` as one loop.
 

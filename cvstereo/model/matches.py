@@ -55,7 +55,7 @@ def concat_matches(parts) -> np.ndarray:
     parts = [p for p in parts if p is not None and p.size]
     if not parts:
         return empty_matches()
-    # As records (10 ms of event-area's 0.7 s per second of data at 640x480 with numpy's own concatenation).
+    # As records: numpy's own concatenation of structured arrays is slower (bench/results/docstring-figures.md).
     return join_records(parts) if all(p.dtype == MATCH_DTYPE for p in parts) else np.concatenate(parts)
 
 

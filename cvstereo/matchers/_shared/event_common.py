@@ -52,8 +52,8 @@ def matches_at(events: tuple[np.ndarray, np.ndarray], cam: np.ndarray, index: np
 def _fill_matches(out, left, right, cam, index, disparity):  # pragma: no cover - compiled
     """Write match ``n`` from event ``index[n]`` of ``left`` or ``right`` (by ``cam[n]``), one pass.
 
-    Numpy's way (a mask per camera, then a fancy-indexed copy of each structured field) cost ~100 ns a match,
-    a tenth of event-vector's time at 640x480.
+    Numpy's way (a mask per camera, then a fancy-indexed copy of each structured field) cost a visible share of
+    event-vector's time per match (bench/results/docstring-figures.md).
     """
     for n in range(cam.shape[0]):
         ev = left[index[n]] if cam[n] == 0 else right[index[n]]
