@@ -252,12 +252,13 @@ class VirtualEDVS:
         if self._await_master and self._clock is not None and self._clock.zero is not None:
             self._await_master = False
             self.lead_us = round((self._stream_start - self._clock.zero) * self.speed * 1e6)
-        if (not self.streaming or now < self._stall_until or self._next >= self.events.size
-                or self._await_master):
+        if not self.streaming:  # garbage injected before the start command arrives waits for the stream
+            return b""
+        if now < self._stall_until or self._next >= self.events.size or self._await_master:
             with self._lock:
                 garbage, self._garbage = b"".join(self._garbage), []
             self.garbage_bytes += len(garbage)
-            return garbage if self.streaming else b""
+            return garbage
         fmt_size = ProtocolSettings(event_format=self.format).format.max_size
         t_due = self._t0 + (now - self._stream_start) * self.speed * 1e6
         hi = int(np.searchsorted(self.events["t"], t_due, side="right"))
