@@ -250,6 +250,30 @@ def load_matches_for(args: argparse.Namespace, recording):
     return as_matched(recording, result.meta), result
 
 
+def load_matches_streamed(args: argparse.Namespace):
+    """The matches file ``args.matches``, checked against the recording without holding the recording.
+
+    The recording's fingerprint is taken one chunk at a time (:func:`cvstereo.model.fingerprint.fingerprint_of_stream`);
+    only when it is not the matches' (another recording, or a matches file too old to carry one) is the recording
+    read whole, by :func:`load_matches_for`, to say what differs. For commands that need the matches and not the
+    events (scoring against dense ground truth, DSEC's export): a DSEC sequence may be larger than memory.
+
+    Returns
+    -------
+    MatchResult
+    """
+    from cvstereo.model.fingerprint import is_fingerprint_of_stream
+
+    result = load_matches(args.matches)
+    if args.force:
+        return result
+    stream = open_recording_stream(args)
+    with naming(args.recording, args.right):
+        if is_fingerprint_of_stream(result.meta.get("fingerprint"), stream):
+            return result
+    return load_matches_for(args, load_recording(args))[1]
+
+
 def add_force_option(parser: argparse.ArgumentParser, verb: str) -> None:
     """``--force``: use a matches file that says it was computed on another recording."""
     parser.add_argument("--force", action="store_true",

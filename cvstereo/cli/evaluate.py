@@ -9,6 +9,7 @@ from cvstereo.cli._common import (
     add_force_option,
     add_recording_arguments,
     load_matches_for,
+    load_matches_streamed,
     load_recording,
     naming,
     recording_plan,
@@ -58,9 +59,9 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"{args.recording}: no ground-truth disparity maps (disparity/event/*.png with "
                          "disparity/timestamps.txt); DSEC's test sequences have none: write DSEC's submission "
                          "PNGs with `cvstereo export-dsec` instead.")
+    if truth is not None:  # the events are not scored, only checked: streamed, never held
+        return _dense(args, truth, load_matches_streamed(args))
     recording, result = load_matches_for(args, load_recording(args))
-    if truth is not None:
-        return _dense(args, truth, result)
     with naming(args.matches):
         figures = evaluate(recording, result)
     meta = result.meta

@@ -11,8 +11,7 @@ import numpy as np
 from cvstereo.cli._common import (
     add_force_option,
     check_files,
-    load_matches_for,
-    load_recording,
+    load_matches_streamed,
     naming,
     recording_plan,
 )
@@ -85,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
                          "test timestamps of this sequence: --timestamps CSV.")
     paths = plan.write_folder(args.output, [f"{seq.name}/{n}" for n in names], DISPARITY_PNG)
     with plan:
-        _, result = load_matches_for(args, load_recording(args))
+        result = load_matches_streamed(args)
         maps = predicted_maps(result.matches, times, resolution=truth.resolution,
                               rectification=truth.rectification)
         beyond = 0

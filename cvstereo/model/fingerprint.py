@@ -34,7 +34,8 @@ import numpy as np
 from cvstereo.model.events import EVENT_DTYPE, as_events
 from cvstereo.model.recording import Recording
 
-__all__ = ["CAMERAS", "CHECKSUM", "EventFingerprint", "difference", "fingerprint_of", "stream_sum", "swap_cameras"]
+__all__ = ["CAMERAS", "CHECKSUM", "EventFingerprint", "difference", "fingerprint_of", "fingerprint_of_stream",
+           "is_fingerprint_of_stream", "stream_sum", "swap_cameras"]
 
 #: Name of the checksum stored with the fingerprint; a file with another cannot be checked by this version.
 CHECKSUM = "sum64-le"
@@ -109,6 +110,38 @@ def fingerprint_of(recording: Recording) -> dict:
     fp = EventFingerprint()
     fp.update(recording.left, recording.right)
     return fp.result()
+
+
+def fingerprint_of_stream(stream) -> dict:
+    """The fingerprint of a stereo recording opened for streaming, read one chunk at a time.
+
+    It is :func:`fingerprint_of` of the recording the stream reads, computed without holding that recording, so
+    that a matches file can be checked against a recording larger than memory (a DSEC sequence).
+
+    Parameters
+    ----------
+    stream : cvstereo.io.stream.RecordingStream
+        A stereo stream (``stream.is_stereo``).
+    """
+    if not stream.is_stereo:
+        raise ValueError("a fingerprint is taken of a stereo recording; this stream holds one camera")
+    cameras = (_Camera(), _Camera())
+    for cam, name in zip(cameras, CAMERAS, strict=True):
+        for events, _ in stream.open_chunks(name):
+            cam.add(events)
+    return {"checksum": CHECKSUM, **{name: cam.result() for name, cam in zip(CAMERAS, cameras, strict=True)}}
+
+
+def is_fingerprint_of_stream(stored, stream) -> bool:
+    """Whether ``stored`` (a matches file's ``meta["fingerprint"]``) is the fingerprint of ``stream``'s events.
+
+    False for anything else, a fingerprint this version cannot read included: the caller then reads the
+    recording whole and lets :func:`difference` say what differs, which only a mismatch pays for.
+    """
+    if not isinstance(stored, Mapping) or stored.get("checksum") != CHECKSUM or not stream.is_stereo:
+        return False
+    own = fingerprint_of_stream(stream)
+    return all(own[c] == stored.get(c) for c in CAMERAS)
 
 
 def swap_cameras(fingerprint: Mapping) -> dict:

@@ -166,3 +166,27 @@ def test_a_test_sequence_without_ground_truth_is_read_and_its_folder_named(base,
     shutil.rmtree(seq / "disparity")
     assert main(["info", str(seq)]) == 0
     assert "ground-truth disparity maps: none (a test sequence)" in capsys.readouterr().out
+
+
+def test_evaluate_and_export_check_the_matches_without_holding_the_sequence(base, tmp_path, monkeypatch, capsys):
+    """A DSEC sequence may be larger than memory: scoring and export need its events only for the check that the
+    matches were computed on them, which streams its fingerprint; the recording is read whole only to say what
+    differs when it is another."""
+    import cvstereo.io
+
+    seq = base / NAME
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("the whole recording was read")
+
+    monkeypatch.setattr(cvstereo.io, "read_recording", refuse)
+    assert main(["evaluate", str(seq), str(base / "sgbm.npz"), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["figures"]["maps"] == 4
+    assert main(["export-dsec", str(seq), str(base / "sgbm.npz"), "-o", str(tmp_path / "sub")]) == 0
+    assert len(list((tmp_path / "sub" / NAME).iterdir())) == 4
+    monkeypatch.undo()
+    # Another sequence (other seed, same layout): refused, saying what differs, as before.
+    other = write_dsec_sequence(tmp_path / "other" / NAME, seconds=0.2, seed=5, truth=True)
+    assert main(["evaluate", str(other), str(base / "sgbm.npz")]) == 1
+    err = capsys.readouterr().err
+    assert "computed on another recording" in err and err.count("\n") == 1

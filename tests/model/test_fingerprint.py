@@ -42,3 +42,26 @@ def test_a_clock_shift_is_told_from_other_events():
     moved_right = difference(stored, Recording(ev, moved))
     assert moved_right == "as many events, but other ones (the right camera's events differ)"
     assert difference(stored, Recording(ev[:2], ev)).startswith("it was computed on 3 + 3 events")
+
+
+def test_a_streamed_fingerprint_is_the_one_of_the_recording_read_whole(tmp_path):
+    """Chunk by chunk (a file read in several chunks per camera) it equals the whole recording's, and a
+    stored fingerprint of other events is not taken for it."""
+    from cvstereo.io import open_recording, read_recording, write_recording
+    from cvstereo.model.fingerprint import fingerprint_of_stream, is_fingerprint_of_stream
+
+    rng = np.random.default_rng(3)
+    n = 300_001  # more than one chunk per camera, and not a whole number of 8-byte words
+    t = np.sort(rng.integers(0, 2_000_000, n))
+    left = make_events(t, rng.integers(0, 128, n), rng.integers(0, 128, n), rng.integers(0, 2, n))
+    right = make_events(t[: n // 2], rng.integers(0, 128, n // 2), rng.integers(0, 128, n // 2), 1)
+    path = tmp_path / "r.aedat"
+    write_recording(path, Recording(left, right))
+    stream = open_recording(path)
+    assert sum(1 for _ in stream.open_chunks("left")) > 1
+    whole = fingerprint_of(read_recording(path))
+    assert fingerprint_of_stream(stream) == whole
+    assert is_fingerprint_of_stream(whole, stream)
+    other = fingerprint_of(Recording(left[1:], right))
+    assert not is_fingerprint_of_stream(other, stream)
+    assert not is_fingerprint_of_stream({**whole, "checksum": "md5"}, stream)
