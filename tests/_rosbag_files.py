@@ -50,18 +50,19 @@ class Packer:
         self.put("I", len(data))
         self.out += data
 
-    def header(self, seq: int, stamp_ns: int) -> None:
+    def header(self, seq: int, stamp_ns: int, frame_id: str = FRAME_ID) -> None:
         if not self.cdr:
             self.put("I", seq)
         self.put("i" if self.cdr else "I", stamp_ns // 10**9)
         self.put("I", stamp_ns % 10**9)
-        self.string(FRAME_ID)
+        self.string(frame_id)
 
 
-def event_array(events: np.ndarray, width: int, height: int, *, cdr: bool, seq: int = 0) -> bytes:
+def event_array(events: np.ndarray, width: int, height: int, *, cdr: bool, seq: int = 0,
+                frame_id: str = FRAME_ID) -> bytes:
     """One ``dvs_msgs/EventArray`` of ``events`` (times in microseconds), the header stamped with the first time."""
     pack = Packer(cdr)
-    pack.header(seq, int(events["t"][0]) * 1000 if len(events) else 0)
+    pack.header(seq, int(events["t"][0]) * 1000 if len(events) else 0, frame_id)
     pack.put("I", height)
     pack.put("I", width)
     pack.put("I", len(events))

@@ -159,7 +159,10 @@ class PacketDecoder:
         """``dvs_msgs/Event`` objects as columns; ``ts`` (seconds, nanoseconds) to microseconds, rounded down."""
         if not len(events):
             return None
-        rows = np.array([(e.ts.sec, e.ts.nanosec, e.x, e.y, e.polarity) for e in events], np.int64)
+        if isinstance(events, np.ndarray):  # decoded from the bytes (cvstereo.io._ros_event_array)
+            rows = np.stack([events[f].astype(np.int64) for f in ("sec", "nsec", "x", "y", "polarity")], axis=1)
+        else:
+            rows = np.array([(e.ts.sec, e.ts.nanosec, e.x, e.y, e.polarity) for e in events], np.int64)
         bad = np.flatnonzero(rows[:, 1] >= NS_PER_S)
         if bad.size:
             raise CorruptFileError(f"{self.source}: message {index}, event {bad[0]}: ts.nsec is {rows[bad[0], 1]}, "

@@ -25,6 +25,7 @@ from pathlib import Path
 
 from cvstereo.errors import CorruptFileError, EventFormatError, MissingExtraError
 from cvstereo.io._checked import ChunkChecker
+from cvstereo.io._ros_event_array import parse_event_array, same_event_array
 from cvstereo.io._ros_messages import EVENT_ARRAY, EVENT_PACKET, EVENT_TYPES, PacketDecoder, import_rosbags, typestore
 from cvstereo.io.files import is_ros2_folder, require_input, require_regular_file
 from cvstereo.io.stream import Chunk, RecordingStream
@@ -144,13 +145,21 @@ def _messages(path: str, topic: str, label: str):
         store = typestore(reader.connections, ros2)
         deserialize = store.deserialize_cdr if ros2 else store.deserialize_ros1
         connections = [c for c in reader.connections if c.topic == topic]
+        # dvs_msgs/EventArray from its bytes by numpy, once its first message with events decodes as rosbags
+        # decodes it (a bag whose types differ from the published ones stays with rosbags); None: not yet known.
+        from_bytes: dict[int, bool] = {}
         for index, (connection, _, raw) in enumerate(reader.messages(connections=connections)):
-            try:
-                message = deserialize(raw, connection.msgtype)
-            except Exception as exc:
-                raise CorruptFileError(f"{path} [topic {topic}, {label}]: message {index} cannot be decoded as "
-                                       f"{connection.msgtype} [{str(exc).strip() or type(exc).__name__}]; the bag "
-                                       "is damaged.") from None
+            trusted = from_bytes.get(connection.id)
+            fast = parse_event_array(raw, ros2) if connection.msgtype == EVENT_ARRAY and trusted is not False else None
+            if fast is not None and trusted:
+                message = fast
+            else:
+                message = _deserialize(deserialize, raw, connection, path, topic, label, index)
+                if fast is not None:
+                    if not same_event_array(fast, message):
+                        from_bytes[connection.id] = False
+                    elif len(fast.events):
+                        from_bytes[connection.id] = True
             yield message, connection.msgtype, index
     except _OURS:
         raise
@@ -158,6 +167,16 @@ def _messages(path: str, topic: str, label: str):
         raise _damaged(path, exc) from None
     finally:
         reader.close()
+
+
+def _deserialize(deserialize, raw, connection, path: str, topic: str, label: str, index: int):
+    """One message decoded by rosbags; an error naming the message when its bytes are not its type."""
+    try:
+        return deserialize(raw, connection.msgtype)
+    except Exception as exc:
+        raise CorruptFileError(f"{path} [topic {topic}, {label}]: message {index} cannot be decoded as "
+                               f"{connection.msgtype} [{str(exc).strip() or type(exc).__name__}]; the bag "
+                               "is damaged.") from None
 
 
 def _topic_size(path: str, topic: str, label: str) -> tuple[int, int] | None:
