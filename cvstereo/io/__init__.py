@@ -19,7 +19,7 @@ from pathlib import Path
 from cvstereo.io.aedat2 import open_aedat2, write_aedat2
 from cvstereo.io.edvs_text import open_edvs_merged, open_edvs_text, read_text_header, write_edvs_merged, write_edvs_pair
 from cvstereo.io.files import is_ros2_folder, require_regular_file
-from cvstereo.io.metavision_csv import open_metavision_csv, sniff_metavision_csv
+from cvstereo.io.metavision_csv import is_comma_separated, open_metavision_csv, sniff_metavision_csv
 from cvstereo.io.npz import read_matches, read_recording_npz, write_matches, write_recording_npz
 from cvstereo.io.prophesee import ENCODINGS, HEADER_LIMIT, open_prophesee, read_prophesee_header, sniff_prophesee
 from cvstereo.io.rosbag import open_rosbag, sniff_rosbag
@@ -247,7 +247,7 @@ def open_recording(path: str | os.PathLike, right: str | os.PathLike | None = No
     >>> for packet in stream.packets(10_000):  # doctest: +SKIP
     ...     matcher.feed(packet.left, packet.right)
     """
-    name = format or detect_format(path)
+    name = _chosen_format(path, format, columns)
     fmt = _format(name, path, right=right, left_retina=left_retina, one_based=one_based, resolution=resolution,
                   columns=columns, topics=topics)
     given = {"right": right, "left_retina": left_retina, "one_based": one_based, "resolution": resolution,
@@ -280,13 +280,25 @@ def read_recording(path: str | os.PathLike, right: str | os.PathLike | None = No
         :attr:`~cvstereo.model.recording.Recording.origin_us` (the file's ``meta["origin_us"]``, else the earliest
         event of both cameras) is what times shown count from.
     """
-    name = format or detect_format(path)
+    name = _chosen_format(path, format, columns)
     fmt = _format(name, path, right=right, left_retina=left_retina, one_based=one_based, resolution=resolution,
                   columns=columns, topics=topics)
     if fmt.read is not None:
         return fmt.read(path)
     return open_recording(path, right, format=name, left_retina=left_retina, one_based=one_based,
                           resolution=resolution, columns=columns, topics=topics).read()
+
+
+def _chosen_format(path, format: str | None, columns: str | None) -> str:
+    """``format``, else :func:`detect_format`'s; but ``columns=``, which only Metavision CSV takes, makes a
+    comma-separated file that detection took for eDVS text (its columns in another order than ``x,y,p,t``) the
+    Metavision CSV the user has just described."""
+    if format is not None:
+        return format
+    name = detect_format(path)
+    if columns is not None and name in ("edvs-text", "edvs-merged") and is_comma_separated(path):
+        return "metavision-csv"
+    return name
 
 
 def _format(name: str, path, **given) -> Format:
@@ -297,7 +309,8 @@ def _format(name: str, path, **given) -> Format:
     wrong = [k for k, v in given.items() if v is not None and k not in fmt.options]
     if wrong:
         what = " and ".join("a second file" if k == "right" else k for k in wrong)
-        raise ValueError(f"{path}: {what} do(es) not apply to format '{name}' (it takes: "
+        verb = "does" if len(wrong) == 1 else "do"
+        raise ValueError(f"{path}: {what} {verb} not apply to format '{name}' (it takes: "
                          f"{', '.join(fmt.options) or 'no options'}).")
     return fmt
 

@@ -58,6 +58,13 @@ def _first_lines(path) -> list[bytes]:
         return [line.strip() for line, _ in zip(fh, range(SNIFF_LINES + 4), strict=False) if line.strip()]
 
 
+def is_comma_separated(path: str | os.PathLike) -> bool:
+    """Whether a text file's first line that is not a comment (``#``, ``%``) separates its values by commas: eDVS
+    text never does, so a file that detection took for eDVS text is a CSV of another column order."""
+    lines = [line for line in _first_lines(path) if not line.startswith((b"#", b"%"))]
+    return bool(lines) and b"," in lines[0]
+
+
 def sniff_metavision_csv(path: str | os.PathLike) -> bool:
     """Whether a text file is Metavision CSV (see the module's description of the rule)."""
     lines = _first_lines(path)

@@ -39,7 +39,7 @@ def test_a_new_format_is_one_table_entry(tmp_path, monkeypatch):
     np.testing.assert_array_equal(rec.left, ev)
     packets = list(cio.open_recording(path, resolution=(128, 128)).packets(1000))
     assert [p.left.size for p in packets] == [2]
-    with pytest.raises(ValueError, match=r"one_based do\(es\) not apply to format 'fake' \(it takes: resolution\)"):
+    with pytest.raises(ValueError, match=r"one_based does not apply to format 'fake' \(it takes: resolution\)"):
         cio.open_recording(path, one_based=True, resolution=(128, 128))
 
 

@@ -150,6 +150,17 @@ def test_csv_columns_option_names_line_and_geometry(tmp_path, blobs):
     code, _ = run_cli(["info", str(tmp_path / "l.csv"), str(tmp_path / "r.csv"), "--format", "metavision-csv",
                        "--columns", "t,p,x,y", "--resolution", "128x128"])
     assert code == 0
+    # Without --format: --columns (only Metavision CSV takes it) makes the comma-separated file, which detection
+    # alone takes for eDVS text (its first column is a time), the CSV it describes.
+    got = read_recording(tmp_path / "l.csv", tmp_path / "r.csv", columns="t,p,x,y", resolution=(128, 128))
+    np.testing.assert_array_equal(got.left, blobs.left)
+    code, _ = run_cli(["match", str(tmp_path / "l.csv"), str(tmp_path / "r.csv"), "--columns", "t,p,x,y",
+                       "--resolution", "128x128", "-o", str(tmp_path / "m.npz"), "--no-progress"])
+    assert code == 0
+    # eDVS text (space-separated) with --columns is still refused, in one sentence naming the option
+    (tmp_path / "e.txt").write_text("".join(f"{int(e['t'])} {e['x']} {e['y']} {e['p']}\n" for e in blobs.left[:50]))
+    with pytest.raises(ValueError, match=r"columns does not apply to format 'edvs-text'"):
+        read_recording(tmp_path / "e.txt", columns="t,x,y,p")
 
 
 def test_packets_stream_without_reading_whole_files(tmp_path, blobs):
