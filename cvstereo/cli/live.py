@@ -15,7 +15,7 @@ from cvstereo.cli._common import add_matcher_options, matcher_overrides
 from cvstereo.geometry.rig import THESIS_RIG
 from cvstereo.sensors.session import add_rig_arguments, end_finished_streams, open_rig, stop_on_signals
 
-__all__ = ["WARM_UP_EVENTS", "WARM_UP_SPAN_US", "add_parser", "compile_before_streaming", "run"]
+__all__ = ["add_parser", "run"]
 
 
 def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
@@ -35,30 +35,6 @@ def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
     return p
 
 
-#: Synthetic events a copy of the matcher runs on before the boards stream, and their time span, us.
-WARM_UP_EVENTS = 2_000
-WARM_UP_SPAN_US = 100_000
-
-
-def compile_before_streaming(matcher) -> None:
-    """Run a copy of ``matcher`` on a few synthetic events (both cameras) before the boards stream, so that its
-    compiled kernels are built or loaded from numba's cache then: otherwise the first packets wait for that
-    and the readers' queues fill meanwhile. ``matcher`` itself is left untouched."""
-    import copy
-
-    import numpy as np
-
-    from cvstereo.model.events import make_events
-
-    rng = np.random.default_rng(0)
-    width, height = matcher.resolution
-    t = np.sort(rng.integers(0, WARM_UP_SPAN_US, WARM_UP_EVENTS))
-    ev = make_events(t, rng.integers(0, width, t.size), rng.integers(0, height, t.size), rng.integers(0, 2, t.size))
-    twin = copy.deepcopy(matcher)
-    twin.feed(ev, ev, until=WARM_UP_SPAN_US)
-    twin.flush()
-
-
 def run(args: argparse.Namespace) -> int:
     from cvstereo.cli._common import parse_depth_option
     from cvstereo.geometry.depth import DepthModel
@@ -66,12 +42,13 @@ def run(args: argparse.Namespace) -> int:
     from cvstereo.sensors.live import run_live
 
     params = matcher_overrides(args)
+    # Built before the boards are opened: create_matcher has its kernels compiled or loaded by then, so that the
+    # first packets do not wait for them while the readers' queues fill.
     matcher = create_matcher(args.method, args.variant, param_set=args.param_set, **params)
     depth = (parse_depth_option(args.depth) if args.depth is not None else
              DepthModel.from_rig(focal_px=args.focal_px, baseline_m=args.baseline_m, offset_px=args.offset_px))
     from cvstereo.sensors.detect import ProtocolMismatchError
 
-    compile_before_streaming(matcher)
     with stop_on_signals() as stop, open_rig(args) as (rig, devices):
         stop.raise_if_set()  # stopped while the boards were opened: nothing to show
         rig.start()

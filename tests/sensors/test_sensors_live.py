@@ -236,22 +236,6 @@ def test_live_simulate_matches_every_event_and_prints_its_lag(tmp_path, rng, cap
     assert "0 late events dropped" in err[-3]
 
 
-def test_compiling_before_streaming_leaves_the_matcher_as_new(rng):
-    from cvstereo.cli.live import compile_before_streaming
-    from cvstereo.matchers.registry import create_matcher
-
-    left = camera(rng, 0.2, 5000)
-    right = left.copy()
-    right["x"] = np.clip(right["x"].astype(int) - 5, 0, 127)
-    warmed, fresh = create_matcher("frame"), create_matcher("frame")
-    compile_before_streaming(warmed)
-    assert warmed.watermark is None and warmed.input_events == 0 and not warmed.ended
-    got = [m.feed(left, right, until=200_000) for m in (warmed, fresh)]
-    got += [m.flush() for m in (warmed, fresh)]
-    np.testing.assert_array_equal(np.concatenate(got[0::2]), np.concatenate(got[1::2]))
-    assert sum(g.size for g in got) > 0
-
-
 class _ScriptedRig:
     """A rig double: hands out given packets (None: a wait that timed out), then nothing."""
 
