@@ -12,6 +12,7 @@ import json
 import sys
 
 from cvstereo.cli._common import add_matcher_options, matcher_overrides
+from cvstereo.cli._rerun import add_rerun_option, rerun_target
 from cvstereo.geometry.rig import THESIS_RIG
 from cvstereo.sensors.session import add_rig_arguments, end_finished_streams, open_rig, stop_on_signals
 
@@ -32,6 +33,7 @@ def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
     p.add_argument("--depth", nargs="+", default=None, metavar="A C | MODEL.json",
                    help="d = A/Z - C fitted by `cvstereo depth-fit`, as two numbers or its -o file (overrides the "
                    "three rig options above)")
+    add_rerun_option(p)
     return p
 
 
@@ -40,7 +42,10 @@ def run(args: argparse.Namespace) -> int:
     from cvstereo.geometry.depth import DepthModel
     from cvstereo.matchers.registry import create_matcher
     from cvstereo.sensors.live import run_live
+    from cvstereo.viz.rerun_log import rerun_stream
 
+    rerun = rerun_target(args)
+    plan = _output_plan(args, rerun)
     params = matcher_overrides(args)
     # Built before the boards are opened: create_matcher has its kernels compiled or loaded by then, so that the
     # first packets do not wait for them while the readers' queues fill.
@@ -49,7 +54,8 @@ def run(args: argparse.Namespace) -> int:
              DepthModel.from_rig(focal_px=args.focal_px, baseline_m=args.baseline_m, offset_px=args.offset_px))
     from cvstereo.sensors.detect import ProtocolMismatchError
 
-    with stop_on_signals() as stop, open_rig(args) as (rig, devices):
+    # The --rerun file is checked and a viewer started before the boards are opened; the file is published at the end.
+    with stop_on_signals() as stop, plan, rerun_stream(rerun) as viewer, open_rig(args) as (rig, devices):
         stop.raise_if_set()  # stopped while the boards were opened: nothing to show
         rig.start()
 
@@ -61,8 +67,9 @@ def run(args: argparse.Namespace) -> int:
             return (bool(devices) and all(d.done for d in devices) and all(c.silent for c in rig.cams)
                     and not rig.pending)
 
+        log = _rerun_log(args, viewer, matcher, depth)
         try:
-            stats = run_live(rig, matcher, depth=depth, seconds=args.seconds, stop=stop, done=done)
+            stats = run_live(rig, matcher, depth=depth, seconds=args.seconds, stop=stop, done=done, on_packet=log)
         except KeyboardInterrupt:
             stats = None
         rig.stop()
@@ -70,6 +77,8 @@ def run(args: argparse.Namespace) -> int:
     for cam in rig.cams:
         if isinstance(cam.error, ProtocolMismatchError):
             raise cam.error
+    if log is not None:
+        print(f"{log.packets} packets -> {rerun.path or 'the rerun viewer'}", file=sys.stderr)
     if stats is not None:
         s = stats.summary()
         print(f"behind real time: mean {s['lag_ms_mean']:.1f} ms, max {s['lag_ms_max']:.1f} ms; "
@@ -80,3 +89,31 @@ def run(args: argparse.Namespace) -> int:
         print(stats.lag.line(), file=sys.stderr)
         print(json.dumps({"summary": s, "status": status}, default=str), file=sys.stderr)
     return 0
+
+
+def _output_plan(args: argparse.Namespace, rerun):
+    """The files ``live`` reads (the ``--simulate`` recording, a ``--depth`` model) and the ``--rerun`` file it
+    writes (:class:`~cvstereo.io.output_plan.OutputPlan`): the file may be neither of them."""
+    from cvstereo.cli._common import depth_file
+    from cvstereo.geometry.depth_file import WHAT
+    from cvstereo.io.output_plan import RERUN_FILE, OutputPlan
+
+    plan = OutputPlan()
+    if rerun.path is None:
+        return plan  # nothing written: the inputs are checked where they are opened, as without the option
+    plan.read(args.simulate)
+    plan.read(depth_file(args), what=WHAT)
+    plan.write(rerun.path, RERUN_FILE, option="--rerun")
+    return plan
+
+
+def _rerun_log(args: argparse.Namespace, viewer, matcher, depth):
+    """``--rerun``: each packet and its matches for the viewer (:class:`cvstereo.viz.rerun_log.LiveLog`), the 3D
+    points with the rig's focal length; None without the option."""
+    if viewer is None:
+        return None
+    from cvstereo.geometry.pointcloud import Intrinsics
+    from cvstereo.viz.rerun_log import LiveLog
+
+    return LiveLog(viewer, matcher, depth=depth, intrinsics=Intrinsics.from_options(matcher.resolution,
+                                                                                   focal_px=args.focal_px))
