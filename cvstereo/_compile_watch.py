@@ -120,7 +120,9 @@ def compiled_path(matcher) -> tuple:
     parameters as they are (variant choices, flags), and its thread count (parallel kernels are compiled apart).
 
     Two matchers with the same path run the same kernels with the same argument types: preparing one prepares
-    both. Preparing per parameter value instead would run the clip again for every value a sweep tries.
+    both. The built-in matchers choose kernels by strings, flags and zeros only (a count such as fused's
+    ``sgm_paths`` is a kernel argument); preparing per parameter value instead would run the clip again for every
+    value a sweep tries.
     """
     params = matcher.params
     fields = [(f.name, _branch_value(getattr(params, f.name))) for f in dataclasses.fields(params)]
