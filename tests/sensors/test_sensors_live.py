@@ -236,6 +236,24 @@ def test_live_simulate_matches_every_event_and_prints_its_lag(tmp_path, rng, cap
     assert "0 late events dropped" in err[-3]
 
 
+def test_live_runs_a_matcher_that_cannot_be_deep_copied(tmp_path, rng, capsys):
+    """OpenCV's matcher objects cannot be deep-copied: its kernels are prepared through a rebuilt copy, and
+    ``live -m sgbm`` matches every event (8bbe163's own warm-up copy ended in a TypeError traceback)."""
+    import json
+
+    from cvstereo.cli import main
+
+    left = camera(rng, 0.3, 4000)
+    right = left.copy()
+    right["x"] = np.clip(right["x"].astype(int) - 6, 0, 127)
+    write_recording_npz(tmp_path / "src.npz", Recording(left, right))
+    assert main(["live", "--simulate", str(tmp_path / "src.npz"), "-m", "sgbm"]) == 0
+    err = capsys.readouterr().err
+    summary = json.loads(err.strip().splitlines()[-1])["summary"]
+    assert "Traceback" not in err and (summary["events_left"], summary["events_right"]) == (left.size, right.size)
+    assert summary["matches"] > 0
+
+
 class _ScriptedRig:
     """A rig double: hands out given packets (None: a wait that timed out), then nothing."""
 
