@@ -1,7 +1,7 @@
 """``cvstereo warm-up``: numba's compile cache filled for every method ahead of time.
 
-:mod:`cvstereo._compile_watch` makes each method's kernels ready at its first matcher in a process; on a new
-machine that first matcher still compiles them. :func:`warm_up` (``cvstereo warm-up``, run by ``make`` after
+:mod:`cvstereo._compile_watch` makes a matcher's kernels ready when it is built (once per process and compiled
+path); on a new machine that still compiles them. :func:`warm_up` (``cvstereo warm-up``, run by ``make`` after
 installing) builds each available method's default matcher under both parameter sets now, so that numba's
 cache holds every kernel and later processes only load them.
 """

@@ -160,6 +160,10 @@ MOMENTS = {
     "live-opening-boards": moment(f"live {SIM}", "call:cvstereo.sensors.stereo:StereoEDVS.__init__", INT),
     "live-matching": moment(f"live {SIM}", f"enter:cvstereo.matcher:StreamMatcher.feed:{FEEDS + 3}", INT, code=0,
                             err=("behind real time",)),
+    "live-rerun-opening-boards": moment(f"live {SIM} --rerun=r.rrd", "call:cvstereo.sensors.stereo:StereoEDVS.__init__",
+                                        TERM, absent=("r.rrd",)),
+    "live-rerun-matching": moment(f"live {SIM} --rerun=r.rrd", f"enter:cvstereo.matcher:StreamMatcher.feed:{FEEDS + 3}",
+                                  INT, code=0, out=("r.rrd",), err=("packets -> r.rrd",)),
     # --- match, video ----------------------------------------------------------------------------------------
     "match-first-import": moment("match src.npz -o m2.npz", "import:cvstereo.cli.info", TERM, absent=("m2.npz",)),
     "match-reading": moment("match src.npz -o m2.npz", "call:numpy:load", INT, absent=("m2.npz",)),

@@ -1,6 +1,6 @@
 """Hostile views (issue 26, items 4 and 6): time options on clocks far from 0, a recording's stored origin gone
-bad, colour-map names, video sizes and the ``--rerun`` output, each refused in one line naming the option or
-file, with no output left behind.
+bad, colour-map names, video sizes and the ``--rerun`` output (also ``live``'s), each refused in one line naming
+the option or file, with no output left behind.
 
 Cases run ``cvstereo.cli.main`` in-process (``tests/_hostile.py``); every failure message starts with its kind.
 """
@@ -96,6 +96,11 @@ CASES = {
     "video-rerun-is-the-input": case("video rec.npz -o v.mp4 --rerun=rec.npz", 1, "rec.npz", absent="v.mp4"),
     "video-rerun-is-the-video": case("video rec.npz -o v.mp4 --rerun=v.mp4", 1, "v.mp4", absent="v.mp4"),
     "match-rerun-into-a-folder": case("match rec.npz -o m2.npz --rerun=sub", 1, "sub", absent="m2.npz"),
+    # --- live --rerun: refused before the boards are opened ------------------------------------------------------
+    "live-rerun-wrong-suffix": case("live --simulate rec.npz --rerun=l.txt", 1, ("l.txt", ".rrd"), absent="l.txt"),
+    "live-rerun-is-the-simulated-recording": case("live --simulate rec.npz --rerun=rec.npz", 1, ("--rerun", "rec.npz")),
+    "live-rerun-into-a-folder": case("live --simulate rec.npz --rerun=sub", 1, "sub"),
+    "live-rerun-recording-missing": case("live --simulate nope.npz --rerun=l.rrd", 1, "nope.npz", absent="l.rrd"),
 }
 
 

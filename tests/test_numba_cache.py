@@ -8,6 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from cvstereo._numba_cache import can_write, fallback_cache_dir
 
 
@@ -125,13 +127,80 @@ def test_preparing_the_kernels_is_outside_the_reported_matching_time(monkeypatch
     cvs.match(clip, method="stereobm")  # its kernels in memory: the timed run below loads none
     calls = []
 
-    def slow(method, param_set, build):
-        calls.append((method, param_set))
+    def slow(matcher, group):
+        calls.append((group, matcher.param_set))
         time.sleep(1.0)
 
     monkeypatch.setattr(_compile_watch, "prepare", slow)
     result = cvs.match(clip, method="stereobm")
     assert calls == [("stereobm", "adaptive")] and result.meta["elapsed_s"] < 1.0
+
+
+_VARIANT = """
+import json
+from cvstereo.matchers._shared.sparse_frames import _mark_above
+from cvstereo.matchers.registry import create_matcher
+create_matcher("frame-area")  # the set's default, gaussian: it never calls _mark_above
+default = len(_mark_above.overloads)
+built = create_matcher("frame-area", "no-gaussian")
+print(json.dumps({"default": default, "variant": len(_mark_above.overloads), "fed": built.input_events}))
+"""
+
+
+def test_the_matchers_own_variant_is_prepared_before_create_matcher_returns():
+    """frame-area's no-gaussian variant runs a kernel (``sparse_frames._mark_above``) that the set's default does
+    not: in a fresh process, building the default leaves it unloaded, building the variant has it compiled or
+    loaded (a numba overload in memory) by the time create_matcher returns, the matcher itself unfed."""
+    done = subprocess.run([sys.executable, "-c", _VARIANT], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    got = json.loads(done.stdout.strip().splitlines()[-1])
+    assert got == {"default": 0, "variant": 1, "fed": 0}
+
+
+def test_preparing_leaves_the_matcher_as_built(monkeypatch):
+    """The prepared copy is fed, not the matcher: it comes back unfed and matches another clip as one built
+    without preparing; OpenCV's matcher, which cannot be deep-copied, is prepared through a rebuilt copy."""
+    from cvstereo import _compile_watch
+    from cvstereo.matchers.registry import create_matcher, matcher_class
+    from cvstereo.model.events import make_events
+
+    rng = np.random.default_rng(5)  # another clip than the preparing one
+    t = np.sort(rng.integers(0, 300_000, 8000))
+    x, y, p = rng.integers(10, 128, 8000), rng.integers(0, 128, 8000), rng.integers(0, 2, 8000)
+    left, right = make_events(t, x, y, p), make_events(t, x - 10, y, p)
+    twin = _compile_watch._twin
+    for method, variant in (("frame", "shared"), ("stereobm", None)):
+        monkeypatch.setattr(_compile_watch, "_PREPARED", set())  # as in a fresh process
+        runs = []
+        monkeypatch.setattr(_compile_watch, "_twin", lambda m, runs=runs: runs.append(m) or twin(m))
+        built = create_matcher(method, variant)
+        assert runs == [built]
+        assert (built.watermark, built.input_events, built.ended) == (None, 0, False)
+        plain = matcher_class(method)(built.params, resolution=built.resolution)
+        out = [np.concatenate([m.feed(left, right, until=300_000), m.flush()]) for m in (built, plain)]
+        np.testing.assert_array_equal(out[0], out[1])
+        assert out[0].size > 0
+
+
+def test_one_preparation_per_compiled_path(monkeypatch):
+    """A threshold's size is a kernel argument: a sweep over it prepares once. A scale of 0 switches the pace
+    off, and another variant or thread count may run other kernels: each is a path of its own."""
+    from cvstereo import _compile_watch
+    from cvstereo.matchers.registry import create_matcher
+
+    monkeypatch.setattr(_compile_watch, "_PREPARED", set())
+    prepared = []
+    twin = _compile_watch._twin
+    monkeypatch.setattr(_compile_watch, "_twin", lambda m: prepared.append(m) or twin(m))
+    made = [create_matcher("event-time", threshold_scale=s) for s in (2.0, 3.0, 4.0)]
+    assert prepared == made[:1]
+    paced_off = create_matcher("event-time", time_window_scale=0.0)
+    shared = create_matcher("event-time", "shared")
+    assert prepared == [made[0], paced_off, shared]
+    threaded = create_matcher("event-time")
+    threaded.threads = 2
+    assert _compile_watch.compiled_path(threaded) != _compile_watch.compiled_path(made[0])
+    assert _compile_watch.prepare(threaded, "event-time") and prepared[-1] is threaded
 
 
 def test_compilation_announced_once_per_group_and_timed_outermost(capsys):
@@ -166,7 +235,7 @@ def test_live_prepares_the_kernels_before_it_opens_the_sensors(monkeypatch, tmp_
     from tests._hostile import run_cli
 
     order = []
-    monkeypatch.setattr(_compile_watch, "prepare", lambda method, param_set, build: order.append(("prepare", method)))
+    monkeypatch.setattr(_compile_watch, "prepare", lambda matcher, group: order.append(("prepare", group)))
 
     def no_rig(args):
         order.append(("open", None))

@@ -12,10 +12,11 @@ import json
 import sys
 
 from cvstereo.cli._common import add_matcher_options, matcher_overrides
+from cvstereo.cli._rerun import add_rerun_option, rerun_target
 from cvstereo.geometry.rig import THESIS_RIG
 from cvstereo.sensors.session import add_rig_arguments, end_finished_streams, open_rig, stop_on_signals
 
-__all__ = ["WARM_UP_EVENTS", "WARM_UP_SPAN_US", "add_parser", "compile_before_streaming", "run"]
+__all__ = ["add_parser", "run"]
 
 
 def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
@@ -32,31 +33,8 @@ def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
     p.add_argument("--depth", nargs="+", default=None, metavar="A C | MODEL.json",
                    help="d = A/Z - C fitted by `cvstereo depth-fit`, as two numbers or its -o file (overrides the "
                    "three rig options above)")
+    add_rerun_option(p)
     return p
-
-
-#: Synthetic events a copy of the matcher runs on before the boards stream, and their time span, us.
-WARM_UP_EVENTS = 2_000
-WARM_UP_SPAN_US = 100_000
-
-
-def compile_before_streaming(matcher) -> None:
-    """Run a copy of ``matcher`` on a few synthetic events (both cameras) before the boards stream, so that its
-    compiled kernels are built or loaded from numba's cache then: otherwise the first packets wait for that
-    and the readers' queues fill meanwhile. ``matcher`` itself is left untouched."""
-    import copy
-
-    import numpy as np
-
-    from cvstereo.model.events import make_events
-
-    rng = np.random.default_rng(0)
-    width, height = matcher.resolution
-    t = np.sort(rng.integers(0, WARM_UP_SPAN_US, WARM_UP_EVENTS))
-    ev = make_events(t, rng.integers(0, width, t.size), rng.integers(0, height, t.size), rng.integers(0, 2, t.size))
-    twin = copy.deepcopy(matcher)
-    twin.feed(ev, ev, until=WARM_UP_SPAN_US)
-    twin.flush()
 
 
 def run(args: argparse.Namespace) -> int:
@@ -64,15 +42,20 @@ def run(args: argparse.Namespace) -> int:
     from cvstereo.geometry.depth import DepthModel
     from cvstereo.matchers.registry import create_matcher
     from cvstereo.sensors.live import run_live
+    from cvstereo.viz.rerun_log import rerun_stream
 
+    rerun = rerun_target(args)
+    plan = _output_plan(args, rerun)
     params = matcher_overrides(args)
+    # Built before the boards are opened: create_matcher has its kernels compiled or loaded by then, so that the
+    # first packets do not wait for them while the readers' queues fill.
     matcher = create_matcher(args.method, args.variant, param_set=args.param_set, **params)
     depth = (parse_depth_option(args.depth) if args.depth is not None else
              DepthModel.from_rig(focal_px=args.focal_px, baseline_m=args.baseline_m, offset_px=args.offset_px))
     from cvstereo.sensors.detect import ProtocolMismatchError
 
-    compile_before_streaming(matcher)
-    with stop_on_signals() as stop, open_rig(args) as (rig, devices):
+    # The --rerun file is checked and a viewer started before the boards are opened; the file is published at the end.
+    with stop_on_signals() as stop, plan, rerun_stream(rerun) as viewer, open_rig(args) as (rig, devices):
         stop.raise_if_set()  # stopped while the boards were opened: nothing to show
         rig.start()
 
@@ -84,8 +67,9 @@ def run(args: argparse.Namespace) -> int:
             return (bool(devices) and all(d.done for d in devices) and all(c.silent for c in rig.cams)
                     and not rig.pending)
 
+        log = _rerun_log(args, viewer, matcher, depth)
         try:
-            stats = run_live(rig, matcher, depth=depth, seconds=args.seconds, stop=stop, done=done)
+            stats = run_live(rig, matcher, depth=depth, seconds=args.seconds, stop=stop, done=done, on_packet=log)
         except KeyboardInterrupt:
             stats = None
         rig.stop()
@@ -93,6 +77,8 @@ def run(args: argparse.Namespace) -> int:
     for cam in rig.cams:
         if isinstance(cam.error, ProtocolMismatchError):
             raise cam.error
+    if log is not None:
+        print(f"{log.packets} packets -> {rerun.path or 'the rerun viewer'}", file=sys.stderr)
     if stats is not None:
         s = stats.summary()
         print(f"behind real time: mean {s['lag_ms_mean']:.1f} ms, max {s['lag_ms_max']:.1f} ms; "
@@ -103,3 +89,31 @@ def run(args: argparse.Namespace) -> int:
         print(stats.lag.line(), file=sys.stderr)
         print(json.dumps({"summary": s, "status": status}, default=str), file=sys.stderr)
     return 0
+
+
+def _output_plan(args: argparse.Namespace, rerun):
+    """The files ``live`` reads (the ``--simulate`` recording, a ``--depth`` model) and the ``--rerun`` file it
+    writes (:class:`~cvstereo.io.output_plan.OutputPlan`): the file may be neither of them."""
+    from cvstereo.cli._common import depth_file
+    from cvstereo.geometry.depth_file import WHAT
+    from cvstereo.io.output_plan import RERUN_FILE, OutputPlan
+
+    plan = OutputPlan()
+    if rerun.path is None:
+        return plan  # nothing written: the inputs are checked where they are opened, as without the option
+    plan.read(args.simulate)
+    plan.read(depth_file(args), what=WHAT)
+    plan.write(rerun.path, RERUN_FILE, option="--rerun")
+    return plan
+
+
+def _rerun_log(args: argparse.Namespace, viewer, matcher, depth):
+    """``--rerun``: each packet and its matches for the viewer (:class:`cvstereo.viz.rerun_log.LiveLog`), the 3D
+    points with the rig's focal length; None without the option."""
+    if viewer is None:
+        return None
+    from cvstereo.geometry.pointcloud import Intrinsics
+    from cvstereo.viz.rerun_log import LiveLog
+
+    return LiveLog(viewer, matcher, depth=depth, intrinsics=Intrinsics.from_options(matcher.resolution,
+                                                                                   focal_px=args.focal_px))

@@ -79,9 +79,10 @@ def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 
 
     ``param_set`` (:mod:`cvstereo.matchers.sets`): ``adaptive`` (default, thresholds relative to the recording's
     signal level, each method's best variant) or ``thesis`` (docs/algorithms.md's constants and default variants).
-    An explicit ``variant`` wins over the set's default variant; ``params`` override the set's values. The first
-    matcher of a built-in method in a process has its kernels compiled or loaded first
-    (:func:`cvstereo._compile_watch.prepare`), so that no caller times their compilation.
+    An explicit ``variant`` wins over the set's default variant; ``params`` override the set's values. A
+    built-in method's matcher has the kernels it runs compiled or loaded before it is returned (a copy of it run
+    on a small clip, once per process and compiled path: :func:`cvstereo._compile_watch.prepare`), so that no
+    caller times their compilation.
 
     Examples
     --------
@@ -91,16 +92,14 @@ def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 
     """
     variant, set_params = resolve(method, variant, param_set)
     cls = matcher_class(method)
-
+    matcher = cls.from_variant(variant, resolution=resolution, **{**set_params, **params})
+    matcher.param_set = param_set
     if method in BUILTIN_METHODS:
         from cvstereo import _compile_watch
 
-        # The set's default matcher on the built-in clip: its kernels compiled or loaded before any caller's clock.
-        default, default_params = resolve(method, None, param_set)
-        _compile_watch.prepare(method, param_set,
-                               lambda size: cls.from_variant(default, resolution=size, **default_params))
-    matcher = cls.from_variant(variant, resolution=resolution, **{**set_params, **params})
-    matcher.param_set = param_set
+        # A copy of this very matcher on the built-in clip: the kernels it runs compiled or loaded before any
+        # caller's clock (once per process and compiled path).
+        _compile_watch.prepare(matcher, method)
     return matcher
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -53,7 +53,8 @@ def _num(value: float, width: int, digits: int) -> str:
 
 def run_live(rig: StereoEDVS, matcher: StreamMatcher, *, depth: DepthModel | None = None,
              seconds: float | None = None, stop: threading.Event | None = None, out=sys.stdout,
-             update_s: float = UPDATE_S, done=None) -> LiveStats:
+             update_s: float = UPDATE_S, done=None,
+             on_packet: Callable[[StereoPacket, np.ndarray], None] | None = None) -> LiveStats:
     """Feed the rig's packets to ``matcher`` and print one status line per ``update_s``.
 
     The packets go through the library's one feed loop (:func:`cvstereo.run.run_iter`), read as they come and
@@ -62,7 +63,9 @@ def run_live(rig: StereoEDVS, matcher: StreamMatcher, *, depth: DepthModel | Non
     how far the newest matched event lies behind real time (host now minus its arrival-time mapped device
     time). The latency recorded per line is from the arrival of the newest event that produced a match to the
     line being printed. The run ends at ``stop``, after ``seconds`` or when ``done()`` says so; the matcher is
-    then flushed and its last matches counted.
+    then flushed and its last matches counted. ``on_packet(packet, matches)``, where given, sees every packet
+    with the matches its feed returned, right after the feed (``live --rerun`` logs them there:
+    :class:`cvstereo.viz.rerun_log.LiveLog`).
     """
     from cvstereo.run import run_iter
 
@@ -80,6 +83,8 @@ def run_live(rig: StereoEDVS, matcher: StreamMatcher, *, depth: DepthModel | Non
             stats.events[i] += ev.size
         # run_iter yields right after feeding this packet, before the next is taken from the rig.
         stats.lag.record(rig.packet_arrival_us, host_us())
+        if on_packet is not None:
+            on_packet(pkt, m)
         if m.size:
             recent.append(m["disparity"])
             stats.matches += m.size

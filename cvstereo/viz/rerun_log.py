@@ -1,6 +1,7 @@
 """``--rerun``: a recording and its matches in the rerun viewer, live or as an ``.rrd`` file (the ``rerun`` extra).
 
-One timeline, ``time``, counted from the recording's origin, one step per window. The entities:
+One timeline, ``time``: for a recording (``match``, ``video``) counted from its origin, one step per window; for
+``live``, the rig's clock, one step per packet (:class:`LiveLog`). The entities:
 
 =====================================  =========================================================================
 entity                                 what
@@ -38,7 +39,7 @@ from cvstereo.viz._images import (
 )
 from cvstereo.viz.colormaps import DISPARITY_CMAP, disparity_lut
 
-__all__ = ["APPLICATION_ID", "TIMELINE", "entity_paths", "log_windows", "rerun_stream"]
+__all__ = ["APPLICATION_ID", "TIMELINE", "LiveLog", "entity_paths", "log_step", "log_windows", "rerun_stream"]
 
 #: The application the recordings belong to in the viewer, and the name of their timeline.
 APPLICATION_ID, TIMELINE = "cvstereo", "time"
@@ -111,8 +112,6 @@ def log_windows(stream, recording: Recording, result=None, *, window_us: int | N
     int
         Windows logged.
     """
-    import rerun as rr
-
     from cvstereo.viz.disparity_plots import as_result, picture_window
 
     result = None if result is None else as_result(result)
@@ -128,28 +127,88 @@ def log_windows(stream, recording: Recording, result=None, *, window_us: int | N
         from cvstereo.geometry.pointcloud import Intrinsics
 
         intrinsics = Intrinsics.from_options(recording.resolution, rig=recording.meta.get("rig"))
-    res = recording.resolution
     for t0 in starts.tolist():
-        stream.set_time(TIMELINE, duration=(t0 - recording.origin_us) / 1e6)
-        for c in (0, 1):
-            ev = recording.events(c)[time_slice(recording.events(c), t0, t0 + window_us)]
-            colours = np.where((ev["p"] == 1)[:, None], np.array(ON_RGB, np.uint8), np.array(OFF_RGB, np.uint8))
-            stream.log(f"cameras/{CAMERA_NAMES[c]}/events",
-                       rr.Points2D(np.column_stack([ev["x"], ev["y"]]).astype(np.float32), colors=colours))
-        if result is None:
-            continue
-        m = result.matches[match_window_slice(result.matches, t0, t0 + window_us, anchor=anchor)]
-        for c in cams:
-            img = disparity_image(m, c, resolution=res)
-            stream.log(f"cameras/{CAMERA_NAMES[c]}/disparity", rr.Image(colorize(img, vmin, vmax, cmap=cmap)))
-            if depth is not None:
-                metres = np.asarray(depth.distance(img), np.float64)
-                # 0 is rerun's "no depth": pixels without a disparity, and disparities at or beyond infinity.
-                stream.log(f"cameras/{CAMERA_NAMES[c]}/depth",
-                           rr.DepthImage(np.where(np.isfinite(metres), metres, 0.0).astype(np.float32), meter=1.0))
-        if depth is not None:
-            _log_points(stream, m, depth, intrinsics, cmap, vmin, vmax)
+        events = tuple(recording.events(c)[time_slice(recording.events(c), t0, t0 + window_us)] for c in (0, 1))
+        m = None if result is None else result.matches[match_window_slice(result.matches, t0, t0 + window_us,
+                                                                          anchor=anchor)]
+        log_step(stream, (t0 - recording.origin_us) / 1e6, events, m, cameras=cams, resolution=recording.resolution,
+                 depth=depth, intrinsics=intrinsics, cmap=cmap, vmin=vmin, vmax=vmax)
     return int(starts.size)
+
+
+def log_step(stream, t_s: float, events: tuple[np.ndarray, np.ndarray], matches: np.ndarray | None = None, *,
+             cameras=(), resolution: tuple[int, int], depth=None, intrinsics=None, cmap: str = DISPARITY_CMAP,
+             vmin: float = 0.0, vmax: float = 1.0) -> None:
+    """Log one step of the timeline, at ``t_s`` s: the one logging of a window (:func:`log_windows`) and of a
+    live packet (:class:`LiveLog`), so that both show the same entities the same way.
+
+    Parameters
+    ----------
+    stream : rerun.RecordingStream
+    t_s : float
+        The step's time on the :data:`TIMELINE`, s.
+    events : (left, right) event arrays
+    matches : matches array, optional
+        Without it only the events are logged.
+    cameras : iterable of int, keyword-only
+        The anchor cameras whose disparity (and depth) images are logged.
+    resolution : (width, height), keyword-only
+    depth, intrinsics : keyword-only
+        The depth images need ``depth``, the 3D points ``depth`` and ``intrinsics``.
+    cmap, vmin, vmax : keyword-only
+        The disparity colours, fixed for the whole run.
+    """
+    import rerun as rr
+
+    stream.set_time(TIMELINE, duration=t_s)
+    for c, ev in enumerate(events):
+        colours = np.where((ev["p"] == 1)[:, None], np.array(ON_RGB, np.uint8), np.array(OFF_RGB, np.uint8))
+        stream.log(f"cameras/{CAMERA_NAMES[c]}/events",
+                   rr.Points2D(np.column_stack([ev["x"], ev["y"]]).astype(np.float32), colors=colours))
+    if matches is None:
+        return
+    for c in cameras:
+        img = disparity_image(matches, c, resolution=resolution)
+        stream.log(f"cameras/{CAMERA_NAMES[c]}/disparity", rr.Image(colorize(img, vmin, vmax, cmap=cmap)))
+        if depth is not None:
+            metres = np.asarray(depth.distance(img), np.float64)
+            # 0 is rerun's "no depth": pixels without a disparity, and disparities at or beyond infinity.
+            stream.log(f"cameras/{CAMERA_NAMES[c]}/depth",
+                       rr.DepthImage(np.where(np.isfinite(metres), metres, 0.0).astype(np.float32), meter=1.0))
+    if depth is not None and intrinsics is not None:
+        _log_points(stream, matches, depth, intrinsics, cmap, vmin, vmax)
+
+
+class LiveLog:
+    """``cvstereo live --rerun``: each packet of the live loop logged as it is matched (:func:`log_step`), at the
+    packet's end on the rig's clock (every event of it happened before), in s.
+
+    The colour range is the matcher's disparity range (``min_disparity`` or 0 to ``max_disparity``, else the
+    sensor's width): a live run has no whole run to take it from, and a colour must mean the same disparity
+    throughout. Call it with each packet and its matches (:func:`cvstereo.sensors.live.run_live`'s
+    ``on_packet``); :attr:`packets` counts the steps logged. A packet that ends where the last one did holds no
+    event (the rig's clock did not move); without matches it is not logged, since at the same time it would
+    replace the last packet's pictures with empty ones.
+    """
+
+    def __init__(self, stream, matcher, *, depth=None, intrinsics=None, cmap: str = DISPARITY_CMAP):
+        self.stream, self.depth, self.intrinsics, self.cmap = stream, depth, intrinsics, cmap
+        self.cameras = tuple(matcher.anchor_cameras())
+        self.resolution = tuple(matcher.resolution)
+        prm = matcher.params
+        self.vmin = float(getattr(prm, "min_disparity", 0))
+        self.vmax = float(getattr(prm, "max_disparity", self.resolution[0] - 1))
+        self.packets = 0
+        self._last_until: int | None = None
+
+    def __call__(self, packet, matches: np.ndarray) -> None:
+        if packet.until == self._last_until and not matches.size:
+            return
+        self._last_until = packet.until
+        log_step(self.stream, packet.until / 1e6, (packet.left, packet.right), matches, cameras=self.cameras,
+                 resolution=self.resolution, depth=self.depth, intrinsics=self.intrinsics, cmap=self.cmap,
+                 vmin=self.vmin, vmax=self.vmax)
+        self.packets += 1
 
 
 def _log_points(stream, matches: np.ndarray, depth, intrinsics, cmap: str, vmin: float, vmax: float) -> None:

@@ -3,8 +3,10 @@ colours, visible legend swatches, browser-playable videos that fit a screen, ``-
 
 from __future__ import annotations
 
+import json
 import re
 import sys
+from collections import Counter
 
 import numpy as np
 import pytest
@@ -334,3 +336,42 @@ def test_rerun_without_a_viewer_fails_before_any_work(dv_files, tmp_path, monkey
     assert err.count("\n") == 1
     assert "cannot start a rerun viewer (Failed to find Rerun Viewer executable in PATH)" in err
     assert "--rerun FILE.rrd" in err and list(tmp_path.iterdir()) == []
+
+
+def test_live_rerun_file_holds_every_packet(tmp_path, capsys):
+    """``live --simulate --rerun FILE``: rerun's own loader finds the live entities, one step per logged packet on
+    the rig's clock (times rising, within the recording), every event of both cameras once, and 3D points of
+    the matches."""
+    pytest.importorskip("rerun")
+    import pyarrow.compute as pc
+    from rerun.chunk import RrdReader
+
+    rng = np.random.default_rng(3)
+    n, span_us = 4000, 400_000
+    t = np.sort(rng.integers(0, span_us, n))
+    x, y, p = rng.integers(8, 128, n), rng.integers(0, 128, n), rng.integers(0, 2, n)
+    write_recording(tmp_path / "src.npz", Recording(make_events(t, x, y, p), make_events(t, x - 6, y, p)))
+    out = tmp_path / "live.rrd"
+    assert main(["live", "--simulate", str(tmp_path / "src.npz"), "-m", "event-time", "--rerun", str(out)]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    summary = json.loads(err[-1])["summary"]
+    packets = int(next(line for line in err if line.endswith(f"packets -> {out}")).split()[0])
+    rows, points, times = Counter(), Counter(), []
+    for chunk in RrdReader(str(out)).store().stream():
+        batch, path = chunk.to_record_batch(), chunk.entity_path
+        names = batch.schema.names
+        rows[path] += chunk.num_rows
+        for name in ("Points2D:positions", "Points3D:positions"):
+            if name in names:
+                points[path] += pc.sum(pc.list_value_length(batch.column(names.index(name)))).as_py() or 0
+        if path == "/cameras/left/events":
+            times += [v / 1e9 for v in batch.column(names.index("time")).cast("int64").to_pylist()]
+    live = {"/cameras/left/events", "/cameras/right/events", "/cameras/right/disparity", "/cameras/right/depth",
+            "/world/points"}  # event-time anchors its matches on the right camera
+    assert live <= set(rows) and {rows[e] for e in live} == {packets}
+    # 0.4 s played at its own speed: the rig hands out a packet at least every few tens of ms.
+    assert 5 <= packets <= n and len(times) == packets
+    assert np.all(np.diff(sorted(times)) > 0) and t[0] / 1e6 < min(times) and max(times) <= span_us / 1e6 + 1
+    assert points["/cameras/left/events"] == points["/cameras/right/events"] == n == summary["events_left"]
+    assert 0 < points["/world/points"] <= summary["matches"]
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["live.rrd", "src.npz"]

@@ -51,7 +51,6 @@ A third field, also off in the thesis set and on in ``adaptive``, keeps look-ali
 
 from __future__ import annotations
 
-import functools
 from typing import ClassVar
 
 import numpy as np
@@ -342,7 +341,8 @@ class EventTimeMatcher(StreamMatcher):
             threshold = self._level.thresholds(k)
             tolerance = self._level.relative(k, absolute=prm.value_tolerance, scale=prm.value_tolerance_scale)[ref]
             window = self._window(k)
-            gain = prm.value_gain(functools.partial(self._level.levels, k))
+            # The levels are asked only where D2 is scaled: absolute mode estimates no signal level otherwise.
+            gain = prm.value_gain(self._level.levels(k)) if prm.scales_values else 1.0
             for cam in (ref, 1 - ref):
                 a, b = runs[cam]
                 if b > a:

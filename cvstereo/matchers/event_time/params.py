@@ -125,12 +125,11 @@ class EventTimeParams(BorderParams, SignalLevelParams, DynamicFrameParams):
         """The factor D2 is multiplied by before the value test (``value_units``), given the cameras' levels
         in force (NaN while warming up): the reference camera's level over the other's, or 1.
 
-        ``levels`` may be a callable returning them, called only where they are needed: in absolute mode the
-        signal level is not otherwise estimated, and estimating it per window would cost every event."""
-        ref = self.reference_camera
+        Callers ask for it only where :attr:`scales_values` holds (1 otherwise): in absolute mode the signal
+        level is not otherwise estimated, and estimating it per window would cost every event."""
         if not self.scales_values:
             return 1.0
-        levels = levels() if callable(levels) else levels
+        ref = self.reference_camera
         mine, other = float(levels[ref]), float(levels[1 - ref])
         return mine / other if np.isfinite(mine) and np.isfinite(other) and other > 0 else 1.0
 

@@ -77,7 +77,7 @@ def _in_force_by_window(prm: EventTimeParams, events, values) -> tuple[dict, dic
     threshold, tolerance, window, gain = {}, {}, {}, {}
     for k in windows:
         threshold[k] = level.thresholds(k)
-        gain[k] = prm.value_gain(level.levels(k))
+        gain[k] = prm.value_gain(level.levels(k)) if prm.scales_values else 1.0
         tolerance[k] = level.relative(k, absolute=prm.value_tolerance, scale=prm.value_tolerance_scale)[ref]
         # The other camera's pace: its events are the candidates.
         window[k] = int(pace.relative(k, absolute=prm.time_window_us, scale=prm.time_window_scale,
