@@ -59,7 +59,7 @@ class _Watch:
 
 _WATCH = _Watch()
 _REGISTERED = False
-_PREPARED: set[tuple[str, str]] = set()
+_PREPARED: set[tuple[str, str, bool]] = set()
 
 
 def _module_group(module: str) -> str:
@@ -106,16 +106,19 @@ def tiny_clip():
     return Recording(make_events(t, x, y, p), make_events(right_t, x - CLIP_SHIFT_PX, y, p), resolution=CLIP_SIZE)
 
 
-def prepare(method: str, param_set: str, build: Callable[[tuple[int, int]], object]) -> bool:
+def prepare(method: str, param_set: str, build: Callable[[tuple[int, int]], object], *, parallel: bool = False) -> bool:
     """Compile (or load from the cache) the kernels of ``method`` under ``param_set``, once per process, by feeding
     :func:`tiny_clip` to ``build(resolution)`` (a new matcher of the clip's size) and flushing it.
+
+    ``parallel``: ``build`` gives a matcher of more than one thread, whose parallel kernels are compiled apart
+    from the serial ones (docs/guide.md, "Threads"), so each path is prepared once.
 
     Returns
     -------
     bool
         True when this call ran the clip, False when the process had prepared them already.
     """
-    key = (method, param_set)
+    key = (method, param_set, parallel)
     if key in _PREPARED:
         return False
     _PREPARED.add(key)

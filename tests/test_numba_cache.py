@@ -125,7 +125,7 @@ def test_preparing_the_kernels_is_outside_the_reported_matching_time(monkeypatch
     cvs.match(clip, method="stereobm")  # its kernels in memory: the timed run below loads none
     calls = []
 
-    def slow(method, param_set, build):
+    def slow(method, param_set, build, parallel=False):
         calls.append((method, param_set))
         time.sleep(1.0)
 
@@ -166,7 +166,8 @@ def test_live_prepares_the_kernels_before_it_opens_the_sensors(monkeypatch, tmp_
     from tests._hostile import run_cli
 
     order = []
-    monkeypatch.setattr(_compile_watch, "prepare", lambda method, param_set, build: order.append(("prepare", method)))
+    monkeypatch.setattr(_compile_watch, "prepare",
+                        lambda method, param_set, build, parallel=False: order.append(("prepare", method)))
 
     def no_rig(args):
         order.append(("open", None))

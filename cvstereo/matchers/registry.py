@@ -74,7 +74,7 @@ def available_methods() -> list[str]:
 
 
 def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 128), param_set: str = "adaptive",
-                   **params) -> StreamMatcher:
+                   threads: int | None = None, **params) -> StreamMatcher:
     """Build a matcher by name, variant, parameter set and parameter overrides.
 
     ``param_set`` (:mod:`cvstereo.matchers.sets`): ``adaptive`` (default, thresholds relative to the recording's
@@ -83,12 +83,19 @@ def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 
     matcher of a built-in method in a process has its kernels compiled or loaded first
     (:func:`cvstereo._compile_watch.prepare`), so that no caller times their compilation.
 
+    ``threads`` (:attr:`StreamMatcher.threads <cvstereo.matchers.protocol.StreamMatcher.threads>`): the threads
+    it may run on, a whole number >= 1; default :func:`cvstereo._threads.default_threads` (the cores this process
+    may use). The matches do not depend on it (docs/guide.md, "Threads").
+
     Examples
     --------
     >>> m = create_matcher("frame", "separate", width_tolerance=0.25)
     >>> m.params.polarity, m.params.width_tolerance
     ('separate', 0.25)
     """
+    from cvstereo._threads import check_threads, default_threads
+
+    threads = default_threads() if threads is None else check_threads(threads)  # refused before any compiling
     variant, set_params = resolve(method, variant, param_set)
     cls = matcher_class(method)
 
@@ -97,10 +104,15 @@ def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 
 
         # The set's default matcher on the built-in clip: its kernels compiled or loaded before any caller's clock.
         default, default_params = resolve(method, None, param_set)
-        _compile_watch.prepare(method, param_set,
-                               lambda size: cls.from_variant(default, resolution=size, **default_params))
+        def build(size):
+            twin = cls.from_variant(default, resolution=size, **default_params)
+            twin.threads = threads
+            return twin
+
+        _compile_watch.prepare(method, param_set, build, parallel=threads > 1)
     matcher = cls.from_variant(variant, resolution=resolution, **{**set_params, **params})
     matcher.param_set = param_set
+    matcher.threads = threads
     return matcher
 
 
