@@ -30,11 +30,15 @@ from collections.abc import Iterator
 
 import numba
 
-__all__ = ["MAX_THREADS", "THREADS_ENV", "available_cores", "check_threads", "default_threads", "pool_size",
-           "threading_layer", "using_threads"]
+__all__ = ["MAX_THREADS", "NOT_A_PARAMETER", "THREADS_ENV", "available_cores", "check_threads", "default_threads",
+           "pool_size", "threading_layer", "using_threads"]
 
 #: The environment variable that sets the default of ``threads`` (read once, at the first use).
 THREADS_ENV = "CVSTEREO_THREADS"
+
+#: Said where ``threads`` is given as a matcher parameter (it is not one: the matches do not depend on it).
+NOT_A_PARAMETER = ("threads is not a matcher parameter: give --threads N on the command line, or threads=N to "
+                   "create_matcher / match")
 
 #: The largest ``threads`` taken: beyond any machine's cores, so a larger value is a mistake (a matcher may split
 #: its work into that many pieces).

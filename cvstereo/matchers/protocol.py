@@ -20,7 +20,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numba import njit
 
-from cvstereo._threads import check_threads, using_threads
+from cvstereo._threads import NOT_A_PARAMETER, check_threads, using_threads
 from cvstereo.errors import EventFormatError, StreamEndedError
 from cvstereo.matchers._shared.border import border_rule_for
 from cvstereo.matchers.constraints import (
@@ -209,7 +209,8 @@ class StreamMatcher(abc.ABC):
         unknown = sorted(set(overrides) - fields)
         if unknown:
             raise ValueError(
-                f"unknown parameter(s) {', '.join(unknown)}; {cls.Params.__name__} has: {', '.join(sorted(fields))}."
+                f"unknown parameter(s) {', '.join(unknown)}; {cls.Params.__name__} has: {', '.join(sorted(fields))}"
+                + (f" ({NOT_A_PARAMETER})." if "threads" in unknown else ".")
             )
         params = cls.Params(**{**cls.variants[variant], **overrides})
         if not isinstance(cls.Params, DeclaredParams):

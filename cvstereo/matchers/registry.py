@@ -188,7 +188,10 @@ def _field_named(params_cls: type, key: str) -> str:
     field = aliases[key].name if key in aliases else key
     names = [f.name for f in dataclasses.fields(params_cls)]
     if field not in names:
-        raise ValueError(f"unknown parameter '{key}'; allowed: {', '.join(sorted(names))}.")
+        from cvstereo._threads import NOT_A_PARAMETER
+
+        raise ValueError(f"unknown parameter '{key}'; allowed: {', '.join(sorted(names))}"
+                         + (f" ({NOT_A_PARAMETER})." if key == "threads" else "."))
     return field
 
 
