@@ -111,7 +111,7 @@ def prepare(method: str, param_set: str, build: Callable[[tuple[int, int]], obje
     :func:`tiny_clip` to ``build(resolution)`` (a new matcher of the clip's size) and flushing it.
 
     ``parallel``: ``build`` gives a matcher of more than one thread, whose parallel kernels are compiled apart
-    from the serial ones (docs/guide.md, "Threads"), so each path is prepared once.
+    from the serial ones (docs/guide/threads.md), so each path is prepared once.
 
     Returns
     -------

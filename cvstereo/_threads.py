@@ -3,7 +3,7 @@
 One knob, ``threads=N`` (:func:`cvstereo.matchers.registry.create_matcher`, :func:`cvstereo.match`, ``--threads N``),
 sets both thread pools a matcher may use while it runs, numba's (parallel kernels) and OpenCV's (StereoBM, SGBM),
 and restores them after: :func:`using_threads`, which :class:`~cvstereo.matchers.protocol.StreamMatcher` enters
-around every ``feed`` and ``flush``. The matches do not depend on it (docs/guide.md, "Threads").
+around every ``feed`` and ``flush``. The matches do not depend on it (docs/guide/threads.md).
 
 Default (:func:`default_threads`): the cores this process may use, or the environment variable
 ``CVSTEREO_THREADS`` (read once, at the first use), which the test suite sets to 1 so that its workers do not

@@ -120,7 +120,7 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
     param_set : {"adaptive", "thesis"}, keyword-only
         :mod:`cvstereo.matchers.sets`; recorded in meta under ``param_set``.
     threads : int, optional, keyword-only
-        Threads the matcher may run on (default: the cores this process may use; docs/guide.md, "Threads"). The
+        Threads the matcher may run on (default: the cores this process may use; docs/guide/threads.md). The
         matches do not depend on it, so it is not recorded in meta.
     **params
         Parameter overrides (field names of the method's parameter dataclass, or their old names), on top of the

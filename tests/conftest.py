@@ -19,7 +19,7 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "deterministic"))
 REPO = Path(__file__).resolve().parent.parent
 
 # One thread per matcher in the test workers (pytest-xdist runs one per core already): the library reads its
-# default of ``threads`` from this variable once, at the first matcher (docs/guide.md, "Threads"). Tests of the
+# default of ``threads`` from this variable once, at the first matcher (docs/guide/threads.md). Tests of the
 # parallel paths give ``threads=`` themselves. Set before any test imports cvstereo; a value set outside wins.
 os.environ.setdefault("CVSTEREO_THREADS", "1")
 

@@ -85,7 +85,7 @@ def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 
 
     ``threads`` (:attr:`StreamMatcher.threads <cvstereo.matchers.protocol.StreamMatcher.threads>`): the threads
     it may run on, a whole number >= 1; default :func:`cvstereo._threads.default_threads` (the cores this process
-    may use). The matches do not depend on it (docs/guide.md, "Threads").
+    may use). The matches do not depend on it (docs/guide/threads.md).
 
     Examples
     --------
