@@ -166,17 +166,16 @@ def using_threads(threads: int) -> Iterator[None]:
     running = min(threads, pool_size())
     restores = []
     cv2 = sys.modules.get("cv2")
-    if cv2 is not None:
-        before_cv = cv2.getNumThreads()
+    if cv2 is not None and (before_cv := cv2.getNumThreads()) != running:  # unchanged: nothing to restore
         cv2.setNumThreads(running)
         restores.append(lambda: cv2.setNumThreads(before_cv))
     turns = contextlib.nullcontext()
     if threads > 1:
         if _choose_layer() == "workqueue":
             turns = _WORKQUEUE_TURNS
-        before = numba.get_num_threads()
-        numba.set_num_threads(running)
-        restores.append(lambda: numba.set_num_threads(before))
+        if (before := numba.get_num_threads()) != running:
+            numba.set_num_threads(running)
+            restores.append(lambda: numba.set_num_threads(before))
     try:
         with turns:
             yield
