@@ -111,11 +111,18 @@ def default_threads() -> int:
 
 
 def _preload_tbb() -> None:
-    """Load the ``tbb`` wheel's runtime by its path, so that numba's ``tbbpool`` finds it (by its soname)."""
-    path = os.path.join(sys.prefix, "lib", _TBB_LIBRARY)
-    if sys.platform.startswith("linux") and os.path.exists(path):
-        with contextlib.suppress(OSError):
-            ctypes.CDLL(path, mode=ctypes.RTLD_GLOBAL)
+    """Load the ``tbb`` wheel's runtime by its path (an environment's or a ``--user`` install's lib folder), so
+    that numba's ``tbbpool`` finds it by its soname."""
+    import site
+
+    if not sys.platform.startswith("linux"):
+        return
+    for base in (sys.prefix, site.getuserbase()):
+        path = os.path.join(base, "lib", _TBB_LIBRARY)
+        if os.path.exists(path):
+            with contextlib.suppress(OSError):
+                ctypes.CDLL(path, mode=ctypes.RTLD_GLOBAL)
+                return
 
 
 def _loadable(module: str) -> bool:
