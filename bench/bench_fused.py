@@ -330,11 +330,20 @@ def fan_section() -> str:
     return "\n".join(lines)
 
 
+def dense_346x260():
+    """The speed recording at 346x260: two arms at 50 cm, thresholds x BIG_THRESHOLD_K, about 1 M events/s (cached;
+    bench/bench_threads.py times it too)."""
+    from cvstereo.simulate import ArmsScene, simulate
+    from cvstereo.simulate.rig import Rig
+
+    return _sim(f"arms-346x260-thr{BIG_THRESHOLD_K}-{SECONDS}s", lambda: simulate(
+        ArmsScene(arms=2, distance_m=0.5), rig=dense_rig(Rig(resolution=(346, 260), focal_px=446.0), BIG_THRESHOLD_K),
+        seconds=SECONDS, seed=0))
+
+
 def speed_section(quick: bool) -> str:
     from cvstereo.io.npz import read_recording_npz
-    from cvstereo.simulate import ArmsScene, simulate
     from cvstereo.simulate.presets import cached_preset
-    from cvstereo.simulate.rig import Rig
 
     lines = ["## Speed (one core, CPU time: runs until two agree within 10 %, cvstereo.benchmark.timing; "
              "load average of the machine's 2 cores before -> after beside; the 346x260 "
@@ -342,9 +351,7 @@ def speed_section(quick: bool) -> str:
              "| recording | events/s of the recording | x real time on CPU time (wall) | runs, load |",
              "|---|---:|---:|---:|"]
     rec = read_recording_npz(cached_preset("2arms-50cm", seconds=SECONDS))
-    big = _sim(f"arms-346x260-thr{BIG_THRESHOLD_K}-{SECONDS}s", lambda: simulate(
-        ArmsScene(arms=2, distance_m=0.5), rig=dense_rig(Rig(resolution=(346, 260), focal_px=446.0), BIG_THRESHOLD_K),
-        seconds=SECONDS, seed=0))
+    big = dense_346x260()
     for name, r in (("2arms-50cm", rec), ("2 arms 346x260", big)):
         walls = []
 

@@ -8,6 +8,7 @@ line per variant: ``method/variant sha256``. Run it before and after a change an
 
     python bench/hash_matches.py > before.txt
     python bench/hash_matches.py --check before.txt
+    python bench/hash_matches.py --check before.txt --threads 1    # and on one thread, and on 3
 
 The committed ``bench/results/matches_hashes.txt`` pins the ``thesis`` set. The ``adaptive`` set changes on
 purpose when its defaults are tuned, so its hashes are only compared before and after a refactor that must
@@ -24,14 +25,15 @@ from calibration_free import available_methods, match, matcher_class
 from cvstereo.simulate import simulate_preset
 
 
-def matches_hashes(seconds: float = 2.0, seed: int = 0, param_set: str = "thesis") -> dict[str, str]:
+def matches_hashes(seconds: float = 2.0, seed: int = 0, param_set: str = "thesis",
+                   threads: int | None = None) -> dict[str, str]:
     """``method/variant`` -> sha256 of the matches array's bytes, for every installed method, under
-    ``param_set``."""
+    ``param_set``, on ``threads`` (None: the library's default, the cores; the hashes must not depend on it)."""
     rec = simulate_preset("2arms-50cm", seconds=seconds, seed=seed)
     out = {}
     for method in available_methods():
         for variant in matcher_class(method).variants:
-            result = match(rec, method=method, variant=variant, param_set=param_set)
+            result = match(rec, method=method, variant=variant, param_set=param_set, threads=threads)
             out[f"{method}/{variant}"] = hashlib.sha256(result.matches.tobytes()).hexdigest()
     return out
 
@@ -42,8 +44,10 @@ def main(argv=None) -> int:
     parser.add_argument("--param-set", choices=("thesis", "adaptive"), default="thesis",
                         help="parameter set of every run (default: thesis, which the committed file pins)")
     parser.add_argument("--check", metavar="FILE", help="compare with the lines of an earlier run")
+    parser.add_argument("--threads", type=int, default=None, metavar="N",
+                        help="threads of every matcher (default: the cores); the hashes are the same on any number")
     args = parser.parse_args(argv)
-    hashes = matches_hashes(args.seconds, param_set=args.param_set)
+    hashes = matches_hashes(args.seconds, param_set=args.param_set, threads=args.threads)
     lines = [f"{label} {digest}" for label, digest in hashes.items()]
     print("\n".join(lines))
     if args.check:

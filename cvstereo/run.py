@@ -81,7 +81,8 @@ def _windows_of(t: np.ndarray, first: int, last: int) -> list[int]:
 def match(recording, right=None, *, method: str = "frame", variant: str | None = None,
           packet_us: int = DEFAULT_PACKET_US, progress: bool = False, row_offset: float = 0,
           time_offset_us: int = 0, rectification=None, param_set: str = "adaptive", columns: str | None = None,
-          time_unit: str | None = None, resolution: tuple[int, int] | None = None, **params) -> MatchResult:
+          time_unit: str | None = None, resolution: tuple[int, int] | None = None, threads: int | None = None,
+          **params) -> MatchResult:
     """Run one matcher over a recording, streaming it packet by packet.
 
     Parameters
@@ -118,6 +119,9 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         ``rectification``. Not together with ``row_offset`` / ``time_offset_us``.
     param_set : {"adaptive", "thesis"}, keyword-only
         :mod:`cvstereo.matchers.sets`; recorded in meta under ``param_set``.
+    threads : int, optional, keyword-only
+        Threads the matcher may run on (default: the cores this process may use; docs/guide/threads.md). The
+        matches do not depend on it, so it is not recorded in meta.
     **params
         Parameter overrides (field names of the method's parameter dataclass, or their old names), on top of the
         set's values.
@@ -155,7 +159,8 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
 
         source = [os.fspath(recording)] + ([os.fspath(right)] if right is not None else [])
         stream, total = open_recording(recording, right), None
-    matcher = create_matcher(method, variant, resolution=stream.resolution, param_set=param_set, **params)
+    matcher = create_matcher(method, variant, resolution=stream.resolution, param_set=param_set, threads=threads,
+                             **params)
     correction = None
     if row_offset or time_offset_us:
         from cvstereo.geometry.rigcorrect import RigCorrection

@@ -2,8 +2,9 @@
 
 :mod:`cvstereo._compile_watch` makes a matcher's kernels ready when it is built (once per process and compiled
 path); on a new machine that still compiles them. :func:`warm_up` (``cvstereo warm-up``, run by ``make`` after
-installing) builds each available method's default matcher under both parameter sets now, so that numba's
-cache holds every kernel and later processes only load them.
+installing) builds each available method's default matcher under both parameter sets now, on one thread and on
+two (the serial and the parallel kernels: docs/guide/threads.md), so that numba's cache holds every kernel and
+later processes only load them.
 """
 
 from __future__ import annotations
@@ -16,6 +17,8 @@ __all__ = ["COMPILE_MESSAGE", "PARAM_SETS", "compile_seconds", "warm_up"]
 
 #: The parameter sets whose default variants are warmed (docs/algorithms.md).
 PARAM_SETS = ("adaptive", "thesis")
+#: The thread counts warmed: one (the serial kernels) and more than one (the parallel ones).
+_THREAD_COUNTS = (1, 2)
 
 
 def warm_up(methods: Iterable[str] | None = None, param_sets: Iterable[str] = PARAM_SETS, *,
@@ -41,7 +44,8 @@ def warm_up(methods: Iterable[str] | None = None, param_sets: Iterable[str] = PA
     for method in available_methods() if methods is None else methods:
         for param_set in param_sets:
             before = compile_seconds()
-            create_matcher(method, param_set=param_set)  # which prepares its kernels (see the module's text)
+            for threads in _THREAD_COUNTS:  # create_matcher prepares its kernels (see the module's text)
+                create_matcher(method, param_set=param_set, threads=threads)
             if on_method is not None:
                 on_method(method, param_set, compile_seconds() - before)
     return compile_seconds() - start

@@ -18,6 +18,11 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "deterministic"))
 
 REPO = Path(__file__).resolve().parent.parent
 
+# One thread per matcher in the test workers (pytest-xdist runs one per core already): the library reads its
+# default of ``threads`` from this variable once, at the first matcher (docs/guide/threads.md). Tests of the
+# parallel paths give ``threads=`` themselves. Set before any test imports cvstereo; a value set outside wins.
+os.environ.setdefault("CVSTEREO_THREADS", "1")
+
 # The signal cases stand for a user pressing Ctrl-C in a terminal. A shell that starts a job in the background
 # (`make test &`, a CI runner's non-interactive job) ignores SIGINT for it, every process it starts inherits
 # the ignored disposition, and the commands under test would then rightly go on running. The suite restores

@@ -15,6 +15,7 @@ agree (:mod:`cvstereo.benchmark.timing`).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import importlib.util
 import os
@@ -75,7 +76,9 @@ class BenchConfig:
         Run the distance fit.
     workers : int or None
         Worker processes for the accuracy cells (:func:`cvstereo.sweep.run_sweep`): None, one per core
-        (in this process when Dask is not installed); 0, in this process without Dask.
+        (in this process when Dask is not installed); 0, in this process without Dask. One thread per cell.
+    threads : int
+        Threads of the speed and memory cells' matchers (1: every figure is one core's).
     """
 
     quick: bool = False
@@ -83,6 +86,7 @@ class BenchConfig:
     shared: Path | None = None
     distance: bool = True
     workers: int | None = None
+    threads: int = 1
 
     @property
     def preset_seconds(self) -> float | None:
@@ -208,8 +212,8 @@ def accuracy_cells(recordings: dict[str, Path], combos: list[Combo], *, workers:
                       for name, figures in by_name.items()} for c, by_name in experiment.figures.items()}
 
 
-def speed_cells(recording: Recording, combos: list[Combo]) -> dict[str, dict]:
-    """Speed and peak memory of each combo on ``recording``, in this process, one after another.
+def speed_cells(recording: Recording, combos: list[Combo], *, threads: int = 1) -> dict[str, dict]:
+    """Speed and peak memory of each combo on ``recording``, in this process, one after another, on ``threads``.
 
     Memory is sampled on one run; the time is the matcher's own (``elapsed_s``), repeated until two runs
     agree within 10 % (:func:`cvstereo.benchmark.timing.measure`), with the load average before and after.
@@ -217,7 +221,8 @@ def speed_cells(recording: Recording, combos: list[Combo]) -> dict[str, dict]:
     out = {}
     for c in combos:
         def run(c=c):
-            return match(recording, method=c.method, variant=c.variant, param_set=c.param_set, **dict(c.params))
+            return match(recording, method=c.method, variant=c.variant, param_set=c.param_set, threads=threads,
+                         **dict(c.params))
         with PeakMemory() as mem:
             first = run()
         timing = measure(lambda run=run: run().meta["elapsed_s"])
@@ -251,7 +256,7 @@ def warm_up(combos: list[Combo]) -> dict[str, float]:
     seconds = {}
     for combo in combos:
         start = time.perf_counter()
-        match(tiny, method=combo.method, variant=combo.variant, param_set=combo.param_set)
+        match(tiny, method=combo.method, variant=combo.variant, param_set=combo.param_set, threads=1)
         seconds[combo.label] = time.perf_counter() - start
     return seconds
 
@@ -286,7 +291,7 @@ def run_bench(config: BenchConfig, *, progress: bool = True, log: Callable[[str]
         from cvstereo.io import read_recording
 
         log("speed and memory: on 2arms-50cm in this process, one cell after another ...")
-        speed = speed_cells(read_recording(sims["2arms-50cm"]), combos)
+        speed = speed_cells(read_recording(sims["2arms-50cm"]), combos, threads=config.threads)
 
     results = {
         "machine": machine_info(),
@@ -296,6 +301,7 @@ def run_bench(config: BenchConfig, *, progress: bool = True, log: Callable[[str]
         "skipped": skipped,
         "compile_s": compile_s,
         "workers": config.workers,
+        "threads": config.threads,
         "runs": runs,
         "speed": speed_table(combos, speed),
         "real": {c.label: {n: runs[c.label][n]["within_1px"] for n in reals} for c in combos} if reals else {},
@@ -343,26 +349,19 @@ def distance_table(combos: list[Combo], runs: dict, dists: dict[float, Recording
 def machine_info() -> dict:
     """What the benchmark ran on."""
     import cv2
+    import numba
 
     import cvstereo
+    from cvstereo._threads import available_cores, threading_layer
 
     info = {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count(),
-            "processor": platform.processor() or platform.machine(), "numpy": np.__version__,
-            "opencv": cv2.__version__, "cvstereo": cvstereo.__version__,
+            "cores_usable": available_cores(), "processor": platform.processor() or platform.machine(),
+            "numpy": np.__version__, "opencv": cv2.__version__, "numba": numba.__version__,
+            "numba_threading_layer": threading_layer(), "cvstereo": cvstereo.__version__,
             "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}
-    try:
-        import numba
-
-        info["numba"] = numba.__version__
-    except ImportError:
-        pass
-    try:
-        with open("/proc/cpuinfo") as fh:
-            names = [line.split(":", 1)[1].strip() for line in fh if line.startswith("model name")]
-        if names:
-            info["processor"] = names[0]
-    except OSError:
-        pass
+    with contextlib.suppress(OSError), open("/proc/cpuinfo") as fh:  # the CPU's name, where Linux tells it
+        info["processor"] = next((line.split(":", 1)[1].strip() for line in fh if line.startswith("model name")),
+                                 info["processor"])
     return info
 
 
@@ -382,7 +381,7 @@ def bench_markdown(results: dict) -> str:
         f"Presets: {cfg['preset_seconds']:g} s each{' (--quick)' if cfg['quick'] else ''}; extra scenes "
         f"{cfg['extra_seconds']:g} s. Accuracy cells ran on the sweep engine "
         f"({_workers_text(results.get('workers'))}); "
-        "speed and memory in one process afterwards, alone, single-threaded where the library allows."
+        f"speed and memory in one process afterwards, alone, threads={results.get('threads', 1)}."
         + (f" Not installed, so not run: {', '.join(results['skipped'])}." if results.get("skipped") else ""),
         "",
         "## Accuracy against ground truth, beside the thesis' mean/std",

@@ -99,6 +99,46 @@ def add_matcher_options(parser: argparse.ArgumentParser, *, what: str = "matcher
                    "method's best variant; thesis: the thesis' constants and default variants, as published")
     g.add_argument("-p", "--param", action="append", default=[], metavar="KEY=VALUE",
                    help="override a parameter (repeatable); names as in --list-methods")
+    add_threads_option(g)
+
+
+def add_threads_option(parser, *, default: str = "the cores this process may use") -> None:
+    """``--threads N``: the threads a matcher runs on (:mod:`cvstereo._threads`); read by :func:`matcher_threads`."""
+    parser.add_argument("--threads", default=None, metavar="N",
+                        help=f"threads the matcher runs on: numba's and OpenCV's (default: {default}); the matches "
+                        "do not depend on it")
+
+
+def matcher_threads(args: argparse.Namespace, *, default: int | None = None) -> int | None:
+    """``--threads`` checked (a whole number from 1 to :data:`cvstereo._threads.MAX_THREADS`), or ``default`` when
+    not given (None: the library's, the cores this process may use).
+
+    More threads than the process has cores are taken, with a note on stderr: numba's and OpenCV's pools run at
+    most numba's pool size (the cores unless ``NUMBA_NUM_THREADS`` says otherwise), and the matches are the same.
+
+    Raises
+    ------
+    ValueError
+        Not a whole number from 1 to ``MAX_THREADS`` (one line naming ``--threads``).
+    """
+    import sys
+
+    from cvstereo._threads import MAX_THREADS, available_cores, pool_size
+
+    if args.threads is None:
+        return default
+    text = str(args.threads).strip()
+    try:
+        threads = int(text)
+    except ValueError:
+        threads = 0
+    if not (text.isascii() and text.lstrip("+").isdigit()) or not 1 <= threads <= MAX_THREADS:
+        raise ValueError(f"--threads {args.threads}: give a whole number of threads from 1 to {MAX_THREADS} "
+                         f"({available_cores()} cores here).")
+    if threads > pool_size():
+        print(f"note: --threads {threads}: this process runs at most {pool_size()} threads at once (its cores); "
+              "the work is split as asked, the matches are the same.", file=sys.stderr)
+    return threads
 
 
 def matcher_overrides(args: argparse.Namespace) -> dict:

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from cvstereo.cli._common import add_progress_option, progress_wanted
+from cvstereo.cli._common import add_progress_option, add_threads_option, matcher_threads, progress_wanted
 
 __all__ = ["add_parser", "run"]
 
@@ -28,6 +28,7 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
                    "0: in this process). Speed and memory are measured afterwards in this process, alone")
     p.add_argument("--shared", default=None,
                    help="shared data folder with data/tum-stereo (default: $CVSTEREO_SHARED or ../shared)")
+    add_threads_option(p, default="1, every figure one core's; the accuracy cells run on one thread each")
     add_progress_option(p)
     return p
 
@@ -35,6 +36,7 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 0:
         raise ValueError(f"--workers {args.workers}: give 0 (in this process) or a positive number of workers.")
+    threads = matcher_threads(args, default=1)
     import cv2
 
     from cvstereo.benchmark.harness import RESULT_FILES, BenchConfig, run_bench, write_results
@@ -44,11 +46,11 @@ def run(args: argparse.Namespace) -> int:
     plan = OutputPlan()
     plan.write_folder(args.output, RESULT_FILES, ANY_FILE)
 
-    # Speed is reported per core: OpenCV would otherwise spread its kernels over every CPU.
+    # OpenCV's own work outside the matchers (which set it for themselves: --threads) stays on one core.
     cv2.setNumThreads(1)
     config = BenchConfig(quick=args.quick, methods=tuple(args.methods) if args.methods else None,
                          shared=shared_folder(args.shared), distance=not args.no_distance,
-                         workers=args.workers)
+                         workers=args.workers, threads=threads)
     with plan:  # the folder checked before the long run; both files published together
         results = run_bench(config, progress=progress_wanted(args), log=lambda msg: print(msg, file=sys.stderr))
         json_path, md_path = write_results(results, Path(args.output))

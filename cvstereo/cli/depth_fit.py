@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 
-from cvstereo.cli._common import add_matcher_options, matcher_overrides, naming
+from cvstereo.cli._common import add_matcher_options, matcher_overrides, matcher_threads, naming
 from cvstereo.cli._text import number
 
 __all__ = ["add_parser", "run"]
@@ -46,6 +46,7 @@ def run(args: argparse.Namespace) -> int:
 
     points = [_point(p) for p in args.points]
     overrides = matcher_overrides(args)  # before any file is read or matched
+    args.threads = matcher_threads(args)
     if len({z for _, z in points}) < 2:
         raise ValueError("give files at two or more different distances (d = a/Z - c has two unknowns).")
     plan = OutputPlan()
@@ -87,7 +88,7 @@ def _median_disparity(path: str, z: float, args: argparse.Namespace, overrides: 
             from cvstereo.run import match
 
             disparity = match(read_recording(path), method=args.method, variant=args.variant,
-                              param_set=args.param_set, **overrides).disparity
+                              param_set=args.param_set, threads=args.threads, **overrides).disparity
     if disparity.size == 0:
         raise ValueError(f"{path}: no matches, so no disparity to fit; try another --method.")
     return path, z, float(np.median(disparity)), int(disparity.size)

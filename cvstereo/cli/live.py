@@ -11,7 +11,7 @@ import argparse
 import json
 import sys
 
-from cvstereo.cli._common import add_matcher_options, matcher_overrides
+from cvstereo.cli._common import add_matcher_options, matcher_overrides, matcher_threads
 from cvstereo.cli._rerun import add_rerun_option, rerun_target
 from cvstereo.geometry.rig import THESIS_RIG
 from cvstereo.sensors.session import add_rig_arguments, end_finished_streams, open_rig, stop_on_signals
@@ -49,7 +49,8 @@ def run(args: argparse.Namespace) -> int:
     params = matcher_overrides(args)
     # Built before the boards are opened: create_matcher has its kernels compiled or loaded by then, so that the
     # first packets do not wait for them while the readers' queues fill.
-    matcher = create_matcher(args.method, args.variant, param_set=args.param_set, **params)
+    matcher = create_matcher(args.method, args.variant, param_set=args.param_set,
+                             threads=matcher_threads(args), **params)
     depth = (parse_depth_option(args.depth) if args.depth is not None else
              DepthModel.from_rig(focal_px=args.focal_px, baseline_m=args.baseline_m, offset_px=args.offset_px))
     from cvstereo.sensors.detect import ProtocolMismatchError

@@ -30,6 +30,7 @@ from cvstereo.cli._common import (
     conflicts_as_usage_errors,
     format_options,
     matcher_overrides,
+    matcher_threads,
     open_recording_stream,
     parse_depth_option,
     progress_wanted,
@@ -97,6 +98,7 @@ def run(args: argparse.Namespace) -> int:
     if args.focal_px is not None and args.point_cloud is None:
         args._parser.error("--focal-px is the point cloud's focal length: give --point-cloud FILE.ply with it")
     overrides = matcher_overrides(args)  # method, variant and values, before reading a possibly long recording
+    threads = matcher_threads(args)
     require_range(args.packet_us, "--packet-us", gt=0)
     if args.time_offset_us is not None and abs(args.time_offset_us) > MAX_TIME_OFFSET_US:
         raise ValueError(f"--time-offset-us must be within +-{MAX_TIME_OFFSET_US:,} us (a day), got "
@@ -133,7 +135,8 @@ def run(args: argparse.Namespace) -> int:
         prepared = geometry.prepare(stream)
         result = record_geometry(match(prepared, method=args.method, variant=args.variant,
                                        progress=progress_wanted(args), packet_us=args.packet_us or DEFAULT_PACKET_US,
-                                       param_set=args.param_set, **geometry.match_kwargs(), **overrides), geometry)
+                                       param_set=args.param_set, threads=threads, **geometry.match_kwargs(),
+                                       **overrides), geometry)
         result.meta["format_options"] = {k: list(v) if isinstance(v, tuple) else v
                                          for k, v in format_options(args).items()}
         if args.point_cloud is not None:

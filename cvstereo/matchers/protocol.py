@@ -20,6 +20,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numba import njit
 
+from cvstereo._threads import NOT_A_PARAMETER, check_threads, using_threads
 from cvstereo.errors import EventFormatError, StreamEndedError
 from cvstereo.matchers._shared.border import border_rule_for
 from cvstereo.matchers.constraints import (
@@ -112,11 +113,26 @@ class StreamMatcher(abc.ABC):
         Variant name -> parameter values it sets (docs/formats.md's variant names; the first is the default).
     anchor : {"event", "window"}
         Where matches are anchored (docs/formats.md).
+    threads : int
+        Threads the matcher may run on (numba's and OpenCV's, :mod:`cvstereo._threads`): a whole number >= 1,
+        1 unless set (:func:`~cvstereo.matchers.registry.create_matcher` sets the cores here). Not a parameter:
+        the matches do not depend on it, so it is in neither ``params`` nor the matches' meta.
     """
 
     Params: ClassVar[type]
     variants: ClassVar[dict[str, dict[str, Any]]]
     anchor: ClassVar[str] = "event"
+    #: Backs :attr:`threads`: one thread unless set, the serial kernels.
+    _threads: int = 1
+
+    @property
+    def threads(self) -> int:
+        """Threads of numba's and OpenCV's pools while this matcher runs (:func:`cvstereo._threads.using_threads`)."""
+        return self._threads
+
+    @threads.setter
+    def threads(self, value) -> None:
+        self._threads = check_threads(value)
 
     def __init__(self, params=None, *, resolution: tuple[int, int] = DEFAULT_RESOLUTION):
         if params is None:
@@ -193,7 +209,8 @@ class StreamMatcher(abc.ABC):
         unknown = sorted(set(overrides) - fields)
         if unknown:
             raise ValueError(
-                f"unknown parameter(s) {', '.join(unknown)}; {cls.Params.__name__} has: {', '.join(sorted(fields))}."
+                f"unknown parameter(s) {', '.join(unknown)}; {cls.Params.__name__} has: {', '.join(sorted(fields))}"
+                + (f" ({NOT_A_PARAMETER})." if "threads" in unknown else ".")
             )
         params = cls.Params(**{**cls.variants[variant], **overrides})
         if not isinstance(cls.Params, DeclaredParams):
@@ -242,7 +259,8 @@ class StreamMatcher(abc.ABC):
         self.input_events += left.size + right.size
         if lasts:
             self.watermark = max(lasts) if self.watermark is None else max(self.watermark, *lasts)
-        return self._bordered(self._feed(left, right))
+        with using_threads(self._threads):
+            return self._bordered(self._feed(left, right))
 
     def _bordered(self, matches: np.ndarray) -> np.ndarray:
         return matches if self._border is None else self._border(matches)
@@ -282,7 +300,8 @@ class StreamMatcher(abc.ABC):
         if self.ended:
             return empty_matches()
         self.ended = True
-        return self._bordered(self._flush())
+        with using_threads(self._threads):
+            return self._bordered(self._flush())
 
     @abc.abstractmethod
     def _feed(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:

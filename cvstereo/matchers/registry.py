@@ -74,7 +74,7 @@ def available_methods() -> list[str]:
 
 
 def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 128), param_set: str = "adaptive",
-                   **params) -> StreamMatcher:
+                   threads: int | None = None, **params) -> StreamMatcher:
     """Build a matcher by name, variant, parameter set and parameter overrides.
 
     ``param_set`` (:mod:`cvstereo.matchers.sets`): ``adaptive`` (default, thresholds relative to the recording's
@@ -84,16 +84,24 @@ def create_matcher(method: str, variant: str | None = None, *, resolution=(128, 
     on a small clip, once per process and compiled path: :func:`cvstereo._compile_watch.prepare`), so that no
     caller times their compilation.
 
+    ``threads`` (:attr:`StreamMatcher.threads <cvstereo.matchers.protocol.StreamMatcher.threads>`): the threads
+    it may run on, a whole number >= 1; default :func:`cvstereo._threads.default_threads` (the cores this process
+    may use). The matches do not depend on it (docs/guide/threads.md).
+
     Examples
     --------
     >>> m = create_matcher("frame", "separate", width_tolerance=0.25)
     >>> m.params.polarity, m.params.width_tolerance
     ('separate', 0.25)
     """
+    from cvstereo._threads import check_threads, default_threads
+
+    threads = default_threads() if threads is None else check_threads(threads)  # refused before any compiling
     variant, set_params = resolve(method, variant, param_set)
     cls = matcher_class(method)
     matcher = cls.from_variant(variant, resolution=resolution, **{**set_params, **params})
     matcher.param_set = param_set
+    matcher.threads = threads  # before the preparation: parallel kernels are compiled apart from the serial ones
     if method in BUILTIN_METHODS:
         from cvstereo import _compile_watch
 
@@ -175,7 +183,10 @@ def _field_named(params_cls: type, key: str) -> str:
     field = aliases[key].name if key in aliases else key
     names = [f.name for f in dataclasses.fields(params_cls)]
     if field not in names:
-        raise ValueError(f"unknown parameter '{key}'; allowed: {', '.join(sorted(names))}.")
+        from cvstereo._threads import NOT_A_PARAMETER
+
+        raise ValueError(f"unknown parameter '{key}'; allowed: {', '.join(sorted(names))}"
+                         + (f" ({NOT_A_PARAMETER})." if key == "threads" else "."))
     return field
 
 

@@ -130,8 +130,9 @@ def run_cell(cell: Cell, score: Score | None = None, recording: Recording | None
         from cvstereo.run import match
 
         extra = {"param_set": cell.param_set} if cell.param_set else {}
+        # One thread per cell: cells run side by side, one per worker process (docs/guide/threads.md).
         result = match(cell.recording if recording is None else recording, method=cell.method,
-                       variant=cell.variant, **extra, **dict(cell.params))
+                       variant=cell.variant, threads=1, **extra, **dict(cell.params))
         if recording is None:
             recording = read_recording(cell.recording)
         figures = evaluate(recording, result)
