@@ -8,7 +8,7 @@ from _event_scenes import feed_cut, moving_edges
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cvstereo.matchers.fused._kernels import median_of
+from cvstereo.matchers.fused._answers import median_of
 from cvstereo.matchers.fused.matcher import FusedMatcher
 from cvstereo.matchers.fused.params import FusedParams
 from cvstereo.matchers.fused.reference import fused_reference

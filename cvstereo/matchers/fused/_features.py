@@ -11,14 +11,15 @@ evaluated in the same order as in :mod:`cvstereo.matchers.fused.reference` (bit-
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
+
+from cvstereo.matchers.fused._parallel import COLUMN_BLOCK, serial_and_parallel
 
 #: "Never saw an event" in the last-event-time arrays.
 NEVER = np.int64(-(2**62))
 
 
-@njit(cache=True, nogil=True)
-def window_masks(x, y, p, last_left, t_recent, path_radius, counts, active, recent):
+def _window_masks(x, y, p, last_left, t_recent, path_radius, counts, active, recent):
     """The left camera's per-pixel inputs of a window, written into caller-owned arrays.
 
     Parameters
@@ -45,9 +46,10 @@ def window_masks(x, y, p, last_left, t_recent, path_radius, counts, active, rece
     counts[:] = 0
     for i in range(x.size):
         counts[p[i], y[i], x[i]] += 1
-    # Dilation of the event pixels by a (2r+1)^2 square, separably: a row pass, then a column pass over it.
+    # Dilation of the event pixels by a (2r+1)^2 square, separably: a row pass (rows in parallel), then a column
+    # pass over it (column blocks in parallel).
     rows = np.zeros((h, w), np.bool_)
-    for yy in range(h):
+    for yy in prange(h):
         reach = -1  # the last column the most recent event pixel of this row reaches
         for xx in range(min(path_radius, w)):
             if counts[0, yy, xx] + counts[1, yy, xx] > 0:
@@ -64,19 +66,26 @@ def window_masks(x, y, p, last_left, t_recent, path_radius, counts, active, rece
     # The column pass row by row, every column's reach at once (contiguous selects that vectorise; a walk down
     # each column in turn was a strided, branchy loop).
     n_active = 0
-    reach_col = np.full(w, -1, np.int64)  # per column: the last row its latest row-pass pixel so far reaches
-    for yy in range(min(path_radius, h)):
-        for xx in range(w):
-            reach_col[xx] = yy + path_radius if rows[yy, xx] else reach_col[xx]
-    for yy in range(h):
-        ahead = yy + path_radius
-        if ahead < h:
-            for xx in range(w):
-                reach_col[xx] = ahead + path_radius if rows[ahead, xx] else reach_col[xx]
-        for xx in range(w):
-            active[yy, xx] = reach_col[xx] >= yy
-            n_active += reach_col[xx] >= yy
+    for b in prange((w + COLUMN_BLOCK - 1) // COLUMN_BLOCK):
+        x0, x1 = b * COLUMN_BLOCK, min((b + 1) * COLUMN_BLOCK, w)
+        reach_col = np.full(x1 - x0, -1, np.int64)  # per column: the last row its latest row-pass pixel reaches
+        for yy in range(min(path_radius, h)):
+            for xx in range(x0, x1):
+                reach_col[xx - x0] = yy + path_radius if rows[yy, xx] else reach_col[xx - x0]
+        n_block = 0
+        for yy in range(h):
+            ahead = yy + path_radius
+            if ahead < h:
+                for xx in range(x0, x1):
+                    reach_col[xx - x0] = ahead + path_radius if rows[ahead, xx] else reach_col[xx - x0]
+            for xx in range(x0, x1):
+                active[yy, xx] = reach_col[xx - x0] >= yy
+                n_block += reach_col[xx - x0] >= yy
+        n_active += n_block
     return n_active
+
+
+window_masks, window_masks_parallel = serial_and_parallel(_window_masks)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -107,8 +116,7 @@ def _gather_add(src, dst, radius):
         _add_to(dst[lo:hi], src[lo + dx:hi + dx])
 
 
-@njit(cache=True, nogil=True)
-def surface_features(t, x, y, p, last, t_end, tau, radius, ts, rows, out):
+def _surface_features(t, x, y, p, last, t_end, tau, radius, ts, rows, out):
     """Update a camera's last-event times with a window's events; write its support-summed time surfaces.
 
     Parameters
@@ -130,8 +138,9 @@ def surface_features(t, x, y, p, last, t_end, tau, radius, ts, rows, out):
             last[pi, yi, xi] = t[i]
     _, h, w = last.shape
     surf = out if radius == 0 else ts
+    # Rows in parallel (in the parallel build): each row's values depend on nothing another row's pass writes.
     for c in range(2):
-        for yy in range(h):
+        for yy in prange(h):
             for xx in range(w):
                 age = t_end - last[c, yy, xx]
                 v = 1.0 - float(age) / float(tau)
@@ -141,15 +150,18 @@ def surface_features(t, x, y, p, last, t_end, tau, radius, ts, rows, out):
     # Separable: sums along the row first, then of those along the column (the reference's order), each
     # gathered with its terms in ascending order as the reference adds them: contiguous loops that vectorise.
     for c in range(2):
-        for yy in range(h):
+        for yy in prange(h):
             _gather_add(ts[c, yy], rows[c, yy], radius)
     for c in range(2):
-        for yy in range(h):
+        for yy in prange(h):
             acc = out[c, yy]
             y_lo = max(yy - radius, 0)
             _copy_to(acc, rows[c, y_lo])  # the first term (see _gather_add)
             for y2 in range(y_lo + 1, min(yy + radius + 1, h)):
                 _add_to(acc, rows[c, y2])
+
+
+surface_features, surface_features_parallel = serial_and_parallel(_surface_features)
 
 
 @njit(cache=True, nogil=True)

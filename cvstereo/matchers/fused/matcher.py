@@ -97,15 +97,27 @@ from __future__ import annotations
 from typing import ClassVar
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from cvstereo.frames.windows import FrameMatcher, Window
 from cvstereo.matchers.fused._constants import CONSISTENT_MAX_UNCERTAINTY, LR_PENALTY, RECENT_WINDOWS
-from cvstereo.matchers.fused._features import NEVER, divide, nonzero_values, surface_features, window_masks
-from cvstereo.matchers.fused._kernels import match_features
+from cvstereo.matchers.fused._features import (
+    NEVER,
+    divide,
+    nonzero_values,
+    surface_features_parallel,
+    window_masks_parallel,
+)
+from cvstereo.matchers.fused._features import surface_features as surface_features_serial
+from cvstereo.matchers.fused._features import window_masks as window_masks_serial
+from cvstereo.matchers.fused._kernels import KernelScratch, kernel_params, match_features, match_features_parallel
+from cvstereo.matchers.fused._parallel import chunk_count, chunks_for, serial_and_parallel
 from cvstereo.matchers.fused.params import BORDER_MIN_ANSWERS, PRIOR_MAX_UNCERTAINTY, FusedParams
 from cvstereo.matchers.fused.signal import level_of
 from cvstereo.model.matches import MATCH_DTYPE
+
+#: Planes of the kernel's per-pixel storage: path sums, costs, column paths from below (KernelScratch).
+KERNEL_PLANES = 3
 
 __all__ = ["FusedMatcher", "Scratch", "WindowState", "finish_window", "occluded", "unpartnered"]
 
@@ -150,8 +162,7 @@ def occluded(x, y, disparity, uncertainty, margin, support):
     return out
 
 
-@njit(cache=True, nogil=True)
-def unpartnered(x, y, disparity, uncertainty, rows):
+def _unpartnered(x, y, disparity, uncertainty, rows, chunks):
     """The partner test (design part 10): which answers lie where their true partner is outside the right image.
 
     Parameters
@@ -160,6 +171,9 @@ def unpartnered(x, y, disparity, uncertainty, rows):
         The answers, as for :func:`occluded`.
     rows : int
         ``border_rows``: the band of rows ``y - rows .. y + rows`` whose answers give a row's disparity.
+    chunks : int
+        The rows are split into this many chunks (in parallel in the parallel build; the result does not depend
+        on it).
 
     Returns
     -------
@@ -177,27 +191,32 @@ def unpartnered(x, y, disparity, uncertainty, rows):
         start[y[i] + 1] += 1
     for yy in range(h):
         start[yy + 1] += start[yy]
-    vals = np.empty(m)
-    for yy in range(h):
-        if start[yy] == start[yy + 1]:
-            continue
-        c = 0
-        for i in range(start[max(yy - rows, 0)], start[min(yy + rows + 1, h)]):
-            if uncertainty[i] <= CONSISTENT_MAX_UNCERTAINTY:
-                vals[c] = disparity[i]
-                c += 1
-        if c < BORDER_MIN_ANSWERS:
-            continue
-        band = np.sort(vals[:c])
-        d = band[c // 2] if c % 2 else (band[c // 2 - 1] + band[c // 2]) / 2.0
-        for i in range(start[yy], start[yy + 1]):
-            out[i] = x[i] < d
+    n_chunks = chunk_count(h, chunks)
+    for ch in prange(n_chunks):  # every n_chunks-th row: a share of the busy rows for each chunk
+        vals = np.empty(m)
+        for yy in range(ch, h, n_chunks):
+            if start[yy] == start[yy + 1]:
+                continue
+            c = 0
+            for i in range(start[max(yy - rows, 0)], start[min(yy + rows + 1, h)]):
+                if uncertainty[i] <= CONSISTENT_MAX_UNCERTAINTY:
+                    vals[c] = disparity[i]
+                    c += 1
+            if c < BORDER_MIN_ANSWERS:
+                continue
+            band = np.sort(vals[:c])
+            d = band[c // 2] if c % 2 else (band[c // 2 - 1] + band[c // 2]) / 2.0
+            for i in range(start[yy], start[yy + 1]):
+                out[i] = x[i] < d
     return out
 
 
+unpartnered, unpartnered_parallel = serial_and_parallel(_unpartnered)
+
+
 @njit(cache=True, nogil=True)
-def finish_window(t_end, x, y, pol, disparity, uncertainty, max_uncertainty, margin, support, border_rows, prior,
-                  prior_x, prior_y):
+def finish_window(t_end, x, y, pol, disparity, uncertainty, outside, max_uncertainty, margin, support, prior, prior_x,
+                  prior_y):
     """What follows the kernel, in loops over its answers: the next window's prior (the answers of uncertainty at
     most ``min(max_uncertainty, PRIOR_MAX_UNCERTAINTY)`` before the occlusion test, design part 9), the occlusion
     test (when ``margin >= 0``) and the matches kept. Numpy's dozen calls for the same (masks, fancy indexing, a
@@ -209,6 +228,8 @@ def finish_window(t_end, x, y, pol, disparity, uncertainty, max_uncertainty, mar
         The window's end: the matches' time stamp.
     x, y, pol : (M,) int ndarrays; disparity, uncertainty : (M,) float64 ndarrays
         The kernel's answers (:func:`~cvstereo.matchers.fused._kernels.match_features`), raster order.
+    outside : (M,) bool ndarray
+        The answers the partner test flags (:func:`unpartnered`; all False without the test).
     max_uncertainty, margin, support
         ``max_uncertainty``, ``occlusion_margin`` and ``occlusion_support``.
     prior : (H, W) float64 ndarray
@@ -227,7 +248,6 @@ def finish_window(t_end, x, y, pol, disparity, uncertainty, max_uncertainty, mar
     for i in range(prior_x.size):
         prior[prior_y[i], prior_x[i]] = np.nan
     m = x.size
-    outside = unpartnered(x, y, disparity, uncertainty, border_rows) if border_rows >= 0 else np.zeros(m, np.bool_)
     prior_cut = min(max_uncertainty, PRIOR_MAX_UNCERTAINTY)
     n_prior = 0
     for i in range(m):
@@ -288,11 +308,18 @@ class WindowState:
             return self.prior
         return self._no_prior
 
-    def settle(self, t_end: int, answers: tuple, prm: FusedParams) -> tuple[np.ndarray, np.ndarray]:
-        """A window's matches and their uncertainties from the kernel's answers (:func:`finish_window`); keeps its
-        answers before the occlusion test as the next window's prior."""
-        matches, uncertainty, px, py = finish_window(t_end, *answers, prm.max_uncertainty, prm.occlusion_margin,
-                                                     prm.occlusion_support, prm.border_rows, self.prior,
+    def settle(self, t_end: int, answers: tuple, prm: FusedParams, threads: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """A window's matches and their uncertainties from the kernel's answers (:func:`finish_window`, after the
+        partner test on ``threads`` threads); keeps its answers before the occlusion test as the next window's
+        prior."""
+        x, y, _, disparity, uncertainty = answers
+        if prm.border_rows >= 0:
+            partner_test = unpartnered_parallel if threads > 1 else unpartnered
+            outside = partner_test(x, y, disparity, uncertainty, prm.border_rows, chunks_for(threads))
+        else:
+            outside = np.zeros(x.size, np.bool_)
+        matches, uncertainty, px, py = finish_window(t_end, *answers, outside, prm.max_uncertainty,
+                                                     prm.occlusion_margin, prm.occlusion_support, self.prior,
                                                      *self._prior_at)
         self._prior_at = (px, py)
         self.prior_end = t_end
@@ -319,18 +346,21 @@ class Scratch:
         self.counts = np.empty((2, h, w), np.int64)
         self.active = np.empty((h, w), np.bool_)
         self.recent = np.empty((h, w), np.bool_)
-        # Path vectors: disparity d at column d + 1, between columns of inf (_fused_kernel._row_pass).
-        self.rowbuf = tuple(np.zeros((rows, n_disparities + 2), np.float32) for rows in (2 * w + 1, 3))
-        for path in self.rowbuf:
+        # Path vectors: disparity d at column d + 1, between columns of inf (KernelScratch).
+        cols, vecs = (np.zeros((rows, n_disparities + 2), np.float32) for rows in (2 * w + 1, 3))
+        for path in (cols, vecs):
             path[:, 0] = path[:, -1] = np.inf
-        self.planes = (np.zeros((h, 2, w + n_disparities), np.float32), np.empty((h, w), np.int64))
-        self.work = np.empty((2, 0, n_disparities), np.float32)
+        self.kernel = KernelScratch(np.empty((KERNEL_PLANES, 0, n_disparities), np.float32), cols, vecs,
+                                    np.zeros((h, 2, w + n_disparities), np.float32), np.empty((h, w), np.int64))
 
-    def work_for(self, n_active: int) -> np.ndarray:
-        """Path-sum and cost storage for ``n_active`` pixels (grown by doubling, never shrunk)."""
-        if n_active > self.work.shape[1]:
-            self.work = np.empty((2, max(n_active, 2 * self.work.shape[1]), self.nd), np.float32)
-        return self.work
+    def kernel_for(self, n_active: int) -> KernelScratch:
+        """The kernel's scratch with path-sum, cost and column-path storage for ``n_active`` pixels (grown by
+        doubling, never shrunk)."""
+        work = self.kernel.work
+        if n_active > work.shape[1]:
+            work = np.empty((KERNEL_PLANES, max(n_active, 2 * work.shape[1]), self.nd), np.float32)
+            self.kernel = self.kernel._replace(work=work)
+        return self.kernel
 
 
 class FusedMatcher(FrameMatcher):
@@ -359,6 +389,7 @@ class FusedMatcher(FrameMatcher):
         self._state = WindowState(self.resolution)
         self._uncertainty: list[np.ndarray] = []
         self._scratch = Scratch(self.resolution, self.params.max_disparity + 1)
+        self._kernel_params = kernel_params(self.params)
 
     def anchor_cameras(self) -> tuple[int, ...]:
         return (0,)
@@ -377,6 +408,9 @@ class FusedMatcher(FrameMatcher):
 
     def match_window(self, window: Window) -> np.ndarray:
         prm, state, buf = self.params, self._state, self._scratch
+        threads = getattr(self, "threads", 1)
+        surface_features, window_masks = ((surface_features_parallel, window_masks_parallel) if threads > 1 else
+                                          (surface_features_serial, window_masks_serial))
         for cam, ev in enumerate((window.left, window.right)):
             f = buf.features[cam]
             surface_features(ev["t"], ev["x"], ev["y"], ev["p"], state.last[cam], window.t_end, prm.tau_us,
@@ -388,12 +422,10 @@ class FusedMatcher(FrameMatcher):
         n_active = window_masks(left["x"], left["y"], left["p"], state.last[0],
                                 window.t_end - RECENT_WINDOWS * prm.window_us, prm.path_radius, buf.counts,
                                 buf.active, buf.recent)
-        work = buf.work_for(n_active)
-        answers = match_features(
-            buf.features[0], buf.features[1], buf.counts, buf.active, buf.recent,
-            state.prior_for(window.t_end, prm.window_us), prm.max_disparity, prm.row_tolerance, prm.p1, prm.p2,
-            prm.sgm_paths, prm.temporal_weight, prm.lr_tolerance, prm.subpixel, prm.min_neighbours,
-            prm.isolated_max_uncertainty, prm.fill_radius, prm.fill_confirms, work, buf.rowbuf, buf.planes)
-        matches, uncertainty = state.settle(window.t_end, answers, prm)
+        kernel = match_features_parallel if threads > 1 else match_features
+        answers = kernel(buf.features[0], buf.features[1], buf.counts, buf.active, buf.recent,
+                         state.prior_for(window.t_end, prm.window_us), self._kernel_params, buf.kernel_for(n_active),
+                         threads > 1, chunks_for(threads))
+        matches, uncertainty = state.settle(window.t_end, answers, prm, threads)
         self._uncertainty.append(uncertainty)
         return matches

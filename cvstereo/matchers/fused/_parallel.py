@@ -1,0 +1,50 @@
+"""One kernel source, two builds: serial (one thread, ``prange`` is a plain ``range``) and parallel.
+
+The fused matcher calls the parallel build only when it runs on more than one thread
+(:meth:`~cvstereo.matchers.fused.matcher.FusedMatcher.match_window`), so that the one-thread path is the serial
+build and keeps its speed. Work is split into *chunks* that take every ``n``-th row (or column block), so that
+each thread gets a share of the busy rows wherever the events are; the number of chunks follows the thread count,
+but no result depends on it: a chunk's rows are computed exactly as they would be alone.
+"""
+
+from __future__ import annotations
+
+import types
+
+from numba import njit
+
+__all__ = ["CHUNKS_PER_THREAD", "COLUMN_BLOCK", "chunk_count", "chunks_for", "serial_and_parallel"]
+
+#: Columns per block where columns are split into blocks: a chunk takes every n-th block (the fused matcher's column
+#: paths and active-pixel mask).
+COLUMN_BLOCK = 32
+
+#: Chunks per thread: several, so that a thread whose chunks end early is not left idle for long.
+CHUNKS_PER_THREAD = 4
+
+
+def serial_and_parallel(fn):
+    """``fn`` compiled twice, ``(serial, parallel)``, both cached on disk and releasing the GIL.
+
+    numba names a function's cache files after its qualified name and ignores ``parallel`` in the key, so the
+    parallel build is compiled from a copy of ``fn`` under the name ``<name>_parallel``: the two builds never
+    read each other's cache.
+    """
+    twin = types.FunctionType(fn.__code__, fn.__globals__, fn.__name__ + "_parallel", fn.__defaults__,
+                              fn.__closure__)
+    twin.__qualname__ = fn.__qualname__ + "_parallel"
+    twin.__doc__ = fn.__doc__
+    twin.__module__ = fn.__module__
+    return njit(cache=True, nogil=True)(fn), njit(cache=True, nogil=True, parallel=True)(twin)
+
+
+def chunks_for(threads: int) -> int:
+    """How many chunks to split the work of ``threads`` threads into (:data:`CHUNKS_PER_THREAD` per thread); given
+    to the kernels by the caller, since numba cannot cache a kernel that asks for its thread count."""
+    return CHUNKS_PER_THREAD * threads
+
+
+@njit(cache=True, nogil=True)
+def chunk_count(n, chunks):
+    """How many of ``chunks`` chunks ``n`` rows (or blocks) are split into: at most ``n``, at least 1."""
+    return max(1, min(n, chunks))
