@@ -79,9 +79,10 @@ def _windows_of(t: np.ndarray, first: int, last: int) -> list[int]:
 
 
 def match(recording, right=None, *, method: str = "frame", variant: str | None = None,
-          packet_us: int = DEFAULT_PACKET_US, progress: bool = False, row_offset: float = 0,
-          time_offset_us: int = 0, rectification=None, param_set: str = "adaptive", columns: str | None = None,
-          time_unit: str | None = None, resolution: tuple[int, int] | None = None, **params) -> MatchResult:
+          packet_us: int = DEFAULT_PACKET_US, progress: bool = False, row_offset: float | None = None,
+          time_offset_us: int | None = None, rectification=None, param_set: str = "adaptive",
+          rig_check: bool = True, columns: str | None = None, time_unit: str | None = None,
+          resolution: tuple[int, int] | None = None, **params) -> MatchResult:
     """Run one matcher over a recording, streaming it packet by packet.
 
     Parameters
@@ -105,7 +106,8 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
     row_offset, time_offset_us : keyword-only
         The rig's offsets (:mod:`cvstereo.geometry.rigcorrect`): the right camera's rows are shifted by ``row_offset``
         and its times by ``-time_offset_us`` before matching, and right-anchored matches are mapped back;
-        recorded in meta under ``rig_correction``. :func:`cvstereo.rigcheck.check_rig` estimates both.
+        recorded in meta under ``rig_correction``. :func:`cvstereo.rigcheck.check_rig` estimates both. Either
+        given (0 too: "the rig is aligned") turns the default rig check off.
     columns, time_unit, resolution : keyword-only
         For events given as arrays (or lists of rows): the column order of ``(N, 4)`` arrays, the unit of their
         times (required for float times) and the sensor size (default 128x128; tonic's ``sensor_size``
@@ -118,6 +120,14 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         ``rectification``. Not together with ``row_offset`` / ``time_offset_us``.
     param_set : {"adaptive", "thesis"}, keyword-only
         :mod:`cvstereo.matchers.sets`; recorded in meta under ``param_set``.
+    rig_check : bool, keyword-only
+        Check the rig on the first second of the stream and apply what it finds with confidence (camera order,
+        row offset, a confident time offset) to all of it (:class:`cvstereo.rigcheck.prefix.PrefixRigCheck`;
+        the prefix is held, then matched: nothing is read twice); recorded in meta under ``rigcheck``, its cost
+        left out of ``elapsed_s``. Not with the ``thesis`` set (the thesis aligned its rig by hand), nor with a
+        rectification or offsets given (they win: docs/guide/depth.md). False: the events as recorded. Where the
+        cameras were exchanged the matches refer to them in the order used
+        (:func:`cvstereo.geometry.source.as_matched` gives the recording in that order).
     **params
         Parameter overrides (field names of the method's parameter dataclass, or their old names), on top of the
         set's values.
@@ -156,11 +166,16 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         source = [os.fspath(recording)] + ([os.fspath(right)] if right is not None else [])
         stream, total = open_recording(recording, right), None
     matcher = create_matcher(method, variant, resolution=stream.resolution, param_set=param_set, **params)
-    correction = None
+    correction = check = None
     if row_offset or time_offset_us:
         from cvstereo.geometry.rigcorrect import RigCorrection
 
-        correction = RigCorrection(row_offset, int(time_offset_us), stream.resolution)
+        correction = RigCorrection(row_offset or 0, int(time_offset_us or 0), stream.resolution)
+    if rig_check and param_set != "thesis" and rectification is None and row_offset is None \
+            and time_offset_us is None:
+        from cvstereo.rigcheck.prefix import PrefixRigCheck
+
+        check = PrefixRigCheck(tuple(stream.resolution))
     if rectification is not None:
         if correction is not None:
             raise ValueError("give a calibration or row/time offsets, not both: rectification already aligns the rows.")
@@ -170,6 +185,8 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
     stages = {}  # the stage objects of this run, for their counts of dropped events
 
     def through(packets):
+        if check is not None:
+            packets = check.stream(packets)
         if correction is not None:
             packets = stages["corrected"] = correction.stream(packets)
         if rectification is not None:
@@ -179,6 +196,8 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
     def restore(found):
         if "rectified" in stages:
             return stages["rectified"].restore(found, anchor=matcher.anchor)
+        if check is not None:
+            return check.restore(found)
         return found if correction is None else correction.restore(found)
 
     bar = _progress_bar(progress, total, method)
@@ -197,6 +216,9 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
                                   "dropped_events": corrected.dropped_rows + corrected.dropped_times}
     if rectification is not None:
         meta["rectification"] = {**rectification.describe(), "dropped_events": sum(stages["rectified"].dropped)}
+    if check is not None:
+        meta["rigcheck"] = check.describe()
+        meta["elapsed_s"] = max(0.0, meta["elapsed_s"] - check.seconds)  # the matcher's time; the check's apart
     return result
 
 

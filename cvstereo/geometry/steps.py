@@ -62,7 +62,7 @@ def record_geometry(result: MatchResult, geometry: Geometry) -> MatchResult:
     meta["geometry"] = geometry.describe()
     if geometry.rigcheck is not None:
         meta["rigcheck"] = geometry.rigcheck
-    if geometry.swap:
+    if geometry.swap and not geometry.in_match:  # the match saw the swapped stream; its own swap came after the count
         meta["fingerprint"] = swap_cameras(meta["fingerprint"])
     if geometry.depth is not None:
         meta["depth"] = geometry.depth.to_dict()
