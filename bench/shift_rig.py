@@ -17,11 +17,8 @@ $CVSTEREO_SHARED or ../shared). Writes ``rig-shift.md`` and ``rig-shift.json``.
 from __future__ import annotations
 
 import argparse
-import json
-import os
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +26,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "bench"))
 
-from bench_real import FILES, METHODS, TUM, share_near  # noqa: E402
+from bench_real import FILES, METHODS, TUM, share_near, write_results  # noqa: E402
 
 SHIFTED_FILES = ("Fan_disp8.dat", "NSTlogo_disp12-8-3.dat")
 #: Largest drop of a shifted share below its unshifted one, in points (issue 24).
@@ -113,13 +110,7 @@ def main() -> int:
                      f"{r['shifted']['share_near']:.3f} | {r['difference_points']:+.1f} | {found} | {applied} | "
                      f"{r['shifted']['check_ms']:.0f} | {r['shifted']['prefix_s']:.2f} | "
                      f"{'met' if r['within_gate'] else 'MISSED'} |")
-    lines += ["", f"2 CPUs, 1-min load average {os.getloadavg()[0]:.1f} at the end, "
-              f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}."]
-    out = Path(args.output)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "rig-shift.md").write_text("\n".join(lines) + "\n")
-    (out / "rig-shift.json").write_text(json.dumps(rows, indent=1, default=str))
-    print("\n".join(lines))
+    write_results(args.output, "rig-shift", lines, rows)
     return 0 if all(r["within_gate"] for r in rows) else 1
 
 

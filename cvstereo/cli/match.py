@@ -141,8 +141,7 @@ def run(args: argparse.Namespace) -> int:
                        packet_us=args.packet_us or DEFAULT_PACKET_US, param_set=args.param_set,
                        rig_check=geometry.rig_check_wanted and not args.no_rig_check, **geometry.match_kwargs(),
                        **overrides)
-        if "rigcheck" in result.meta and geometry.rigcheck is None:  # the match's own check on the prefix
-            geometry = geometry.with_prefix_check(result.meta["rigcheck"])
+        geometry = geometry.matched(result.meta)  # with what the match's own rig check applied
         result = record_geometry(result, geometry)
         result.meta["format_options"] = {k: list(v) if isinstance(v, tuple) else v
                                          for k, v in format_options(args).items()}

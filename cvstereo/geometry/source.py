@@ -97,6 +97,14 @@ class Geometry:
         """Whether :func:`cvstereo.run.match` should run its prefix check: no source gave side, rows or time."""
         return not any(a in self.sources for a in ("side", "rows", "time"))
 
+    def matched(self, matches_meta: Mapping) -> Geometry:
+        """The geometry as the match applied it: with the side, rows and time of the match's own prefix check
+        (``matches_meta["rigcheck"]`` of scope ``prefix``, when this geometry left them to it), else itself."""
+        found = matches_meta.get("rigcheck")
+        if self.rigcheck is not None or not isinstance(found, Mapping) or found.get("scope") != "prefix":
+            return self
+        return self.with_prefix_check(found)
+
     def with_prefix_check(self, found: Mapping) -> Geometry:
         """This geometry with the side, rows and time that the match's prefix check found and applied
         (``found``: the matches' ``meta["rigcheck"]``, :meth:`cvstereo.rigcheck.prefix.PrefixRigCheck.describe`)."""

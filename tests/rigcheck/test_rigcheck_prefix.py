@@ -173,3 +173,22 @@ def test_as_matched_follows_a_swap_of_the_prefix_check(patches):
     assert result.meta["rigcheck"]["applied"]["swap"] is True
     back = as_matched(swapped, result.meta)
     assert np.array_equal(back.left, patches.left)
+
+
+def test_simulated_arm_swap_and_rows_found_on_the_prefix():
+    # The simulator's rig puts the right camera's image vertical_offset_px rows low: the clean clip is matched
+    # with that correction, the shifted one with it plus the shift, and they must agree.
+    from cvstereo.io import read_recording
+    from cvstereo.simulate import cached_preset
+
+    full = read_recording(cached_preset("1arm-100cm", seconds=1.5))   # cached by test_rigcheck.py
+    rec = full.slice_time(full.t_start, full.t_start + 700_000)
+    own = -round(rec.meta["rig"]["vertical_offset_px"])
+    aligned = match(rec, method=METHOD)
+    assert aligned.meta["rigcheck"]["applied"]["row_offset"] == own
+    shifted = match(with_rig_errors(rec, rows=3, swap=True), method=METHOD)
+    applied = shifted.meta["rigcheck"]["applied"]
+    assert applied["swap"] is True and applied["row_offset"] == own - 3
+    assert shifted.meta["rigcheck"]["prefix_us"] < 650_000            # a prefix, not the whole clip
+    want, got = _corrected_keys(aligned), _corrected_keys(shifted)
+    assert len(want & got) >= MATCH_SHARE * len(want)
