@@ -42,8 +42,8 @@ from cvstereo.model.events import StereoPacket
 from cvstereo.model.recording import Recording
 from cvstereo.rigcheck.params import RigCheckParams
 
-__all__ = ["PREFIX_EVENTS", "PREFIX_MAX_US", "PREFIX_MIN_US", "ROW_MIN_CONFIDENCE", "SWAP_MIN_CONFIDENCE",
-           "PrefixRigCheck", "swapped_packet"]
+__all__ = ["LIGHT_PARAMS", "PREFIX_EVENTS", "PREFIX_MAX_US", "PREFIX_MIN_US", "ROW_MIN_CONFIDENCE",
+           "SWAP_MIN_CONFIDENCE", "PrefixRigCheck", "swapped_packet"]
 
 #: The prefix lasts at least this long, us, and until each camera has :data:`PREFIX_EVENTS` events ...
 PREFIX_MIN_US = 500_000
@@ -52,6 +52,11 @@ PREFIX_MIN_US = 500_000
 PREFIX_EVENTS = 10_000
 #: ... or at most this long, us (a sparse recording: NSTlogo holds 1,300 events per camera in 10 s).
 PREFIX_MAX_US = 10_000_000
+#: The check's options: fewer windows than the full check's (20 frames for rows and sides instead of 100, 40
+#: windows for the time regression instead of 150, 100 local overlays per window instead of 200): a check that
+#: runs on every match must stay cheap, and these changed no side and no whole row on the real files and a
+#: suite v2 recording (its cost: docs/guide/rigcheck.md).
+LIGHT_PARAMS = RigCheckParams(max_windows=20, reg_max_windows=40, local_max_points=100)
 #: Confidence a swap needs before the default check exchanges the cameras (a swap in error ruins every match).
 SWAP_MIN_CONFIDENCE = 0.8
 #: Confidence a row offset needs before it is applied (:meth:`RigReport.match_kwargs`' and so ``--auto``'s): the
@@ -83,7 +88,7 @@ class PrefixRigCheck:
         The prefix checked, from the first event's time: at least ``min_us`` and ``min_events`` per camera, at most
         ``max_us``.
     params : RigCheckParams
-        The check's options (``time_apply_confidence`` decides the time offset).
+        The check's options (``time_apply_confidence`` decides the time offset); default :data:`LIGHT_PARAMS`.
     swap_min_confidence, row_min_confidence : float
         Confidence the swap and the row offset need before they are applied.
     """
@@ -92,7 +97,7 @@ class PrefixRigCheck:
     min_us: int = PREFIX_MIN_US
     min_events: int = PREFIX_EVENTS
     max_us: int = PREFIX_MAX_US
-    params: RigCheckParams = field(default_factory=RigCheckParams)
+    params: RigCheckParams = LIGHT_PARAMS
     swap_min_confidence: float = SWAP_MIN_CONFIDENCE
     row_min_confidence: float = ROW_MIN_CONFIDENCE
     report: object = field(default=None, init=False)
