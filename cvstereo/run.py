@@ -79,9 +79,10 @@ def _windows_of(t: np.ndarray, first: int, last: int) -> list[int]:
 
 
 def match(recording, right=None, *, method: str = "frame", variant: str | None = None,
-          packet_us: int = DEFAULT_PACKET_US, progress: bool = False, row_offset: float = 0,
-          time_offset_us: int = 0, rectification=None, param_set: str = "adaptive", columns: str | None = None,
-          time_unit: str | None = None, resolution: tuple[int, int] | None = None, threads: int | None = None,
+          packet_us: int = DEFAULT_PACKET_US, progress: bool = False, row_offset: float | None = None,
+          time_offset_us: int | None = None, rectification=None, param_set: str = "adaptive",
+          rig_check: bool = True, columns: str | None = None, time_unit: str | None = None,
+          resolution: tuple[int, int] | None = None, threads: int | None = None,
           **params) -> MatchResult:
     """Run one matcher over a recording, streaming it packet by packet.
 
@@ -106,7 +107,8 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
     row_offset, time_offset_us : keyword-only
         The rig's offsets (:mod:`cvstereo.geometry.rigcorrect`): the right camera's rows are shifted by ``row_offset``
         and its times by ``-time_offset_us`` before matching, and right-anchored matches are mapped back;
-        recorded in meta under ``rig_correction``. :func:`cvstereo.rigcheck.check_rig` estimates both.
+        recorded in meta under ``rig_correction``. :func:`cvstereo.rigcheck.check_rig` estimates both. Either
+        given (0 too: "the rig is aligned") turns the default rig check off.
     columns, time_unit, resolution : keyword-only
         For events given as arrays (or lists of rows): the column order of ``(N, 4)`` arrays, the unit of their
         times (required for float times) and the sensor size (default 128x128; tonic's ``sensor_size``
@@ -122,6 +124,14 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
     threads : int, optional, keyword-only
         Threads the matcher may run on (default: the cores this process may use; docs/guide/threads.md). The
         matches do not depend on it, so it is not recorded in meta.
+    rig_check : bool, keyword-only
+        Check the rig on the first second of the stream and apply what it finds with confidence (camera order,
+        row offset, a confident time offset) to all of it (:class:`cvstereo.rigcheck.prefix.PrefixRigCheck`;
+        the prefix is held, then matched: nothing is read twice); recorded in meta under ``rigcheck``, its cost
+        left out of ``elapsed_s``. Not with the ``thesis`` set (the thesis aligned its rig by hand), nor with a
+        rectification or offsets given (they win: docs/guide/depth.md). False: the events as recorded. Where the
+        cameras were exchanged the matches refer to them in the order used
+        (:func:`cvstereo.geometry.source.as_matched` gives the recording in that order).
     **params
         Parameter overrides (field names of the method's parameter dataclass, or their old names), on top of the
         set's values.
@@ -161,11 +171,16 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         stream, total = open_recording(recording, right), None
     matcher = create_matcher(method, variant, resolution=stream.resolution, param_set=param_set, threads=threads,
                              **params)
-    correction = None
+    correction = check = None
     if row_offset or time_offset_us:
         from cvstereo.geometry.rigcorrect import RigCorrection
 
-        correction = RigCorrection(row_offset, int(time_offset_us), stream.resolution)
+        correction = RigCorrection(row_offset or 0, int(time_offset_us or 0), stream.resolution)
+    if rig_check and param_set != "thesis" and rectification is None and row_offset is None \
+            and time_offset_us is None:
+        from cvstereo.rigcheck.prefix import PrefixRigCheck
+
+        check = PrefixRigCheck(tuple(stream.resolution))
     if rectification is not None:
         if correction is not None:
             raise ValueError("give a calibration or row/time offsets, not both: rectification already aligns the rows.")
@@ -175,6 +190,8 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
     stages = {}  # the stage objects of this run, for their counts of dropped events
 
     def through(packets):
+        if check is not None:
+            packets = check.stream(packets)
         if correction is not None:
             packets = stages["corrected"] = correction.stream(packets)
         if rectification is not None:
@@ -184,6 +201,8 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
     def restore(found):
         if "rectified" in stages:
             return stages["rectified"].restore(found, anchor=matcher.anchor)
+        if check is not None:
+            return check.restore(found)
         return found if correction is None else correction.restore(found)
 
     bar = _progress_bar(progress, total, method)
@@ -202,6 +221,9 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
                                   "dropped_events": corrected.dropped_rows + corrected.dropped_times}
     if rectification is not None:
         meta["rectification"] = {**rectification.describe(), "dropped_events": sum(stages["rectified"].dropped)}
+    if check is not None:
+        meta["rigcheck"] = check.describe()
+        meta["elapsed_s"] = max(0.0, meta["elapsed_s"] - check.seconds)  # the matcher's time; the check's apart
     return result
 
 

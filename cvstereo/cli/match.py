@@ -4,8 +4,11 @@ Runs one matcher over a recording, streamed from its file packet by packet (memo
 events), and writes the matches file of docs/formats.md. The command wires library steps together
 (:mod:`cvstereo.geometry.steps`): the geometry resolved, the match (:func:`cvstereo.run.match`, so the file
 holds what ``match()`` returns), the geometry and the depth of every match recorded, the point cloud.
-``--auto``'s rig check looks at the whole recording, which it reads into memory before the match reads the file
-again. ``--list-methods`` prints every registered method with its variants and parameters. ``--param-set
+Unless the geometry comes from elsewhere (a calibration -- a DSEC sequence's own by default --, offsets, ``--auto``)
+or ``--param-set thesis``, the match checks the rig on the first second of the stream and applies what it finds
+(:mod:`cvstereo.rigcheck.prefix`; ``--no-rig-check`` turns it off). ``--auto``'s rig check looks at the whole
+recording, which it reads into memory before the match reads the file again. ``--list-methods`` prints every
+registered method with its variants and parameters. ``--param-set
 thesis|adaptive`` picks the parameter set (:mod:`cvstereo.matchers.sets`). A run that answers in less than 1 %
 of the 40 ms windows with events says why on one ``warning:`` line on stderr (and still exits 0). Where the
 geometry comes from (calibration, options, the recording's rig, the rig check: :mod:`cvstereo.geometry.source`)
@@ -70,6 +73,9 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
                    help="run the rig check first; swap the cameras and remove row/time offsets it finds (printed, "
                    "and stored in the matches file's meta under 'rigcheck'). The check looks at the whole "
                    "recording: it is read into memory for it, then read again for the match")
+    g.add_argument("--no-rig-check", action="store_true",
+                   help="match the events as recorded: no rig check on the first second of the stream (by default "
+                   "it runs, unless a calibration, offsets, --auto or --param-set thesis say otherwise)")
     g.add_argument("--row-offset", type=int, default=None, metavar="ROWS",
                    help="add ROWS to the right camera's y before matching (overrides --auto's estimate)")
     g.add_argument("--time-offset-us", type=int, default=None, metavar="US",
@@ -133,10 +139,12 @@ def run(args: argparse.Namespace) -> int:
         if args.point_cloud is not None and geometry.depth is None:
             raise ValueError("--point-cloud needs a depth model: give --depth A C (or MODEL.json) or --calibration.")
         prepared = geometry.prepare(stream)
-        result = record_geometry(match(prepared, method=args.method, variant=args.variant,
-                                       progress=progress_wanted(args), packet_us=args.packet_us or DEFAULT_PACKET_US,
-                                       param_set=args.param_set, threads=threads, **geometry.match_kwargs(),
-                                       **overrides), geometry)
+        result = match(prepared, method=args.method, variant=args.variant, progress=progress_wanted(args),
+                       packet_us=args.packet_us or DEFAULT_PACKET_US, param_set=args.param_set, threads=threads,
+                       rig_check=geometry.rig_check_wanted and not args.no_rig_check, **geometry.match_kwargs(),
+                       **overrides)
+        geometry = geometry.matched(result.meta)  # with what the match's own rig check applied
+        result = record_geometry(result, geometry)
         result.meta["format_options"] = {k: list(v) if isinstance(v, tuple) else v
                                          for k, v in format_options(args).items()}
         if args.point_cloud is not None:
@@ -166,13 +174,17 @@ def run(args: argparse.Namespace) -> int:
 def _geometry_options(args: argparse.Namespace):
     """What the command line gives towards the geometry (:class:`cvstereo.geometry.source.GeometryOptions`);
     options that exclude each other are usage errors."""
+    from cvstereo.geometry.calibration import load_calibration
     from cvstereo.geometry.source import GeometryOptions
 
     calibration = None
     if args.calibration is not None:
-        from cvstereo.geometry.calibration import load_calibration
-
         calibration = load_calibration(args.calibration)
+    elif _own_calibration_applies(args):
+        from cvstereo.io.dsec_sequence import find_dsec_sequence
+
+        own = find_dsec_sequence(args.recording).calibration
+        calibration = None if own is None else load_calibration(own)
     with conflicts_as_usage_errors(args):
         return GeometryOptions(calibration=calibration,
                                depth=parse_depth_option(args.depth) if args.depth is not None and args.metres
@@ -180,6 +192,15 @@ def _geometry_options(args: argparse.Namespace):
                                focal_px=args.focal_px, row_offset=args.row_offset, time_offset_us=args.time_offset_us,
                                metres=args.metres, point_cloud=args.point_cloud is not None,
                                rig_check=_rig_check if args.auto else None)
+
+
+def _own_calibration_applies(args: argparse.Namespace) -> bool:
+    """Whether a DSEC sequence's own ``calibration/cam_to_cam.yaml`` is taken: the input is a sequence folder, and
+    no option that a calibration would conflict with is given (they mean the user wants the raw events)."""
+    from cvstereo.io.dsec_sequence import is_dsec_sequence
+
+    given = (args.row_offset, args.time_offset_us, args.focal_px, args.depth if args.metres else None)
+    return is_dsec_sequence(args.recording) and not args.auto and all(v is None for v in given)
 
 
 def _rig_check(recording):

@@ -9,7 +9,9 @@ the intrinsics of a point cloud (``intrinsics``). Each comes from the first of t
 2. ``options``: what the user said (``--row-offset``, ``--time-offset-us``, ``--depth``, ``--focal-px``);
 3. ``recording``: the rig model a recording carries in its meta (every simulated recording): depth, intrinsics;
 4. ``rigcheck``: the automatic rig check (``--auto``; any callable that returns a report like
-   :class:`~cvstereo.rigcheck.report.RigReport`): side, rows, time.
+   :class:`~cvstereo.rigcheck.report.RigReport`): side, rows, time; without ``--auto``, the light check that
+   :func:`cvstereo.run.match` runs on the stream's first second when no source above gives side, rows or time
+   (:meth:`Geometry.with_prefix_check`; not with the ``thesis`` parameter set, nor with ``--no-rig-check``).
 
 A calibration rectifies the events, so that their disparities are the rectified pair's: the depth model of the
 raw rig in a recording's meta does not apply to them (on the simulated 50 cm arm it put the arm at 0.46 m), and
@@ -29,7 +31,7 @@ as recorded, and no depth model.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from cvstereo.geometry.depth import DepthModel, depth_from_meta
 from cvstereo.model.recording import Recording
@@ -69,6 +71,9 @@ class Geometry:
         Source -> how the summary names it (``calibration cal.yaml``, ``the recording's rig``, ...).
     rigcheck : dict or None
         The rig check's report (``to_dict``) with what of it was applied, when it ran.
+    in_match : bool
+        The side, rows and time were found and applied by the match itself (the prefix check of
+        :func:`cvstereo.run.match`): :meth:`prepare` and :meth:`match_kwargs` leave them to it.
     """
 
     swap: bool = False
@@ -80,14 +85,41 @@ class Geometry:
     sources: dict = field(default_factory=dict)
     labels: dict = field(default_factory=dict)
     rigcheck: dict | None = None
+    in_match: bool = False
 
     def prepare(self, recording):
         """The recording (a :class:`~cvstereo.model.recording.Recording` or a stream opened by
         :func:`cvstereo.io.open_recording`) as the matcher gets it: its cameras exchanged when :attr:`swap`."""
-        return recording.swapped() if self.swap else recording
+        return recording.swapped() if self.swap and not self.in_match else recording
+
+    @property
+    def rig_check_wanted(self) -> bool:
+        """Whether :func:`cvstereo.run.match` should run its prefix check: no source gave side, rows or time."""
+        return not any(a in self.sources for a in ("side", "rows", "time"))
+
+    def matched(self, matches_meta: Mapping) -> Geometry:
+        """The geometry as the match applied it: with the side, rows and time of the match's own prefix check
+        (``matches_meta["rigcheck"]`` of scope ``prefix``, when this geometry left them to it), else itself."""
+        found = matches_meta.get("rigcheck")
+        if self.rigcheck is not None or not isinstance(found, Mapping) or found.get("scope") != "prefix":
+            return self
+        return self.with_prefix_check(found)
+
+    def with_prefix_check(self, found: Mapping) -> Geometry:
+        """This geometry with the side, rows and time that the match's prefix check found and applied
+        (``found``: the matches' ``meta["rigcheck"]``, :meth:`cvstereo.rigcheck.prefix.PrefixRigCheck.describe`)."""
+        applied = found["applied"]
+        label = f"the rig check of the first {found['prefix_us'] / 1e6:.3g} s"
+        sources = {**self.sources, **({} if found.get("skipped") else dict.fromkeys(("side", "rows", "time"),
+                                                                                  "rigcheck"))}
+        return replace(self, swap=bool(applied["swap"]), row_offset=int(applied["row_offset"]),
+                       time_offset_us=int(applied["time_offset_us"]), sources=sources,
+                       labels={**self.labels, "rigcheck": label}, rigcheck=dict(found), in_match=True)
 
     def match_kwargs(self) -> dict:
         """The keywords of :func:`cvstereo.run.match` that apply this geometry's rows and times."""
+        if self.in_match:
+            return {}
         if self.rectification is not None:
             return {"rectification": self.rectification}
         return {k: v for k, v in (("row_offset", self.row_offset), ("time_offset_us", self.time_offset_us)) if v}
@@ -312,8 +344,12 @@ def stored_depth(meta: Mapping, where: str) -> DepthModel | None:
 
 def as_matched(recording: Recording, matches_meta: Mapping) -> Recording:
     """The recording with its cameras in the order the matches used (exchanged where the rig check swapped
-    them), so that scoring and pictures put each match on the camera it was anchored on."""
-    geometry = matches_meta.get("geometry")
-    swapped = isinstance(geometry, Mapping) and isinstance(geometry.get("side"), Mapping) and \
-        geometry["side"].get("swap") is True
+    them: ``geometry.side.swap`` or ``rigcheck.applied.swap`` of the meta), so that scoring and pictures put each
+    match on the camera it was anchored on."""
+    def swap_in(entry, key):
+        value = matches_meta.get(entry)
+        value = value.get(key) if isinstance(value, Mapping) else None
+        return isinstance(value, Mapping) and value.get("swap") is True
+
+    swapped = swap_in("geometry", "side") or swap_in("rigcheck", "applied")
     return recording.swapped() if swapped else recording

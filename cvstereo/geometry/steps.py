@@ -6,8 +6,10 @@ call; ``cvstereo match`` only wires them together, so that the recording is stre
 1. resolve the geometry: ``geometry = GeometryOptions(...).resolve(stream.meta, stream.resolution,
    recording=stream.read)`` (the precedence rule; ``stream.read`` is called only for a rig check, which looks
    at the whole recording);
-2. match: ``result = match(geometry.prepare(stream), **geometry.match_kwargs())`` (the cameras exchanged, rows
-   and times corrected or rectified, packet by packet: :func:`cvstereo.run.match`);
+2. match: ``result = match(geometry.prepare(stream), rig_check=geometry.rig_check_wanted,
+   **geometry.match_kwargs())`` (the cameras exchanged, rows and times corrected or rectified, packet by packet:
+   :func:`cvstereo.run.match`; its own rig check on the stream's prefix only where no source gave side, rows
+   or time);
 3. :func:`record_geometry`: the geometry and its sources in the meta, the distance of every match beside it;
 4. :func:`point_cloud_of`: the matches as 3D points.
 
@@ -50,7 +52,9 @@ def record_geometry(result: MatchResult, geometry: Geometry) -> MatchResult:
 
     ``result`` is what :func:`cvstereo.run.match` returned for ``geometry.prepare(recording)``. The meta gets
     ``geometry`` (:meth:`Geometry.describe <cvstereo.geometry.source.Geometry.describe>`: each part and its
-    source), ``rigcheck`` (the report and what of it was applied) when the rig check ran, and ``depth`` (the
+    source; with what the match's own prefix check applied, :meth:`Geometry.matched
+    <cvstereo.geometry.source.Geometry.matched>`), ``rigcheck`` (the report and what of it was applied) when a
+    rig check ran, and ``depth`` (the
     model) with the per-match array ``depth_m`` when there is a depth model: the match dtype is a contract of
     docs/formats.md, so distances go beside it. Where the cameras were exchanged, ``meta["fingerprint"]`` is
     turned back into that of the files as read, so that the matches are recognised against the recording as
@@ -59,10 +63,11 @@ def record_geometry(result: MatchResult, geometry: Geometry) -> MatchResult:
     from cvstereo.model.fingerprint import swap_cameras
 
     meta = result.meta
+    geometry = geometry.matched(meta)  # with what the match's own rig check applied, where it ran
     meta["geometry"] = geometry.describe()
     if geometry.rigcheck is not None:
         meta["rigcheck"] = geometry.rigcheck
-    if geometry.swap:
+    if geometry.swap and not geometry.in_match:  # the match saw the swapped stream; its own swap came after the count
         meta["fingerprint"] = swap_cameras(meta["fingerprint"])
     if geometry.depth is not None:
         meta["depth"] = geometry.depth.to_dict()

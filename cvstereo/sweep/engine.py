@@ -126,6 +126,7 @@ def run_cell(cell: Cell, score: Score | None = None, recording: Recording | None
     start = time.perf_counter()
     try:
         from cvstereo.evaluation.metrics import evaluate
+        from cvstereo.geometry.source import as_matched
         from cvstereo.io import read_recording
         from cvstereo.run import match
 
@@ -135,7 +136,7 @@ def run_cell(cell: Cell, score: Score | None = None, recording: Recording | None
                        variant=cell.variant, threads=1, **extra, **dict(cell.params))
         if recording is None:
             recording = read_recording(cell.recording)
-        figures = evaluate(recording, result)
+        figures = evaluate(as_matched(recording, result.meta), result)  # in the order the rig check left the cameras
         for name in (*FIGURE_COLUMNS, "events_per_s", "realtime_x"):
             row[name] = _plain(figures.get(name))
         if score is not None:

@@ -1,6 +1,7 @@
 """``cvstereo match`` streams the recording: events are read as they are matched, never the whole file first,
-so that memory does not grow with the recording's length; ``--auto`` reads it twice (whole for the rig check,
-then streamed); the matches are those of ``match()`` on the recording in memory."""
+so that memory does not grow with the recording's length (the default rig check holds its prefix, then streams);
+``--auto`` reads it twice (whole for the rig check, then streamed); the matches are those of ``match()`` on the
+recording in memory."""
 
 from __future__ import annotations
 
@@ -71,24 +72,34 @@ class _Log:
         return spy
 
 
-@pytest.mark.parametrize("auto", [False, True])
-def test_match_reads_the_recording_as_it_matches(tmp_path, long_file, monkeypatch, auto):
+@pytest.mark.parametrize("mode", ["--no-rig-check", "default", "--auto"])
+def test_match_reads_the_recording_as_it_matches(tmp_path, long_file, monkeypatch, mode):
     log = _Log()
     monkeypatch.setattr(cvstereo.io, "open_recording", log.open_recording(cvstereo.io.open_recording))
     monkeypatch.setattr(cvstereo.run, "run_iter", log.run_iter(cvstereo.run.run_iter))
     out = tmp_path / "m.npz"
     argv = ["match", str(long_file), "--method", "frame", "-o", str(out), "--no-progress"]
-    assert main(argv + (["--auto"] if auto else [])) == 0
+    assert main(argv + ([] if mode == "default" else [mode])) == 0
     total = 2 * SECONDS * RATE
     assert log.fed == total
     # Streamed: at every packet the run holds at most a packet (40 ms: ~800 events) and a chunk per camera
     # read ahead, not the file (reading it whole first held all 80k at the first packet).
-    assert max(log.held) <= 2 * CHUNK + 2 * 0.04 * RATE * 1.5, max(log.held)
-    # --auto: the rig check reads both cameras whole, then the match reads them again.
+    streaming = 2 * CHUNK + 2 * 0.04 * RATE * 1.5
+    if mode == "default":
+        # The rig check holds its prefix (the events of its span, both cameras), then the rest streams.
+        prefix_s = read_matches(out).meta["rigcheck"]["prefix_us"] / 1e6
+        assert prefix_s < SECONDS / 2
+        assert max(log.held) <= 2 * RATE * prefix_s * 1.1 + streaming, max(log.held)
+        packets_in_prefix = int(prefix_s / 0.04) + 1
+        assert max(log.held[packets_in_prefix:]) <= streaming, max(log.held[packets_in_prefix:])
+    else:
+        assert max(log.held) <= streaming, max(log.held)
+    # --auto: the rig check reads both cameras whole, then the match reads them again; else read once.
+    auto = mode == "--auto"
     assert log.opened == (4 if auto else 2)
     assert log.read == total * (2 if auto else 1)
     got = read_matches(out)
-    expected = match(read_recording(long_file), method="frame")
+    expected = match(read_recording(long_file), method="frame", rig_check=mode == "default")
     np.testing.assert_array_equal(got.matches, expected.matches)
     assert got.meta["input"] == [str(long_file)]  # the library's record of what it read
     assert got.meta["fingerprint"] == expected.meta["fingerprint"]

@@ -1,0 +1,182 @@
+"""The light rig check that :func:`cvstereo.match` runs by default: :class:`PrefixRigCheck`.
+
+Real rigs are never aligned: the camera called left may be the right one, and the rows a few apart. The full
+check (:func:`~cvstereo.rigcheck.check_rig`, ``match --auto``) reads the whole recording first; this one looks
+at a prefix of the stream only: its packets are held, checked, and then matched like the rest, which streams on
+(nothing is read twice). The prefix runs from the first event until :data:`PREFIX_MIN_US` have passed and each
+camera has :data:`PREFIX_EVENTS` events, or until :data:`PREFIX_MAX_US` have passed (a sparse recording: the
+whole of a short one). What it found is applied to the whole stream:
+
+- the cameras are exchanged when the check says so with confidence :attr:`PrefixRigCheck.swap_min_confidence`
+  or more (a swap in error ruins every match, one not made is obvious from the negative disparities);
+- the row offset when its confidence reaches :attr:`PrefixRigCheck.row_min_confidence`;
+- the time offset only when :meth:`RigReport.time_offset_applicable
+  <cvstereo.rigcheck.report.RigReport.time_offset_applicable>`: confidence 0.6 or more and not ambiguous (a
+  periodic scene, a fan, peaks once per period and is never confident).
+
+A prefix too short or too sparse for the check (fewer than ``min_events`` events in a camera) leaves the stream
+as recorded, and says why. :meth:`PrefixRigCheck.describe` is the matches-file meta entry ``rigcheck`` of
+docs/formats.md: the report's fields, ``applied``, ``scope`` (``"prefix"``), ``prefix_us`` and
+``seconds`` (the check's own cost, left out of the run's ``elapsed_s``).
+
+>>> import numpy as np
+>>> from cvstereo.model.events import make_events, StereoPacket
+>>> left = make_events([0, 10], [40, 41], [5, 5], [1, 1])
+>>> check = PrefixRigCheck((128, 128))
+>>> [p.until for p in check.stream([StereoPacket(left, left, 20)])]
+[20]
+>>> check.describe()["applied"], check.describe()["skipped"][:53]
+({'swap': False, 'row_offset': 0, 'time_offset_us': 0}, 'not checked on the first 0.02 ms: the left camera has')
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from cvstereo.geometry.rigcorrect import RigCorrection
+from cvstereo.model.events import StereoPacket
+from cvstereo.model.recording import Recording
+from cvstereo.rigcheck.params import RigCheckParams
+
+__all__ = ["LIGHT_PARAMS", "PREFIX_EVENTS", "PREFIX_MAX_US", "PREFIX_MIN_US", "ROW_MIN_CONFIDENCE",
+           "SWAP_MIN_CONFIDENCE", "PrefixRigCheck", "swapped_packet"]
+
+#: The prefix lasts at least this long, us, and until each camera has :data:`PREFIX_EVENTS` events ...
+PREFIX_MIN_US = 500_000
+#: ... events that the row and side estimates need (fewer gave wrong rows at confidences below 0.2 on
+#: movingPersons.dat, whose first 2 s hold 200 events: docs/guide/rigcheck.md) ...
+PREFIX_EVENTS = 10_000
+#: ... or at most this long, us (a sparse recording: NSTlogo holds 1,300 events per camera in 10 s).
+PREFIX_MAX_US = 10_000_000
+#: The check's options: fewer windows than the full check's (20 frames for rows and sides instead of 100, 40
+#: windows for the time regression instead of 150, 100 local overlays per window instead of 200): a check that
+#: runs on every match must stay cheap, and these changed no side and no whole row on the real files and a
+#: suite v2 recording (its cost: docs/guide/rigcheck.md).
+LIGHT_PARAMS = RigCheckParams(max_windows=20, reg_max_windows=40, local_max_points=100)
+#: Confidence a swap needs before the default check exchanges the cameras (a swap in error ruins every match).
+SWAP_MIN_CONFIDENCE = 0.8
+#: Confidence a row offset needs before it is applied (:meth:`RigReport.match_kwargs`' and so ``--auto``'s): the
+#: wrong rows of too few events came below 0.2; NSTlogo's, one row off its best on 2,600 events, at 0.26.
+ROW_MIN_CONFIDENCE = 0.3
+
+
+def swapped_packet(packet: StereoPacket) -> StereoPacket:
+    """The packet with its cameras exchanged (truth negated, so that it stays x_left - x_right)."""
+    def neg(d):
+        return None if d is None else -d
+
+    return StereoPacket(packet.right, packet.left, packet.until, neg(packet.right_disparity),
+                        neg(packet.left_disparity))
+
+
+@dataclass
+class PrefixRigCheck:
+    """Check the rig on a stream's prefix, then pass the whole stream on with what was found applied.
+
+    Use once: :meth:`stream` wraps the packets (between the reader and the matcher), :meth:`restore` maps the
+    matches back to the recording's rows and clock (right-anchored ones; a swap is kept: the matches refer to the
+    cameras in the order used, as recorded in :meth:`describe`).
+
+    Parameters
+    ----------
+    resolution : (width, height)
+    min_us, min_events, max_us : int
+        The prefix checked, from the first event's time: at least ``min_us`` and ``min_events`` per camera, at most
+        ``max_us``.
+    params : RigCheckParams
+        The check's options (``time_apply_confidence`` decides the time offset); default :data:`LIGHT_PARAMS`.
+    swap_min_confidence, row_min_confidence : float
+        Confidence the swap and the row offset need before they are applied.
+    """
+
+    resolution: tuple[int, int]
+    min_us: int = PREFIX_MIN_US
+    min_events: int = PREFIX_EVENTS
+    max_us: int = PREFIX_MAX_US
+    params: RigCheckParams = LIGHT_PARAMS
+    swap_min_confidence: float = SWAP_MIN_CONFIDENCE
+    row_min_confidence: float = ROW_MIN_CONFIDENCE
+    report: object = field(default=None, init=False)
+    skipped: str | None = field(default=None, init=False)
+    applied: dict = field(default_factory=lambda: {"swap": False, "row_offset": 0, "time_offset_us": 0},
+                          init=False)
+    seconds: float = field(default=0.0, init=False)
+    prefix_us: int = field(default=0, init=False)  # the span checked, from the first event to the last packet's end
+    corrected: object = field(default=None, init=False)  # the CorrectedStream, for its counts of dropped events
+
+    def __post_init__(self):
+        if not 0 < int(self.min_us) <= int(self.max_us) or int(self.min_events) < 0:
+            raise ValueError(f"rig check: prefix min_us={self.min_us}, max_us={self.max_us}, min_events="
+                             f"{self.min_events} are out of range; give 0 < min_us <= max_us and min_events >= 0.")
+
+    def stream(self, packets: Iterable[StereoPacket]) -> Iterator[StereoPacket]:
+        """The packets as the matcher gets them: those of the prefix held until it is checked, then all of them
+        with the cameras exchanged and the offsets removed as found."""
+        packets = iter(packets)
+        held = []
+        t_first = None
+        counts = np.zeros(2, np.int64)
+        for packet in packets:
+            held.append(packet)
+            counts += (packet.left.size, packet.right.size)
+            if t_first is None:
+                starts = [int(ev["t"][0]) for ev in (packet.left, packet.right) if ev.size]
+                t_first = min(starts) if starts else None
+            if t_first is not None:
+                self.prefix_us = int(packet.until) - t_first
+                if self.prefix_us >= self.max_us or (self.prefix_us >= self.min_us and counts.min() >= self.min_events):
+                    break
+        self._check(held)
+        out = _chained(held, packets)
+        if self.applied["swap"]:
+            out = map(swapped_packet, out)
+        correction = RigCorrection(self.applied["row_offset"], self.applied["time_offset_us"], self.resolution)
+        if not correction.is_identity:
+            self.corrected = out = correction.stream(out)
+        return (yield from out)
+
+    def restore(self, matches: np.ndarray) -> np.ndarray:
+        """Matches of the corrected stream in the recording's rows and clock (:meth:`RigCorrection.restore`)."""
+        return matches if self.corrected is None else self.corrected.correction.restore(matches)
+
+    def describe(self) -> dict:
+        """The meta entry ``rigcheck``: the report (when the check ran), ``applied``, ``scope``, ``prefix_us``,
+        ``seconds``, ``skipped`` (why it did not run, or None) and ``dropped_events`` (of the correction)."""
+        out = {} if self.report is None else self.report.to_dict()
+        dropped = 0 if self.corrected is None else self.corrected.dropped_rows + self.corrected.dropped_times
+        out.update(scope="prefix", prefix_us=int(self.prefix_us), seconds=self.seconds, skipped=self.skipped,
+                   applied=dict(self.applied), dropped_events=dropped)
+        return out
+
+    def _check(self, held: list[StereoPacket]) -> None:
+        from cvstereo.rigcheck.check import check_rig
+
+        start = time.perf_counter()
+        left, right = (np.concatenate([getattr(p, cam) for p in held]) if held else None for cam in ("left", "right"))
+        try:
+            if left is None:
+                raise ValueError("the stream has no events")
+            self.report = report = check_rig(Recording(left, right, resolution=self.resolution), self.params,
+                                             max_seconds=None)
+        except ValueError as exc:
+            reason = str(exc).removeprefix("check_rig: ")
+            self.skipped = f"not checked on the first {self.prefix_us / 1000:g} ms: {reason}"
+        else:
+            swap = bool(report.swap and report.swap_confidence >= self.swap_min_confidence)
+            # The report's offsets refer to the cameras after its swap: negated, they are the given order's.
+            sign = 1 if swap == report.swap else -1
+            rows = round(report.row_offset) if report.row_offset_confidence >= self.row_min_confidence else 0
+            dt = round(report.time_offset_us) if report.time_offset_applicable() else 0
+            self.applied = {"swap": swap, "row_offset": sign * int(rows), "time_offset_us": sign * int(dt)}
+        self.seconds = time.perf_counter() - start
+
+
+def _chained(held: list[StereoPacket], rest: Iterator[StereoPacket]) -> Iterator[StereoPacket]:
+    yield from held
+    held.clear()  # the prefix's packets are not kept once they are matched
+    yield from rest
+
