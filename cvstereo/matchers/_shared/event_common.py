@@ -21,7 +21,7 @@ from numba import njit
 
 from cvstereo.frames.dynamic import FrameBank, dynamic_unit
 from cvstereo.matchers._shared.merge_order import STREAM_ROWS, merged_stream
-from cvstereo.matchers._shared.row_bands import merge_band_matches
+from cvstereo.matchers._shared.row_bands import gather_band_values, merge_band_matches
 from cvstereo.matchers._shared.signal_level import SignalLevel
 from cvstereo.matchers.protocol import StreamMatcher
 from cvstereo.model.events import count_before, empty_events, paired_window_segments
@@ -110,7 +110,8 @@ class MergedEventMatcher(StreamMatcher):
         return self._level.diagnostics()
 
     #: The kernel, serial and parallel (:func:`cvstereo.matchers._shared.row_bands.compile_twice` of a loop over the
-    #: row bands): ``kernel(stream, bands, search, out_pos, out_disparity, counts, values, right_start)``.
+    #: row bands): ``kernel(stream, bands, search, out_pos, out_disparity, counts, values, right_start)``, ``values``
+    #: one buffer per band.
     kernels: tuple
 
     @abc.abstractmethod
@@ -130,8 +131,15 @@ class MergedEventMatcher(StreamMatcher):
         out_pos = self._scratch.take("band_pos", n_bands * n, np.int64).reshape(n_bands, n)
         out_band = self._scratch.take("band_disparity", n_bands * n, np.float64).reshape(n_bands, n)
         counts = np.zeros(n_bands, np.int64)
-        kernel = self.kernels[1] if n_bands > 1 else self.kernels[0]
-        kernel(stream, bands, self._search(thresholds), out_pos, out_band, counts, *out_values)
+        values, right_start = out_values
+        if n_bands == 1:
+            kernel, band_values = self.kernels[0], values[np.newaxis]
+        else:
+            kernel = self.kernels[1]
+            band_values = self._scratch.take("band_values", n_bands * values.size, np.float64).reshape(n_bands, -1)
+        kernel(stream, bands, self._search(thresholds), out_pos, out_band, counts, band_values, right_start)
+        if n_bands > 1:
+            gather_band_values(stream, band_values, values, right_start, self.resolution[1])
         return int(merge_band_matches(stream, counts, out_pos, out_band, out_cam, out_index, out_disparity))
 
     def _process(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:

@@ -18,7 +18,8 @@ rows ``y - r .. y + r`` of its own. The dependencies are local in rows, so the s
   drift of its sums as the whole sensor's bounds the one-thread run's.
 
 The matches of each band carry their position in the merged stream and are merged back into the stream's
-order (:func:`merge_band_matches`); the per-event values are written in place (each event has one owner). The
+order (:func:`merge_band_matches`); the per-event values are gathered from their owner bands
+(:func:`gather_band_values`). The
 private copies persist from packet to packet (:class:`BandedState`), so that nothing is copied per packet; a
 change of the number of bands assembles the full state from the owners' rows and cuts it anew. With one band
 the state is the matcher's own arrays and every row is kept: the one-thread path.
@@ -36,9 +37,10 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from cvstereo.matchers._shared.merge_order import ROW_CAM, ROW_INDEX
+from cvstereo.matchers._shared.merge_order import ROW_CAM, ROW_INDEX, ROW_Y
 
-__all__ = ["BandedState", "band_rows", "compile_twice", "emit_at", "merge_band_matches", "splat_rows"]
+__all__ = ["BandedState", "band_rows", "compile_twice", "emit_at", "gather_band_values", "merge_band_matches",
+           "splat_rows"]
 
 
 def compile_twice(fn, **options):
@@ -110,6 +112,22 @@ def merge_band_matches(stream, counts, out_pos, out_disparity, cam, index, dispa
         disparity[m] = out_disparity[best, head[best]]
         head[best] += 1
     return total
+
+
+@njit(cache=True)
+def gather_band_values(stream, band_values, values, right_start, height):  # pragma: no cover - compiled
+    """Each event's value from its owner band's buffer (``band_values[b]``, written at the event's place in
+    ``values``: the left camera's i-th event at ``i``, the right camera's at ``right_start + i``) into
+    ``values``. Each band writes a buffer of its own: bands writing neighbouring entries of one array would
+    share its cache lines at almost every event."""
+    n_bands = band_values.shape[0]
+    for k in range(stream.shape[1]):
+        y = stream[ROW_Y, k]
+        band = 0
+        while band_rows(band, n_bands, height, 0)[1] <= y:
+            band += 1
+        at = stream[ROW_CAM, k] * right_start + stream[ROW_INDEX, k]
+        values[at] = band_values[band, at]
 
 
 class BandedState:

@@ -273,12 +273,12 @@ def _event_area_band(stream, bands, band, n_bands, search, out_pos, out_disparit
 
 
 def _event_area_bands(stream, bands, search, out_pos, out_disparity, counts, values, right_start):
-    """:func:`_event_area_band` for every band (``counts``: one per band, set to its count of matches), in
-    parallel in the parallel compile."""
+    """:func:`_event_area_band` for every band (``counts``: one per band, set to its count of matches;
+    ``values``: one buffer per band), in parallel in the parallel compile."""
     n_bands = counts.shape[0]
     for band in prange(n_bands):
         counts[band] = _event_area_band(stream, bands, band, n_bands, search, out_pos[band], out_disparity[band],
-                                        values, right_start)
+                                        values[band], right_start)
 
 
 #: :func:`_event_area_bands`, serial (one thread) and parallel (several).
