@@ -26,7 +26,9 @@ the state is the matcher's own arrays and every row is kept: the one-thread path
 
 Each kernel is one Python function compiled twice (:func:`compile_twice`): serially, where its ``prange`` over
 the bands is a plain loop, and in parallel; the matcher calls the parallel compile only with more than one
-band.
+band. Each matcher writes that loop around its own band kernel: a loop taking the kernel as an argument, or
+closing over it, gets a new entry in numba's on-disk cache in every process (compiled anew each time), where a
+loop naming its kernel is cached once.
 """
 
 from __future__ import annotations
