@@ -18,7 +18,8 @@ from _event_scenes import feed_cut, random_pair, simulated_clip
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cvstereo.matchers._shared.row_bands import band_rows
+from cvstereo.matchers._shared import row_bands
+from cvstereo.matchers._shared.row_bands import band_rows, even_cuts
 from cvstereo.matchers.event_area.reference import event_area_reference
 from cvstereo.matchers.event_vector.reference import event_vector_reference
 from cvstereo.matchers.registry import matcher_class, matcher_params
@@ -95,9 +96,39 @@ def test_bands_keep_the_one_thread_state_bit_for_bit(method, variant):
     assert np.abs(full.stored).max() > 0.5  # frames with content
 
 
-def test_band_rows_cut_the_sensor_and_keep_the_halo():
-    rows = [band_rows.py_func(b, 3, 10, 2) for b in range(3)]
-    assert rows == [(0, 3, 0, 5), (3, 6, 1, 8), (6, 10, 4, 10)]
+def test_band_rows_keep_the_halo_on_the_sensor():
+    cuts = np.array([0, 3, 6, 10])
+    assert [band_rows.py_func(cuts, b, 10, 2) for b in range(3)] == [(0, 3, 0, 5), (3, 6, 1, 8), (6, 10, 4, 10)]
+
+
+def test_cuts_share_the_events_and_give_every_band_a_row():
+    assert even_cuts(3, 10).tolist() == [0, 3, 6, 10]  # no events: as many rows each
+    rows = np.repeat(np.arange(100), np.where(np.arange(100) >= 80, 40, 1))  # 80 events above row 80, 800 below
+    cuts = even_cuts(2, 100, rows)
+    assert cuts.tolist() == [0, 89, 100]  # 440 events each: the busy rows are split
+    assert even_cuts(4, 6, np.full(50, 5)).tolist() == [0, 3, 4, 5, 6]  # all on one row: one row each at least
+
+
+def test_bands_cut_anew_when_the_events_move_give_the_same_matches(monkeypatch):
+    # Every window may cut anew (no wait between cuts, any imbalance): the events of a scene move from row to row,
+    # each new cut assembles the state from the old bands and copies it into the new ones.
+    monkeypatch.setattr(row_bands, "REBALANCE_EVENTS", 0)
+    monkeypatch.setattr(row_bands, "REBALANCE_SHARE", 1.0)
+    left, right, res = simulated_clip(60_000)
+    expected = feed_cut(make("event-area", "gaussian", "adaptive", res), left, right, [20_000, 40_000])
+    with thread_count(make("event-area", "gaussian", "adaptive", res), 2) as m:
+        cuts_seen = []
+        layout = m._bands.layout
+
+        def recording_layout(n, rows):
+            out = layout(n, rows)
+            cuts_seen.append(tuple(m._bands.cuts))
+            return out
+
+        monkeypatch.setattr(m._bands, "layout", recording_layout)
+        got = feed_cut(m, left, right, [20_000, 40_000])
+    assert len(set(cuts_seen)) >= 2  # it did cut anew
+    np.testing.assert_array_equal(got, expected)
 
 
 def test_serial_and_parallel_kernels_are_cached_apart():

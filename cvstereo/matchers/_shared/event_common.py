@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 from cvstereo.frames.dynamic import FrameBank, dynamic_unit
-from cvstereo.matchers._shared.merge_order import STREAM_ROWS, merged_stream
+from cvstereo.matchers._shared.merge_order import ROW_Y, STREAM_ROWS, merged_stream
 from cvstereo.matchers._shared.row_bands import gather_band_values, merge_band_matches
 from cvstereo.matchers._shared.signal_level import SignalLevel
 from cvstereo.matchers.protocol import StreamMatcher
@@ -110,8 +110,8 @@ class MergedEventMatcher(StreamMatcher):
         return self._level.diagnostics()
 
     #: The kernel, serial and parallel (:func:`cvstereo.matchers._shared.row_bands.compile_twice` of a loop over the
-    #: row bands): ``kernel(stream, bands, search, out_pos, out_disparity, counts, values, right_start)``, ``values``
-    #: one buffer per band.
+    #: row bands): ``kernel(stream, bands, cuts, search, out_pos, out_disparity, counts, values, right_start)``,
+    #: ``values`` one buffer per band.
     kernels: tuple
 
     @abc.abstractmethod
@@ -126,7 +126,7 @@ class MergedEventMatcher(StreamMatcher):
         the outputs, in the stream's order, each event's |D| before its update into ``out_values`` =
         ``(values, right_start)`` (the left camera's i-th event at ``values[i]``, the right camera's at
         ``values[right_start + i]``; NaN where its polarity is dropped) and return the number of matches."""
-        bands = self._bands.layout(getattr(self, "threads", 1))
+        bands = self._bands.layout(getattr(self, "threads", 1), stream[ROW_Y])
         n_bands, n = self._bands.n_bands, max(1, stream.shape[1])
         out_pos = self._scratch.take("band_pos", n_bands * n, np.int64).reshape(n_bands, n)
         out_band = self._scratch.take("band_disparity", n_bands * n, np.float64).reshape(n_bands, n)
@@ -137,9 +137,10 @@ class MergedEventMatcher(StreamMatcher):
         else:
             kernel = self.kernels[1]
             band_values = self._scratch.take("band_values", n_bands * values.size, np.float64).reshape(n_bands, -1)
-        kernel(stream, bands, self._search(thresholds), out_pos, out_band, counts, band_values, right_start)
+        cuts = self._bands.cuts
+        kernel(stream, bands, cuts, self._search(thresholds), out_pos, out_band, counts, band_values, right_start)
         if n_bands > 1:
-            gather_band_values(stream, band_values, values, right_start, self.resolution[1])
+            gather_band_values(stream, band_values, values, right_start, cuts)
         return int(merge_band_matches(stream, counts, out_pos, out_band, out_cam, out_index, out_disparity))
 
     def _process(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:

@@ -4,7 +4,8 @@ Event-area and event-vector process both cameras' events in one merged order, ea
 (event-vector) or the ``2 h + 1`` rows around it (event-area's patches) of both cameras' frames and splatting
 rows ``y - r .. y + r`` of its own. The dependencies are local in rows, so the sensor's rows are cut into bands
 ``[lo, hi)``, one per thread, and each band keeps a private copy of the state in which the rows
-``[lo - halo, hi + halo)`` (``halo`` = the rows an event reads beyond its own) are exact:
+``[lo - halo, hi + halo)`` (``halo`` = the rows an event reads beyond its own) are exact. The cut follows the
+events' rows, so that the bands own about equal shares of them (:meth:`BandedState.layout`):
 
 * every band walks the whole merged stream. Decay ticks are time-driven and applied at the same events in every
   band, so each band's scale and clock are the one-thread run's bit for bit; so are the counts that are the
@@ -41,8 +42,14 @@ from numba import njit
 
 from cvstereo.matchers._shared.merge_order import ROW_CAM, ROW_INDEX, ROW_Y
 
-__all__ = ["BandedState", "band_rows", "compile_twice", "emit_at", "gather_band_values", "merge_band_matches",
-           "splat_rows"]
+__all__ = ["REBALANCE_EVENTS", "REBALANCE_SHARE", "BandedState", "band_rows", "compile_twice", "emit_at", "even_cuts",
+           "gather_band_values", "merge_band_matches", "splat_rows"]
+
+#: A band owning more than this times its fair share (1 / bands) of a window's events is a reason to cut anew
+#: (the threads wait for the busiest band) ...
+REBALANCE_SHARE = 1.5
+#: ... once at least this many events have passed since the last cut (a new cut copies the whole state).
+REBALANCE_EVENTS = 1 << 20
 
 
 def compile_twice(fn, **options):
@@ -67,12 +74,32 @@ def compile_twice(fn, **options):
 
 
 @njit(cache=True, inline="always")
-def band_rows(band, n_bands, height, halo):  # pragma: no cover - compiled
-    """Band ``band`` of ``n_bands``: its own rows ``[lo, hi)`` (the sensor's rows cut evenly) and the rows
-    ``[keep_lo, keep_hi)`` it keeps exact (its own and ``halo`` rows on each side, on the sensor)."""
-    lo = band * height // n_bands
-    hi = (band + 1) * height // n_bands
+def band_rows(cuts, band, height, halo):  # pragma: no cover - compiled
+    """Band ``band`` of the cut ``cuts`` (the rows where bands begin, then the sensor's height): its own rows
+    ``[lo, hi)`` and the rows ``[keep_lo, keep_hi)`` it keeps exact (its own and ``halo`` rows on each side, on
+    the sensor)."""
+    lo = cuts[band]
+    hi = cuts[band + 1]
     return lo, hi, max(0, lo - halo), min(height, hi + halo)
+
+
+def even_cuts(n_bands: int, height: int, rows: np.ndarray | None = None) -> np.ndarray:
+    """Where ``n_bands`` bands of a sensor ``height`` rows high begin (then ``height``): each owning about as many
+    of the events at ``rows`` (their y), or as many rows when there are none; every band at least one row.
+
+    Returns
+    -------
+    (n_bands + 1,) int64 ndarray, strictly increasing from 0 to ``height``
+    """
+    if rows is None or rows.size == 0:
+        inner = np.arange(1, n_bands) * height // n_bands
+    else:
+        ordered = np.sort(rows)
+        inner = ordered[np.arange(1, n_bands) * ordered.size // n_bands].astype(np.int64)
+    cuts = np.concatenate([[0], inner, [height]]).astype(np.int64)
+    for b in range(1, n_bands):  # at least one row per band, and room for the bands after it
+        cuts[b] = min(max(cuts[b], cuts[b - 1] + 1), height - (n_bands - b))
+    return cuts
 
 
 @njit(cache=True, inline="always")
@@ -117,16 +144,15 @@ def merge_band_matches(stream, counts, out_pos, out_disparity, cam, index, dispa
 
 
 @njit(cache=True)
-def gather_band_values(stream, band_values, values, right_start, height):  # pragma: no cover - compiled
+def gather_band_values(stream, band_values, values, right_start, cuts):  # pragma: no cover - compiled
     """Each event's value from its owner band's buffer (``band_values[b]``, written at the event's place in
     ``values``: the left camera's i-th event at ``i``, the right camera's at ``right_start + i``) into
     ``values``. Each band writes a buffer of its own: bands writing neighbouring entries of one array would
     share its cache lines at almost every event."""
-    n_bands = band_values.shape[0]
     for k in range(stream.shape[1]):
         y = stream[ROW_Y, k]
         band = 0
-        while band_rows(band, n_bands, height, 0)[1] <= y:
+        while cuts[band + 1] <= y:
             band += 1
         at = stream[ROW_CAM, k] * right_start + stream[ROW_INDEX, k]
         values[at] = band_values[band, at]
@@ -157,12 +183,13 @@ class BandedState:
         self._row_fields, self._summed_fields, self._halo = row_fields, summed_fields, int(halo)
         self._height = state[0].shape[2]
         self.n_bands = 1
+        self.cuts = even_cuts(1, self._height)
+        self._since_cut = 0  # events since the last cut
         self.bands = type(state)(*(a[np.newaxis] for a in state))  # views: the one-thread path works in place
 
     def rows_of(self, band: int) -> tuple[int, int, int, int]:
-        """:func:`band_rows` of band ``band`` of the current layout."""
-        lo = band * self._height // self.n_bands
-        hi = (band + 1) * self._height // self.n_bands
+        """:func:`band_rows` of band ``band`` of the current cut."""
+        lo, hi = int(self.cuts[band]), int(self.cuts[band + 1])
         return lo, hi, max(0, lo - self._halo), min(self._height, hi + self._halo)
 
     def full(self) -> NamedTuple:
@@ -181,23 +208,36 @@ class BandedState:
                     full[...] = banded[0]
         return self._full
 
-    def layout(self, n_bands: int) -> NamedTuple:
-        """The state cut into ``n_bands`` bands (``n_bands`` <= the sensor's rows), cut anew only when the number
-        changes: each band's copy of the full state, zero outside the rows it keeps (so that its ``mass``, which
-        a rebuild sums over all rows, counts its own rows only)."""
+    def layout(self, n_bands: int, rows: np.ndarray) -> NamedTuple:
+        """The state cut into ``n_bands`` bands (at most one per row) for a window whose events lie on ``rows``.
+
+        The bands own about equal shares of the events (:func:`even_cuts` of ``rows``), so that no thread waits
+        long for another; the state is cut anew only when the number of bands changes, or when a band owns more
+        than :data:`REBALANCE_SHARE` times its share of the window's events and :data:`REBALANCE_EVENTS` have
+        passed since the last cut. A cut gives each band a copy of the full state, zero outside the rows it keeps
+        (so that its ``mass``, which a rebuild sums over all rows, counts the rows it keeps only).
+        """
         n_bands = max(1, min(int(n_bands), self._height))
-        if n_bands != self.n_bands:
-            full = self.full()
-            self.n_bands = n_bands
-            if n_bands == 1:
-                self.bands = type(full)(*(a[np.newaxis] for a in full))
-            else:
-                copies = [np.repeat(a[np.newaxis], n_bands, axis=0) for a in full]
-                for name, banded in zip(full._fields, copies, strict=True):
-                    if name in self._row_fields:
-                        for b in range(n_bands):
-                            _, _, keep_lo, keep_hi = self.rows_of(b)
-                            banded[b, :, :, :keep_lo] = 0
-                            banded[b, :, :, keep_hi:] = 0
-                self.bands = type(full)(*copies)
+        self._since_cut += rows.size
+        if n_bands == self.n_bands and (n_bands == 1 or not self._unbalanced(rows)):
+            return self.bands
+        full = self.full()
+        self.n_bands, self.cuts, self._since_cut = n_bands, even_cuts(n_bands, self._height, rows), 0
+        if n_bands == 1:
+            self.bands = type(full)(*(a[np.newaxis] for a in full))
+        else:
+            copies = [np.repeat(a[np.newaxis], n_bands, axis=0) for a in full]
+            for name, banded in zip(full._fields, copies, strict=True):
+                if name in self._row_fields:
+                    for b in range(n_bands):
+                        _, _, keep_lo, keep_hi = self.rows_of(b)
+                        banded[b, :, :, :keep_lo] = 0
+                        banded[b, :, :, keep_hi:] = 0
+            self.bands = type(full)(*copies)
         return self.bands
+
+    def _unbalanced(self, rows: np.ndarray) -> bool:
+        if self._since_cut < REBALANCE_EVENTS or rows.size == 0:
+            return False
+        owned = np.bincount(np.searchsorted(self.cuts, rows, side="right") - 1, minlength=self.n_bands)
+        return owned.max() > REBALANCE_SHARE * rows.size / self.n_bands

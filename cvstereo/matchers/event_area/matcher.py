@@ -97,9 +97,9 @@ class AreaSearch(NamedTuple):
 
 
 @njit(cache=True)
-def _event_area_band(stream, bands, band, n_bands, search, out_pos, out_disparity, values, right_start):
+def _event_area_band(stream, bands, cuts, band, search, out_pos, out_disparity, values, right_start):
     """Process the merged stream (:func:`cvstereo.matchers._shared.merge_order.merged_stream`) in row band ``band``
-    of ``n_bands`` (:mod:`cvstereo.matchers._shared.row_bands`); one output row per matched event of the band
+    of the cut ``cuts`` (:mod:`cvstereo.matchers._shared.row_bands`); one output row per matched event of the band
     (:func:`~cvstereo.matchers._shared.row_bands.emit_at`); returns the count. ``bands``: each band's frames and
     their column sums of ``block`` rows (:class:`cvstereo.matchers._shared.frame_bounds.SummedFrames`, a leading
     axis of bands). ``values``, ``right_start``: each event's |D| before its update, the right camera's from
@@ -113,7 +113,7 @@ def _event_area_band(stream, bands, band, n_bands, search, out_pos, out_disparit
     width = stored.shape[3]
     # The band's own rows (the events it searches) and the rows it keeps exact: a patch reads ``half`` rows
     # beyond its own.
-    first_row, end_row, keep_lo, keep_hi = band_rows(band, n_bands, height, half)
+    first_row, end_row, keep_lo, keep_hi = band_rows(cuts, band, height, half)
     r = kernel.shape[0] // 2
     size = 2 * half + 1
     n_planes = n_frames if all_frames else 1
@@ -272,12 +272,11 @@ def _event_area_band(stream, bands, band, n_bands, search, out_pos, out_disparit
     return n
 
 
-def _event_area_bands(stream, bands, search, out_pos, out_disparity, counts, values, right_start):
+def _event_area_bands(stream, bands, cuts, search, out_pos, out_disparity, counts, values, right_start):
     """:func:`_event_area_band` for every band (``counts``: one per band, set to its count of matches;
     ``values``: one buffer per band), in parallel in the parallel compile."""
-    n_bands = counts.shape[0]
-    for band in prange(n_bands):
-        counts[band] = _event_area_band(stream, bands, band, n_bands, search, out_pos[band], out_disparity[band],
+    for band in prange(counts.shape[0]):
+        counts[band] = _event_area_band(stream, bands, cuts, band, search, out_pos[band], out_disparity[band],
                                         values[band], right_start)
 
 

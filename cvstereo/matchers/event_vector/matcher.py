@@ -81,16 +81,16 @@ class VectorSearch(NamedTuple):
 # error_model="numpy": no zero check of the splat's division by the (positive) scale, whose exception path kept
 # numba's reference counting of the frame arrays around every splat.
 @njit(cache=True, error_model="numpy")
-def _event_vector_band(stream, bands, band, n_bands, search, out_pos, out_disparity, values, right_start):
+def _event_vector_band(stream, bands, cuts, band, search, out_pos, out_disparity, values, right_start):
     """Process the merged stream (:func:`cvstereo.matchers._shared.merge_order.merged_stream`) in row band ``band``
-    of ``n_bands`` (:mod:`cvstereo.matchers._shared.row_bands`); one output row per matched event of the band;
+    of the cut ``cuts`` (:mod:`cvstereo.matchers._shared.row_bands`); one output row per matched event of the band;
     returns the count. ``bands``: each band's frames and block bounds
     (:class:`cvstereo.matchers._shared.frame_bounds.BoundedFrames`, a leading axis of bands). ``values``,
     ``right_start``: as for the event-area kernel."""
     stored, scale, clock, bound = bands.stored[band], bands.scale[band], bands.clock[band], bands.bound[band]
     kernel, decay, period, thresholds, require, max_d, max_cost, run_ends, cost_ratio, cost_slack, centre = search
     # The band's own rows (the events it searches) and the rows it keeps exact: an event reads its own row only.
-    first_row, end_row, keep_lo, keep_hi = band_rows(band, n_bands, stored.shape[2], 0)
+    first_row, end_row, keep_lo, keep_hi = band_rows(cuts, band, stored.shape[2], 0)
     r = kernel.shape[0] // 2
     width = stored.shape[3]
     row = np.empty(width)
@@ -134,12 +134,11 @@ def _event_vector_band(stream, bands, band, n_bands, search, out_pos, out_dispar
     return n
 
 
-def _event_vector_bands(stream, bands, search, out_pos, out_disparity, counts, values, right_start):
+def _event_vector_bands(stream, bands, cuts, search, out_pos, out_disparity, counts, values, right_start):
     """:func:`_event_vector_band` for every band (``counts``: one per band, set to its count of matches;
     ``values``: one buffer per band), in parallel in the parallel compile."""
-    n_bands = counts.shape[0]
-    for band in prange(n_bands):
-        counts[band] = _event_vector_band(stream, bands, band, n_bands, search, out_pos[band], out_disparity[band],
+    for band in prange(counts.shape[0]):
+        counts[band] = _event_vector_band(stream, bands, cuts, band, search, out_pos[band], out_disparity[band],
                                           values[band], right_start)
 
 
