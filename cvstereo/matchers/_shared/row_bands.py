@@ -8,21 +8,22 @@ rows ``y - r .. y + r`` of its own. The dependencies are local in rows, so the s
 events' rows, so that the bands own about equal shares of them (:meth:`BandedState.layout`):
 
 * every band walks the whole merged stream. Decay ticks are time-driven and applied at the same events in every
-  band, so each band's scale and clock are the one-thread run's bit for bit; so are the counts that are the
-  same for all rows (splats since the last rebuild of event-area's column sums, :func:`splat_rows` counts
-  every splat, clipped to nothing or not);
+  band, so each band's scale and clock are the one-thread run's bit for bit; so is the count of splats since
+  the last rebuild of event-area's column sums (every splat counts, clipped to nothing by :func:`splat_rows`
+  or not), so that the sums are rebuilt at the same events;
 * each event's splat is applied to the band's kept rows only (:func:`band_rows`): a kept row sees exactly the
   one-thread run's float operations in the same order, so its values are bit-identical;
 * only a band's own events (``lo <= y < hi``) are searched and read for the signal level, so each event is
   searched once, by its owner, on exact rows. Event-area's column sums only prune the search (a lower bound
-  with a margin for their drift); a band's magnitude bound ``mass`` sums its own rows only, which bounds the
-  drift of its sums as the whole sensor's bounds the one-thread run's.
+  with a margin for their drift); a band's magnitude bound ``mass`` sums the rows it keeps (since its last
+  rebuild: its own splats), which bounds the drift of its sums there as the whole sensor's bounds the
+  one-thread run's.
 
 The matches of each band carry their position in the merged stream and are merged back into the stream's
 order (:func:`merge_band_matches`); the per-event values are gathered from their owner bands
-(:func:`gather_band_values`). The
-private copies persist from packet to packet (:class:`BandedState`), so that nothing is copied per packet; a
-change of the number of bands assembles the full state from the owners' rows and cuts it anew. With one band
+(:func:`gather_band_values`). The private copies persist from packet to packet (:class:`BandedState`), so
+that nothing is copied per packet; a change of the number of bands, or a cut anew, assembles the full state from
+the owners' rows and copies it into the new bands. With one band
 the state is the matcher's own arrays and every row is kept: the one-thread path.
 
 Each kernel is one Python function compiled twice (:func:`compile_twice`): serially, where its ``prange`` over
