@@ -152,7 +152,8 @@ def _splat_stream(seed, n, *, height=7, width=20, half=2, decay=0.99, gap=False)
     for k in range(n):
         x, y, p = int(rng.integers(0, width)), int(rng.integers(0, height)), int(rng.integers(0, 2))
         advance_due_summed(stored, scale, clock, sums, mass, pending, 0, int(t[k]), decay, 250, half)
-        splat_summed(stored, scale, clock, sums, mass, pending, half, 0, p, x, y, 1.0 if p else -1.0, kernel)
+        splat_summed(stored, scale, clock, sums, mass, pending, half, 0, p, x, y, 1.0 if p else -1.0, kernel,
+                     (max(0, y - 1), min(height, y + 2)))  # the 3x3 window's rows on the sensor
     return stored, scale, sums, mass, pending
 
 
@@ -207,7 +208,8 @@ def test_splat_bounded_adds_as_splat_does_and_bounds_each_block_by_its_maximum()
     bound = block_bounds(stored)
     scale, clock = np.array([0.37]), np.zeros((1, 2), dtype=np.int64)
     for x, y in zip(rng.integers(0, width, 300), rng.integers(0, height, 300), strict=True):
-        splat_bounded(stored, scale, clock, bound, 0, 0, int(x), int(y), 1.0, kernel)
+        splat_bounded(stored, scale, clock, bound, 0, 0, int(x), int(y), 1.0, kernel,
+                      (max(0, int(y) - 2), min(height, int(y) + 3)))  # the 5x5 window's rows on the sensor
         splat(plain, scale, clock, 0, 0, int(x), int(y), 1.0, kernel)
     np.testing.assert_array_equal(stored, plain)
     for b in range(bound.shape[3]):

@@ -20,7 +20,8 @@ import numpy as np
 from numba import njit
 
 from cvstereo.frames.dynamic import FrameBank, dynamic_unit
-from cvstereo.matchers._shared.merge_order import STREAM_ROWS, merged_stream
+from cvstereo.matchers._shared.merge_order import ROW_Y, STREAM_ROWS, merged_stream
+from cvstereo.matchers._shared.row_bands import gather_band_values, merge_band_matches
 from cvstereo.matchers._shared.signal_level import SignalLevel
 from cvstereo.matchers.protocol import StreamMatcher
 from cvstereo.model.events import count_before, empty_events, paired_window_segments
@@ -63,18 +64,6 @@ def _fill_matches(out, left, right, cam, index, disparity):  # pragma: no cover 
         row.disparity = disparity[n]
 
 
-@njit(cache=True, inline="always")
-def emit_match(out_cam, out_index, out_disparity, n, cam, i, disparity):  # pragma: no cover - compiled
-    """Write the ``n``-th match of a kernel's output (the event ``i`` of camera ``cam``) where ``disparity`` >= 0
-    (a negative one: the event found no match); the count of matches after it."""
-    if disparity < 0:
-        return n
-    out_cam[n] = cam
-    out_index[n] = i
-    out_disparity[n] = disparity
-    return n + 1
-
-
 def _fields(events: np.ndarray) -> tuple[np.ndarray, ...]:
     """The fields t, x, y, p of an event array (views)."""
     return events["t"], events["x"], events["y"], events["p"]
@@ -103,7 +92,8 @@ class MergedEventMatcher(StreamMatcher):
     """Base of the matchers that process both cameras' events in one merged order (one numba kernel call
     per packet).
 
-    Subclasses implement :meth:`_run_kernel`.
+    Subclasses set :attr:`kernels` and ``_bands`` (a :class:`cvstereo.matchers._shared.row_bands.BandedState` of
+    their frame state) and implement :meth:`_search`.
     """
 
     def __init__(self, params=None, *, resolution=(128, 128)):
@@ -119,14 +109,39 @@ class MergedEventMatcher(StreamMatcher):
         (:meth:`cvstereo.matchers._shared.signal_level.SignalLevel.diagnostics`)."""
         return self._level.diagnostics()
 
+    #: The kernel, serial and parallel (:func:`cvstereo.matchers._shared.row_bands.compile_twice` of a loop over the
+    #: row bands): ``kernel(stream, bands, cuts, search, out_pos, out_disparity, counts, values, right_start)``,
+    #: ``values`` one buffer per band.
+    kernels: tuple
+
     @abc.abstractmethod
+    def _search(self, thresholds: np.ndarray) -> tuple:
+        """The kernel's parameters (a NamedTuple) for a level window with each camera's ``thresholds``."""
+
     def _run_kernel(self, stream: np.ndarray, thresholds: np.ndarray, out_cam: np.ndarray, out_index: np.ndarray,
                     out_disparity: np.ndarray, out_values: tuple[np.ndarray, int]) -> int:
         """Run the merged events (``stream``: :func:`cvstereo.matchers._shared.merge_order.merged_stream`) through the
-        kernel with the thresholds of each camera; write one row per match into the outputs, each event's |D| before its
-        update into ``out_values`` = ``(values, right_start)`` (the left camera's i-th event at ``values[i]``, the
-        right camera's at ``values[right_start + i]``; NaN where its polarity is dropped) and return the number of
-        matches."""
+        kernel with the thresholds of each camera, in one row band per thread
+        (:mod:`cvstereo.matchers._shared.row_bands`: the same matches however many); write one row per match into
+        the outputs, in the stream's order, each event's |D| before its update into ``out_values`` =
+        ``(values, right_start)`` (the left camera's i-th event at ``values[i]``, the right camera's at
+        ``values[right_start + i]``; NaN where its polarity is dropped) and return the number of matches."""
+        bands = self._bands.layout(getattr(self, "threads", 1), stream[ROW_Y])
+        n_bands, n = self._bands.n_bands, max(1, stream.shape[1])
+        out_pos = self._scratch.take("band_pos", n_bands * n, np.int64).reshape(n_bands, n)
+        out_band = self._scratch.take("band_disparity", n_bands * n, np.float64).reshape(n_bands, n)
+        counts = np.zeros(n_bands, np.int64)
+        values, right_start = out_values
+        if n_bands == 1:
+            kernel, band_values = self.kernels[0], values[np.newaxis]
+        else:
+            kernel = self.kernels[1]
+            band_values = self._scratch.take("band_values", n_bands * values.size, np.float64).reshape(n_bands, -1)
+        cuts = self._bands.cuts
+        kernel(stream, bands, cuts, self._search(thresholds), out_pos, out_band, counts, band_values, right_start)
+        if n_bands > 1:
+            gather_band_values(stream, band_values, values, right_start, cuts)
+        return int(merge_band_matches(stream, counts, out_pos, out_band, out_cam, out_index, out_disparity))
 
     def _process(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:
         if left.size + right.size == 0:

@@ -17,8 +17,9 @@ from numba import njit
 
 from cvstereo.frames.dynamic import TOUCHED, advance_due
 
-__all__ = ["BOUND_SHIFT", "SUM_REBUILD", "SummedFrames", "advance_due_bounded", "advance_due_summed", "block_bounds",
-           "column_sums", "rebuild_bounds", "rebuild_sums", "skip_below", "splat_bounded", "splat_summed", "sum_drift"]
+__all__ = ["BOUND_SHIFT", "SUM_REBUILD", "BoundedFrames", "SummedFrames", "advance_due_bounded", "advance_due_summed",
+           "block_bounds", "column_sums", "rebuild_bounds", "rebuild_sums", "skip_below", "splat_bounded",
+           "splat_summed", "sum_drift"]
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -45,6 +46,15 @@ def block_bounds(stored: np.ndarray) -> np.ndarray:
     return np.zeros((n_cameras, n_frames, height, (width + (1 << BOUND_SHIFT) - 1) >> BOUND_SHIFT))
 
 
+class BoundedFrames(NamedTuple):
+    """Dynamic frames with their block bounds: the state event-vector's kernel carries, passed as one unit."""
+
+    stored: np.ndarray  #: (n_cameras, n_frames, H, W) float64: the frames, in units of ``scale``
+    scale: np.ndarray  #: (n_cameras,) float64: each camera's pending decay factor
+    clock: np.ndarray  #: (n_cameras, 2) int64: columns NEXT_TICK and TOUCHED (cvstereo.frames.dynamic)
+    bound: np.ndarray  #: (n_cameras, n_frames, H, blocks) float64: the block bounds (:func:`block_bounds`)
+
+
 @njit(cache=True)
 def rebuild_bounds(bound, stored, cam):
     """Set camera ``cam``'s block bounds to the exact maxima of |stored| (after its values were rescaled)."""
@@ -67,8 +77,10 @@ def advance_due_bounded(stored, scale, clock, bound, cam, t, decay, period):
 
 
 @njit(cache=True, inline="always")
-def splat_bounded(stored, scale, clock, bound, cam, slot, x, y, sign, kernel):
-    """:func:`splat`, raising the block bounds of the pixels it changes to their new |stored|.
+def splat_bounded(stored, scale, clock, bound, cam, slot, x, y, sign, kernel, rows):
+    """:func:`splat` on the rows ``rows = (first, stop)`` of its window (all of them on the sensor, or those a row
+    band keeps: :func:`cvstereo.matchers._shared.row_bands.splat_rows`), raising the block bounds of the pixels
+    it changes to their new |stored|.
 
     The same float64 operations as :func:`splat`, in one loop over the kernel's window on the sensor rather than
     :func:`splat` followed by a second loop: in that form numba kept atomic reference counting of the arrays
@@ -80,7 +92,7 @@ def splat_bounded(stored, scale, clock, bound, cam, slot, x, y, sign, kernel):
     r = kernel.shape[0] // 2
     c = scale[cam]
     x0, x1 = max(0, x - r), min(stored.shape[3], x + r + 1)
-    for yy in range(max(0, y - r), min(stored.shape[2], y + r + 1)):
+    for yy in range(rows[0], rows[1]):
         b = x0 >> BOUND_SHIFT
         m = bound[cam, slot, yy, b]
         for xx in range(x0, x1):
@@ -202,8 +214,11 @@ def advance_due_summed(stored, scale, clock, sums, mass, pending, cam, t, decay,
 
 
 @njit(cache=True, inline="always")
-def splat_summed(stored, scale, clock, sums, mass, pending, half, cam, slot, x, y, sign, kernel):
-    """:func:`splat`, adding each increment to the column sums of the ``2 * half + 1`` rows around it too.
+def splat_summed(stored, scale, clock, sums, mass, pending, half, cam, slot, x, y, sign, kernel, rows):
+    """:func:`splat` on the rows ``rows = (first, stop)`` of its window (as for :func:`splat_bounded`), adding
+    each increment to the column sums of the ``2 * half + 1`` rows around it too. It counts as a splat of the
+    camera (``pending``) even when ``rows`` is empty, so that a row band's sums are rebuilt at the same splats
+    as the whole sensor's.
 
     The same float64 operations on ``stored`` as :func:`splat`, in one loop nest over the kernel's window on the
     sensor (see :func:`splat_bounded` on why one).
@@ -212,7 +227,7 @@ def splat_summed(stored, scale, clock, sums, mass, pending, half, cam, slot, x, 
     height = stored.shape[2]
     c = scale[cam]
     added = 0.0
-    for yy in range(max(0, y - r), min(height, y + r + 1)):
+    for yy in range(rows[0], rows[1]):
         for xx in range(max(0, x - r), min(stored.shape[3], x + r + 1)):
             v = sign * kernel[yy - y + r, xx - x + r] / c
             stored[cam, slot, yy, xx] += v

@@ -55,14 +55,14 @@ Checks the thesis does not make (each off at its default; :mod:`cvstereo.matcher
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import ClassVar, NamedTuple
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from cvstereo.frames.accumulate import polarity_sign
 from cvstereo.frames.dynamic import NEXT_TICK, TOUCHED, tick_due
-from cvstereo.matchers._shared.event_common import MergedEventMatcher, emit_match
+from cvstereo.matchers._shared.event_common import MergedEventMatcher
 from cvstereo.matchers._shared.frame_bounds import (
     SUM_REBUILD,
     SummedFrames,
@@ -72,26 +72,49 @@ from cvstereo.matchers._shared.frame_bounds import (
     sum_drift,
 )
 from cvstereo.matchers._shared.merge_order import stream_event
+from cvstereo.matchers._shared.row_bands import BandedState, band_rows, compile_twice, emit_at, splat_rows
 from cvstereo.matchers.event_area.params import EventAreaParams
 
 __all__ = ["EventAreaMatcher"]
 
 
+class AreaSearch(NamedTuple):
+    """The event-area kernel's parameters for one level window (:meth:`EventAreaMatcher._run_kernel`)."""
+
+    kernel: np.ndarray  #: the update kernel (:func:`cvstereo.frames.dynamic.update_kernel`)
+    decay: float
+    period: int
+    thresholds: np.ndarray  #: (2,) each camera's event threshold in force
+    half: int  #: block // 2
+    max_d: int
+    max_cost: np.ndarray  #: (2,) the SAD each camera's match must stay below
+    all_frames: bool  #: the SAD sums over all of a camera's frames (``sad_frames="all"``), else the event's own
+    own_ratio: float
+    uniqueness: float
+    #: the bound of the column sums' drift per unit of mass of all the entries one lower bound sums
+    #: (:func:`cvstereo.matchers._shared.frame_bounds.sum_drift`)
+    drift: float
+
+
 @njit(cache=True)
-def _event_area_kernel(stream, state, drift, kernel, decay, period, thresholds, half, max_d, max_cost, all_frames,
-                       own_ratio, uniqueness, out_cam, out_index, out_disparity, values, right_start):
-    """Process the merged stream (:func:`cvstereo.matchers._shared.merge_order.merged_stream`); one output row per
-    matched event; returns the count. ``state``: the frames and their column sums of ``block`` rows
-    (:class:`cvstereo.matchers._shared.frame_bounds.SummedFrames`). ``all_frames``: the SAD sums over all of a
-    camera's frames (``sad_frames="all"``), else it compares the event's own frame only. ``drift``:
-    the bound of their drift per unit of mass of all the entries one lower bound sums
-    (:func:`cvstereo.matchers._shared.frame_bounds.sum_drift`). ``values``, ``right_start``: each event's |D|
-    before its update, the right camera's from ``right_start`` on
-    (:meth:`cvstereo.matchers._shared.event_common.MergedEventMatcher._run_kernel`)."""
-    stored, scale, clock, sums, mass, pending = state  # once per call: the loop below indexes the arrays themselves
+def _event_area_band(stream, bands, cuts, band, search, out_pos, out_disparity, values, right_start):
+    """Process the merged stream (:func:`cvstereo.matchers._shared.merge_order.merged_stream`) in row band ``band``
+    of the cut ``cuts`` (:mod:`cvstereo.matchers._shared.row_bands`); one output row per matched event of the band
+    (:func:`~cvstereo.matchers._shared.row_bands.emit_at`); returns the count. ``bands``: each band's frames and
+    their column sums of ``block`` rows (:class:`cvstereo.matchers._shared.frame_bounds.SummedFrames`, a leading
+    axis of bands). ``values``, ``right_start``: each event's |D| before its update, the right camera's from
+    ``right_start`` on (:meth:`cvstereo.matchers._shared.event_common.MergedEventMatcher._run_kernel`)."""
+    # Once per call: the loop below indexes the arrays themselves.
+    stored, scale, clock = bands.stored[band], bands.scale[band], bands.clock[band]
+    sums, mass, pending = bands.sums[band], bands.mass[band], bands.pending[band]
+    kernel, decay, period, thresholds, half, max_d, max_cost, all_frames, own_ratio, uniqueness, drift = search
     n_frames = stored.shape[1]
     height = stored.shape[2]
     width = stored.shape[3]
+    # The band's own rows (the events it searches) and the rows it keeps exact: a patch reads ``half`` rows
+    # beyond its own.
+    first_row, end_row, keep_lo, keep_hi = band_rows(cuts, band, height, half)
+    r = kernel.shape[0] // 2
     size = 2 * half + 1
     n_planes = n_frames if all_frames else 1
     own = np.empty((n_planes, size, size))
@@ -106,8 +129,8 @@ def _event_area_kernel(stream, state, drift, kernel, decay, period, thresholds, 
     done_sad = np.empty(n_d)
     rival = 1.0 + uniqueness  # a candidate within this factor of the best SAD, > 1 px away, makes it ambiguous
     n = 0
-    for k in range(stream.shape[1]):
-        cam, i, t, x, y, p, slot = stream_event(stream, k)
+    for j in range(stream.shape[1]):
+        cam, i, t, x, y, p, slot = stream_event(stream, j)
         other = 1 - cam
         # The test here, the call below only about once per decay tick: an inlined helper holding both kept
         # atomic reference counting of the six state arrays around every event (12 calls).
@@ -117,8 +140,10 @@ def _event_area_kernel(stream, state, drift, kernel, decay, period, thresholds, 
         c1 = scale[cam]
         c2 = scale[other]
         value = stored[cam, slot, y, x] * c1
-        values[cam * right_start + i] = abs(value)
-        if abs(value) >= thresholds[cam] and half <= x < width - half and half <= y < height - half:
+        if first_row <= y < end_row:  # the band's own event: its value and its search
+            values[cam * right_start + i] = abs(value)
+        if (first_row <= y < end_row and abs(value) >= thresholds[cam] and half <= x < width - half
+                and half <= y < height - half):
             # The frames compared: the event's own (plane 0 is frame ``slot``), or all of them in slot order.
             first_slot = 0 if all_frames else slot
             # The candidates d = 0 .. last are those whose patch stays on the sensor (the search ends at the
@@ -241,9 +266,22 @@ def _event_area_kernel(stream, state, drift, kernel, decay, period, thresholds, 
                     if abs(done_d[m] - best) > 1 and done_sad[m] <= best_sad * rival:
                         best = -1
                         break
-            n = emit_match(out_cam, out_index, out_disparity, n, cam, i, best)
-        splat_summed(stored, scale, clock, sums, mass, pending, half, cam, slot, x, y, polarity_sign(p), kernel)
+            n = emit_at(out_pos, out_disparity, n, j, best)
+        splat_summed(stored, scale, clock, sums, mass, pending, half, cam, slot, x, y, polarity_sign(p), kernel,
+                     splat_rows(y, r, keep_lo, keep_hi))
     return n
+
+
+def _event_area_bands(stream, bands, cuts, search, out_pos, out_disparity, counts, values, right_start):
+    """:func:`_event_area_band` for every band (``counts``: one per band, set to its count of matches;
+    ``values``: one buffer per band), in parallel in the parallel compile."""
+    for band in prange(counts.shape[0]):
+        counts[band] = _event_area_band(stream, bands, cuts, band, search, out_pos[band], out_disparity[band],
+                                        values[band], right_start)
+
+
+#: :func:`_event_area_bands`, serial (one thread) and parallel (several).
+_EVENT_AREA_KERNELS = compile_twice(_event_area_bands)
 
 
 class EventAreaMatcher(MergedEventMatcher):
@@ -267,17 +305,20 @@ class EventAreaMatcher(MergedEventMatcher):
     anchor = "event"
     method = "event-area"
 
+    kernels = _EVENT_AREA_KERNELS
+
     def __init__(self, params=None, *, resolution=(128, 128)):
         super().__init__(params, resolution=resolution)
-        # The column sums of ``block`` rows of the frames, kept by the kernel for its lower bound of the SAD.
-        self._state = SummedFrames(self._bank.stored, self._bank.scale, self._bank.clock,
-                                   *column_sums(self._bank.stored))
+        # The column sums of ``block`` rows of the frames, kept by the kernel for its lower bound of the SAD; a
+        # patch reads ``block // 2`` rows beyond the event's.
+        self._bands = BandedState(SummedFrames(self._bank.stored, self._bank.scale, self._bank.clock,
+                                               *column_sums(self._bank.stored)),
+                                  row_fields=("stored", "sums"), summed_fields=("mass",),
+                                  halo=self.params.block // 2)
 
-    def _run_kernel(self, stream, thresholds, out_cam, out_index, out_disparity, out_values) -> int:
+    def _search(self, thresholds) -> AreaSearch:
         prm, bank = self.params, self._bank
         drift = sum_drift(1.0, prm.block) * prm.block * prm.compared_frames  # all entries of one lower bound
-        return int(_event_area_kernel(stream, self._state, drift, bank.kernel,
-                                      *bank.decay_args, thresholds, prm.block // 2,
-                                      int(prm.max_disparity), prm.max_costs(thresholds), prm.sad_frames == "all",
-                                      float(prm.own_ratio), float(prm.uniqueness), out_cam, out_index,
-                                      out_disparity, *out_values))
+        return AreaSearch(bank.kernel, *bank.decay_args, thresholds, prm.block // 2, int(prm.max_disparity),
+                          prm.max_costs(thresholds), prm.sad_frames == "all", float(prm.own_ratio),
+                          float(prm.uniqueness), drift)
