@@ -49,4 +49,4 @@ def served(recording: Path, *, speed: float = 4.0, cameras=("left", "right"), ex
     finally:
         for proc in procs:
             proc.kill()
-            proc.wait()
+            proc.communicate()  # and its pipes closed

@@ -6,8 +6,10 @@ A :class:`DVSource` delivers its camera's events as an eDVS reader does (a queue
 each chunk with the host time it arrived), so that :class:`~cvstereo.sensors.stereo.StereoRig` merges, bounds
 and counts them the same way (docs/guide/live.md). Its resolution is the stream's own (its description).
 
-A DV stream flows from the moment it is connected (a camera from the moment it is opened), so the reader thread
-starts at :meth:`DVSource.open`: nothing waits in dv-processing's buffers while the matcher is prepared.
+:meth:`DVSource.open` connects (or opens the camera) and reads the stream's description; :meth:`DVSource.start`
+reads the events. A network stream is connected again at :meth:`~DVSource.start`, so that the matcher can be
+prepared meanwhile (its kernels compiled, which holds the interpreter): dv-processing's reader loses what it has
+not been asked for when its writer leaves, and what a writer sent before the start would not be matched anyway.
 A stream that ends (the writer stops, the connection drops) leaves its source :attr:`~DVSource.ended` with every
 event it sent delivered and a one-line :attr:`~DVSource.error`; a stream that stays connected but sends nothing
 goes silent, and the rig's bounded wait applies. Events that are out of the stream's resolution, or earlier
@@ -162,7 +164,7 @@ class DVSource:
         return f"DV stream {self.port}" if self.address else f"DV camera {self.port}"
 
     def open(self) -> DVSource:
-        """Connect (or open the camera), read its description and start reading.
+        """Connect (or open the camera) and read its description (:meth:`start` reads the events).
 
         Raises
         ------
@@ -172,13 +174,7 @@ class DVSource:
         ImportError
             dv-processing is not installed (the message names the extra).
         """
-        dv = _dv()
-        try:
-            reader = (_network_reader(dv, *self.address) if self.address else self._cameras.open(dv, self.port))
-        except (RuntimeError, OSError) as exc:
-            hint = ("check that the DV software or writer is running and publishes on that host and port" if
-                    self.address else "check the cable and the serial number (dv-list-devices lists them)")
-            raise SensorError(f"{self.name} camera: cannot open {self._what()} ({_reason(exc)}); {hint}.") from None
+        reader = self._connect()
         if not reader.isEventStreamAvailable():
             kinds = [k for k, f in (("frames", "isFrameStreamAvailable"), ("IMU", "isImuStreamAvailable"),
                                     ("triggers", "isTriggerStreamAvailable")) if getattr(reader, f)()]
@@ -191,14 +187,35 @@ class DVSource:
             raise SensorError(str(exc)) from None
         width, height = self.resolution
         self.protocol = f"DV events of {reader.getCameraName() or 'an unnamed camera'}, {width}x{height}"
-        self._reader = reader
+        # A camera streams from its opening on; a network stream is connected again at start().
+        self._reader = None if self.address else reader
+        return self
+
+    def _connect(self):
+        """dv-processing's reader of the stream or camera; a SensorError naming it if it cannot be opened."""
+        dv = _dv()
+        try:
+            return _network_reader(dv, *self.address) if self.address else self._cameras.open(dv, self.port)
+        except (RuntimeError, OSError) as exc:
+            hint = ("check that the DV software or writer is running and publishes on that host and port" if
+                    self.address else "check the cable and the serial number (dv-list-devices lists them)")
+            raise SensorError(f"{self.name} camera: cannot open {self._what()} ({_reason(exc)}); {hint}.") from None
+
+    def start(self) -> None:
+        """Start reading the stream (a network stream is connected again: its events from now on).
+
+        Raises
+        ------
+        SensorError
+            The network stream cannot be connected again (its writer left since :meth:`open`).
+        """
+        if self._thread is not None or self.resolution is None:
+            return
+        if self._reader is None:
+            self._reader = self._connect()
         self.last_byte_us = host_us()
         self._thread = threading.Thread(target=self._run, name=f"dv-{self.name}", daemon=True)
         self._thread.start()
-        return self
-
-    def start(self) -> None:
-        """Nothing to do: the stream is read from :meth:`open` on."""
 
     def stop(self) -> None:
         """Stop reading (what arrived so far is in :attr:`queue`)."""
@@ -243,15 +260,23 @@ class DVSource:
                               "(reading stopped).")
         return ev
 
+    def _take(self, reader) -> list[np.ndarray]:
+        """Every batch the reader has now, as dv-processing's records, taken without pause: its reader drops
+        packets when it is not asked for them fast enough, so the conversion waits until none is left."""
+        raws = []
+        while (batch := reader.getNextEventBatch()) is not None:
+            raws.append(batch.numpy())
+        return raws
+
     def _run(self) -> None:
         reader = self._reader
         try:
             while not self._stop.is_set():
-                batch = reader.getNextEventBatch()
+                raws = self._take(reader)
                 now = host_us()
-                if batch is None:
+                if not raws:
                     if not reader.isRunning():
-                        if (batch := reader.getNextEventBatch()) is None:  # what came before the end
+                        if not (raws := self._take(reader)):  # what came before the end
                             self.error = SensorError(f"{self.name} camera: {self._what()} ended (the writer "
                                                      "stopped or the connection dropped)")
                             break
@@ -261,9 +286,9 @@ class DVSource:
                             self.silences += 1
                         time.sleep(POLL_S)
                         continue
-                raw = batch.numpy()
                 self.last_byte_us = now
                 self.silent = False
+                raw = np.concatenate(raws) if len(raws) > 1 else raws[0]
                 if raw.shape[0]:
                     ev = self._events(raw)
                     self.queue.put(Chunk(ev, now))

@@ -4,8 +4,8 @@ DV software publishes, for trying ``cvstereo live --dv`` and ``record --dv`` wit
 Run as ``python -m cvstereo.sensors.dvserve RECORDING.npz {left,right} PORT [--speed S] [--host H]``. The
 process builds the camera's packets (:data:`SLICE_US` of stream time each), listens, prints ``ready`` and reads
 one line from its standard input: the wall-clock start time (``time.time()`` seconds), so that two such
-processes start together. Each packet is then written at ``start + (t - first t) / speed`` (the first
-client's connection is waited for before anything is written, so that it misses nothing); after the last one,
+processes start together. Each packet is then written at ``start + (t - first t) / speed``, from the time a
+client has stayed connected for :data:`SETTLE_S` on (so that the reader misses nothing); after the last one,
 once the writer's queue is empty and the client has gone or had :data:`LINGER_S` to read the rest, the process
 exits and the stream ends.
 """
@@ -27,6 +27,9 @@ SLICE_US = 1_000
 
 #: Longest wait for a client to connect, and for the writer to send what it queued, s.
 WAIT_S = 30.0
+
+#: A client connected this long is taken as the reader (not a look at the description), s.
+SETTLE_S = 0.2
 
 #: After the last packet left: time the client has to read what is still on its way, s.
 LINGER_S = 2.0
@@ -74,9 +77,18 @@ def serve(events: np.ndarray, resolution: tuple[int, int], port: int, *, host: s
     writer = dv.io.NetworkWriter(host, int(port), stream, 10, lambda code, message: None)
     print("ready", flush=True, file=log)
     start = float((start_line or sys.stdin.readline)().strip() or time.time())
-    deadline = time.monotonic() + WAIT_S
-    while writer.getClientCount() == 0 and time.monotonic() < deadline:
+    # A reader looks at the description first (a connection that goes at once), then connects to read: wait for
+    # a client that stays.
+    deadline, since = time.monotonic() + WAIT_S, None
+    while time.monotonic() < deadline:
+        if writer.getClientCount() == 0:
+            since = None
+        elif since is None:
+            since = time.monotonic()
+        elif time.monotonic() - since >= SETTLE_S:
+            break
         time.sleep(0.001)
+    start = max(start, time.time())
     first = stores[0][0] if stores else 0
     sent = 0
     for t0, store in stores:

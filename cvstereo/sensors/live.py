@@ -57,7 +57,7 @@ def _num(value: float, width: int, digits: int) -> str:
 
 
 def run_live(rig: StereoRig, matcher: StreamMatcher, *, depth: DepthModel | None = None,
-             seconds: float | None = None, stop: threading.Event | None = None, out=sys.stdout,
+             seconds: float | None = None, stop: threading.Event | None = None, out=None,
              update_s: float = UPDATE_S, done=None) -> LiveStats:
     """Feed the rig's packets to ``matcher`` and print one status line per ``update_s``.
 
@@ -71,6 +71,7 @@ def run_live(rig: StereoRig, matcher: StreamMatcher, *, depth: DepthModel | None
     """
     from cvstereo.run import run_iter
 
+    out = sys.stdout if out is None else out  # the stream of the call, not the one at import (tests swap it)
     stats = LiveStats()
     recent: list[np.ndarray] = []
     counts = [0, 0]
