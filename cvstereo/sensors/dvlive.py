@@ -29,13 +29,17 @@ from cvstereo.errors import SensorError
 from cvstereo.model.events import EVENT_DTYPE, check_resolution
 from cvstereo.sensors.edvs import DEFAULT_SILENCE_S, Chunk, host_us
 
-__all__ = ["DV_SCHEME", "POLL_S", "DVSource", "dv_sources", "parse_dv_address"]
+__all__ = ["BEHIND_US", "DV_SCHEME", "POLL_S", "DVSource", "dv_sources", "parse_dv_address"]
 
 #: The prefix of a DV network stream's address; anything else names a camera.
 DV_SCHEME = "tcp://"
 
 #: Wait between looks at a stream that had nothing new, s (dv-processing's batch call does not block).
 POLL_S = 0.001
+
+#: A reader thread that has not looked at its stream for this long is behind (a busy machine), us: until it looks
+#: again, its camera is not taken as silent (see :attr:`DVSource.last_byte_us`).
+BEHIND_US = 20_000
 
 #: dv-processing's name of each event field (its EventStore's numpy() record).
 _DV_FIELDS = {"t": "timestamp", "x": "x", "y": "y", "p": "polarity"}
@@ -154,7 +158,8 @@ class DVSource:
         self.error: BaseException | None = None
         self.ended = False
         self.events = 0
-        self.last_byte_us: int | None = None
+        self._data_us: int | None = None  # host time the last batch was taken
+        self._looked_us: int | None = None  # host time the reader last looked at the stream
         self._last_t: int | None = None
         self._reader = None
         self._thread: threading.Thread | None = None
@@ -213,7 +218,7 @@ class DVSource:
             return
         if self._reader is None:
             self._reader = self._connect()
-        self.last_byte_us = host_us()
+        self._data_us = self._looked_us = host_us()
         self._thread = threading.Thread(target=self._run, name=f"dv-{self.name}", daemon=True)
         self._thread.start()
 
@@ -234,6 +239,15 @@ class DVSource:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+    @property
+    def last_byte_us(self) -> int | None:
+        """The host time of the last batch taken, as the rig's bounded wait reads it; while the reader thread is
+        behind (it has not looked at the stream for :data:`BEHIND_US`: a busy machine did not run it), now: a
+        reader that did not look proves no silence, so that its camera's events are delayed, not dropped late."""
+        if self._looked_us is not None and host_us() - self._looked_us > BEHIND_US:
+            return host_us()
+        return self._data_us
 
     @property
     def running(self) -> bool:
@@ -273,7 +287,7 @@ class DVSource:
         try:
             while not self._stop.is_set():
                 raws = self._take(reader)
-                now = host_us()
+                now = self._looked_us = host_us()
                 if not raws:
                     if not reader.isRunning():
                         if not (raws := self._take(reader)):  # what came before the end
@@ -281,12 +295,12 @@ class DVSource:
                                                      "stopped or the connection dropped)")
                             break
                     else:
-                        if not self.silent and (now - self.last_byte_us) / 1e6 >= self.silence_s:
+                        if not self.silent and (now - self._data_us) / 1e6 >= self.silence_s:
                             self.silent = True
                             self.silences += 1
                         time.sleep(POLL_S)
                         continue
-                self.last_byte_us = now
+                self._data_us = now
                 self.silent = False
                 raw = np.concatenate(raws) if len(raws) > 1 else raws[0]
                 if raw.shape[0]:
