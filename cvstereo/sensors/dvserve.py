@@ -32,7 +32,7 @@ WAIT_S = 30.0
 SETTLE_S = 0.2
 
 #: After the last packet left: time the client has to read what is still on its way, s.
-LINGER_S = 2.0
+LINGER_S = 3.0
 
 
 def build_stores(dv, events: np.ndarray, slice_us: int = SLICE_US) -> list[tuple[int, object]]:
