@@ -1,4 +1,5 @@
-"""``cvstereo live``: run a matcher on two live eDVS128 boards (or --simulate) and show disparity and distance.
+"""``cvstereo live``: run a matcher on two live eDVS128 boards or DV cameras / streams (``--dv``), or --simulate, and
+show disparity and distance.
 
 Terminal output only: one line per 0.1 s with the median disparity, the distance it means for the rig
 (d = a/Z - c with a = focal_px * baseline_m, c = offset_px), events per second of each sensor and the lag
@@ -14,14 +15,14 @@ import sys
 from cvstereo.cli._common import add_matcher_options, matcher_overrides, matcher_threads
 from cvstereo.cli._rerun import add_rerun_option, rerun_target
 from cvstereo.geometry.rig import THESIS_RIG
-from cvstereo.sensors.session import add_rig_arguments, end_finished_streams, open_rig, stop_on_signals
+from cvstereo.sensors.session import add_rig_arguments, end_finished_streams, open_rig, stop_on_signals, streams_over
 
 __all__ = ["add_parser", "run"]
 
 
 def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
-    p = subparsers.add_parser(name, help="match two live eDVS128 boards (or --simulate) and show depth",
-                              description=__doc__)
+    p = subparsers.add_parser(name, help="match two live eDVS128 boards, DV cameras or streams (or --simulate) and "
+                              "show depth", description=__doc__)
     add_rig_arguments(p)
     add_matcher_options(p)
     p.add_argument("--focal-px", type=float, default=THESIS_RIG.focal_px,
@@ -47,10 +48,10 @@ def run(args: argparse.Namespace) -> int:
     rerun = rerun_target(args)
     plan = _output_plan(args, rerun)
     params = matcher_overrides(args)
-    # Built before the boards are opened: create_matcher has its kernels compiled or loaded by then, so that the
-    # first packets do not wait for them while the readers' queues fill.
-    matcher = create_matcher(args.method, args.variant, param_set=args.param_set,
-                             threads=matcher_threads(args), **params)
+    build = dict(param_set=args.param_set, threads=matcher_threads(args), **params)
+    # Its kernels compiled or loaded (and its parameters checked) before the sensors are opened: the matcher built
+    # below at the rig's resolution runs the same kernels, so the first packets do not wait for a compiler.
+    create_matcher(args.method, args.variant, **build)
     depth = (parse_depth_option(args.depth) if args.depth is not None else
              DepthModel.from_rig(focal_px=args.focal_px, baseline_m=args.baseline_m, offset_px=args.offset_px))
     from cvstereo.sensors.detect import ProtocolMismatchError
@@ -58,15 +59,16 @@ def run(args: argparse.Namespace) -> int:
     # The --rerun file is checked and a viewer started before the boards are opened; the file is published at the end.
     with stop_on_signals() as stop, plan, rerun_stream(rerun) as viewer, open_rig(args) as (rig, devices):
         stop.raise_if_set()  # stopped while the boards were opened: nothing to show
+        # The cameras' own resolution (a DV stream states it; an eDVS is 128x128).
+        matcher = create_matcher(args.method, args.variant, resolution=rig.resolution, **build)
         rig.start()
 
         def done() -> bool:
             if any(isinstance(c.error, ProtocolMismatchError) for c in rig.cams):
                 return True  # the protocol settings were refused: stop and say why
             end_finished_streams(rig, devices)
-            # Done once the recording is sent, read and matched: events the rig still holds are fed first.
-            return (bool(devices) and all(d.done for d in devices) and all(c.silent for c in rig.cams)
-                    and not rig.pending)
+            # Done once both streams are over and matched: events the rig still holds are fed first.
+            return streams_over(rig, devices) and not rig.pending
 
         log = _rerun_log(args, viewer, matcher, depth)
         try:

@@ -1,4 +1,4 @@
-"""``cvstereo record``: record two eDVS128 boards into a stereo recording ``.npz``.
+"""``cvstereo record``: record two eDVS128 boards or DV cameras / streams (``--dv``) into a stereo recording ``.npz``.
 
 Events go to a journal first (flushed at least every second); on Ctrl-C, SIGTERM or ``--seconds`` the
 journal is turned into the recording, written atomically, and the journal is removed (exit 0). A stop before
@@ -14,13 +14,14 @@ import sys
 import time
 from pathlib import Path
 
-from cvstereo.sensors.session import add_rig_arguments, open_rig, stop_on_signals
+from cvstereo.sensors.session import add_rig_arguments, open_rig, stop_on_signals, streams_over
 
 __all__ = ["add_parser", "run"]
 
 
 def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
-    p = subparsers.add_parser(name, help="record two eDVS128 boards (or --simulate) into a recording .npz",
+    p = subparsers.add_parser(name, help="record two eDVS128 boards, DV cameras or streams (or --simulate) into a "
+                              "recording .npz",
                               description=__doc__)
     add_rig_arguments(p)
     p.add_argument("-o", "--output", required=True, metavar="OUT.npz", help="recording to write")
@@ -59,8 +60,10 @@ def _report(rig, devices, args) -> None:
         received = s["bytes"]
         share = f" ({s['corrupt_bytes'] / received:.1%} of {received} bytes received)" if received else ""
         sent = f" (the virtual board sent {devices[i].sent_events})" if devices else ""
+        # A DV source reads decoded events, not bytes (None): it has no corrupt bytes to report.
+        corrupt = "" if received is None else f"{s['corrupt_bytes']} corrupt bytes{share}, "
         print(f"{cam}: {s['events']} events{sent}, {s['protocol'] or 'no bytes to tell the protocol'}, "
-              f"{s['corrupt_bytes']} corrupt bytes{share}, {s['silences']} silences"
+              f"{corrupt}{s['silences']} silences"
               + (f", {s['ambiguous_wraps']} ambiguous timestamp wraps (the host read late: times after them may"
                  " be off by whole 65.536 ms wraps; record with --event-format E3 or E4 to avoid this)"
                  if s.get("ambiguous_wraps") else "")
@@ -89,8 +92,8 @@ def run(args: argparse.Namespace) -> int:
     with stop_on_signals() as stop, open_rig(args) as (rig, devices):
         stop.raise_if_set()  # stopped while the boards were opened: nothing received, no journal yet
         meta = {"source": "cvstereo record", "ports": [c.port for c in rig.cams],
-                "event_format": args.event_format, "clock": args.clock,
-                "simulated_from": args.simulate}
+                "event_format": "dv" if args.dv else args.event_format, "clock": args.clock,
+                "simulated_from": args.simulate, "resolution": list(rig.resolution)}
         journal = Journal(journal_path, meta)  # refuses an existing file: never truncates it
         try:
             _record(rig, devices, journal, stop, args)
@@ -133,9 +136,8 @@ def _record(rig, devices, journal, stop, args) -> None:
                         return  # refused: the other board is stopped too, and the run reports why
                     print(f"cvstereo record: warning: {cam.error}", file=sys.stderr, flush=True)
                     reported.add(i)
-            if devices and all(d.done for d in devices) and all(c.queue.empty() for c in rig.cams) \
-                    and all(c.silent for c in rig.cams):
-                break  # --simulate: the recording has been played in full
+            if streams_over(rig, devices) and all(c.queue.empty() for c in rig.cams):
+                break  # the recording has been played in full (--simulate), the DV streams ended
     except KeyboardInterrupt:
         pass
     finally:

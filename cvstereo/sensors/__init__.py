@@ -1,5 +1,6 @@
-"""Live eDVS128 sensors: serial protocol, streaming decoder, one board, two boards on one clock, a virtual
-board on a pseudo-terminal, and an append-only journal for recording."""
+"""Live sensors: the eDVS128 serial protocol, streaming decoder, one board, two boards on one clock, a virtual
+board on a pseudo-terminal; DV cameras and DV network streams; any two merged into stereo packets; and an
+append-only journal for recording."""
 
 import importlib
 
@@ -7,7 +8,8 @@ import importlib
 _EXPORTS = {
     "StreamDecoder": "decoder", "EDVS": "edvs", "Chunk": "edvs", "Journal": "journal", "read_journal": "journal",
     "FORMATS": "protocol", "Commands": "protocol", "ProtocolSettings": "protocol", "encode_events": "protocol",
-    "link_event_rate": "protocol", "StereoEDVS": "stereo", "StereoSettings": "stereo", "VirtualEDVS": "virtual",
+    "link_event_rate": "protocol", "StereoEDVS": "stereo", "StereoRig": "stereo",
+    "DVSource": "dvlive", "StereoSettings": "stereo", "VirtualEDVS": "virtual",
     "VirtualClock": "virtual", "ProtocolMismatchError": "detect", "detect_protocol": "detect",
 }
 
@@ -19,7 +21,7 @@ def __getattr__(name: str):
 
 
 __all__ = [
-    "EDVS", "FORMATS", "Chunk", "Commands", "Journal", "ProtocolMismatchError", "ProtocolSettings", "StereoEDVS",
-    "StereoSettings", "StreamDecoder", "VirtualClock", "VirtualEDVS", "detect_protocol", "encode_events",
-    "link_event_rate", "read_journal",
+    "EDVS", "FORMATS", "Chunk", "Commands", "DVSource", "Journal", "ProtocolMismatchError", "ProtocolSettings",
+    "StereoEDVS", "StereoRig", "StereoSettings", "StreamDecoder", "VirtualClock", "VirtualEDVS", "detect_protocol",
+    "encode_events", "link_event_rate", "read_journal",
 ]

@@ -19,6 +19,7 @@ import numpy as np
 import serial
 
 from cvstereo.errors import SensorError
+from cvstereo.model.sensor_size import DEFAULT_RESOLUTION
 from cvstereo.sensors.decoder import StreamDecoder, warm_up
 from cvstereo.sensors.detect import DETECT_BYTES, ProtocolMismatchError, check_protocol
 from cvstereo.sensors.protocol import BITS_PER_BYTE, DEFAULT_BAUD, ProtocolSettings
@@ -82,7 +83,11 @@ class EDVS:
         Why the reader stopped (unplugged cable, wrong protocol settings, ...).
     protocol : str or None
         The format and sync bit decoded, and whether they were detected, checked or assumed.
+    resolution : (int, int)
+        The eDVS128's pixel array, (128, 128).
     """
+
+    resolution = DEFAULT_RESOLUTION
 
     def __init__(self, port: str, *, baud: int = DEFAULT_BAUD, settings: ProtocolSettings | None = None,
                  name: str = "sensor", queue_size: int = 1024, silence_s: float = DEFAULT_SILENCE_S,

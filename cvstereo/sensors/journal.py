@@ -20,6 +20,7 @@ import numpy as np
 from cvstereo.errors import CorruptFileError
 from cvstereo.model.events import EVENT_DTYPE
 from cvstereo.model.recording import Recording
+from cvstereo.model.sensor_size import DEFAULT_RESOLUTION
 
 __all__ = ["FLUSH_EVERY_S", "MAGIC", "MAX_HEADER_BYTES", "Journal", "is_journal", "journal_exists_message",
            "read_journal"]
@@ -169,6 +170,8 @@ def _parse(path: Path, data) -> tuple[Recording, int]:
     meta = dict(meta)
     meta["journal_truncated_bytes"] = lost
     try:
-        return Recording(cams[0], cams[1], meta=meta), lost
-    except ValueError as exc:
+        # The cameras' resolution, where the recorder stored it (DV cameras); else the eDVS128's, the default.
+        resolution = tuple(meta["resolution"]) if "resolution" in meta else DEFAULT_RESOLUTION
+        return Recording(cams[0], cams[1], resolution=resolution, meta=meta), lost
+    except (ValueError, TypeError) as exc:
         raise CorruptFileError(f"{path}: {exc}") from None

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import hashlib
 import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -15,7 +17,7 @@ from cvstereo.matchers.protocol import StreamMatcher
 from cvstereo.model.events import StereoPacket
 from cvstereo.sensors.edvs import host_us
 from cvstereo.sensors.lag import LagMeter
-from cvstereo.sensors.stereo import StereoEDVS
+from cvstereo.sensors.stereo import StereoRig
 
 __all__ = ["PACKET_WAIT_S", "UPDATE_S", "LiveStats", "run_live"]
 
@@ -35,6 +37,9 @@ class LiveStats:
     lags_ms: list[float] = field(default_factory=list)
     latencies_ms: list[float] = field(default_factory=list)
     lag: LagMeter = field(default_factory=LagMeter)
+    #: sha256 of the matches' bytes in the order they came: equal to a file's matches hashed the same way when
+    #: the live run matched the same events.
+    digest: Any = field(default_factory=hashlib.sha256)
 
     def summary(self) -> dict:
         lag = np.asarray(self.lags_ms) if self.lags_ms else np.zeros(1)
@@ -43,7 +48,7 @@ class LiveStats:
                 "events_right": self.events[1], "lag_ms_mean": float(lag.mean()), "lag_ms_max": float(lag.max()),
                 "latency_ms_median": float(np.median(lat)) if lat.size else None,
                 "latency_ms_p95": float(np.percentile(lat, 95)) if lat.size else None,
-                "lag_per_packet": self.lag.percentiles()}
+                "lag_per_packet": self.lag.percentiles(), "matches_sha256": self.digest.hexdigest()}
 
 
 def _num(value: float, width: int, digits: int) -> str:
@@ -51,8 +56,8 @@ def _num(value: float, width: int, digits: int) -> str:
     return f"{value:{width}.{digits}f}" if np.isfinite(value) else f"{'n/a':>{width}}"
 
 
-def run_live(rig: StereoEDVS, matcher: StreamMatcher, *, depth: DepthModel | None = None,
-             seconds: float | None = None, stop: threading.Event | None = None, out=sys.stdout,
+def run_live(rig: StereoRig, matcher: StreamMatcher, *, depth: DepthModel | None = None,
+             seconds: float | None = None, stop: threading.Event | None = None, out=None,
              update_s: float = UPDATE_S, done=None,
              on_packet: Callable[[StereoPacket, np.ndarray], None] | None = None) -> LiveStats:
     """Feed the rig's packets to ``matcher`` and print one status line per ``update_s``.
@@ -69,12 +74,14 @@ def run_live(rig: StereoEDVS, matcher: StreamMatcher, *, depth: DepthModel | Non
     """
     from cvstereo.run import run_iter
 
+    out = sys.stdout if out is None else out  # the stream of the call, not the one at import (tests swap it)
     stats = LiveStats()
     recent: list[np.ndarray] = []
     counts = [0, 0]
     last_line = time.monotonic()
     newest_arrival: int | None = None
     for pkt, m in run_iter(matcher, _rig_packets(rig, seconds, stop, done)):
+        stats.digest.update(m.tobytes())
         if pkt is None:  # the flush, once the packets ended
             stats.matches += m.size
             break
@@ -113,7 +120,7 @@ def run_live(rig: StereoEDVS, matcher: StreamMatcher, *, depth: DepthModel | Non
     return stats
 
 
-def _rig_packets(rig: StereoEDVS, seconds: float | None, stop: threading.Event | None, done
+def _rig_packets(rig: StereoRig, seconds: float | None, stop: threading.Event | None, done
                  ) -> Iterator[StereoPacket]:
     """The rig's packets as they complete, until ``stop`` is set, ``seconds`` have passed or ``done()``; the
     conditions are checked before every wait for a packet (a wait lasts at most :data:`PACKET_WAIT_S`)."""

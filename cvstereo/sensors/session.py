@@ -14,10 +14,10 @@ from typing import TYPE_CHECKING
 from cvstereo.sensors.protocol import DEFAULT_BAUD, FORMATS, ProtocolSettings
 
 __all__ = ["Stop", "add_rig_arguments", "end_finished_streams", "open_rig", "positive_number", "protocol_settings",
-           "stop_on_signals"]
+           "stop_on_signals", "streams_over"]
 
 if TYPE_CHECKING:  # the boards' modules load numba; the CLI imports them only when it runs
-    from cvstereo.sensors.stereo import StereoEDVS
+    from cvstereo.sensors.stereo import StereoRig
     from cvstereo.sensors.virtual import VirtualEDVS
 
 
@@ -44,9 +44,13 @@ def _baud(text: str) -> int:
 
 
 def add_rig_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--left/--right/--simulate`` and the protocol settings drivers disagree on."""
+    """``--left/--right/--dv/--simulate`` and the protocol settings drivers disagree on."""
     parser.add_argument("--left", metavar="PORT", help="serial port of the left eDVS")
     parser.add_argument("--right", metavar="PORT", help="serial port of the right eDVS")
+    parser.add_argument("--dv", nargs=2, metavar=("LEFT", "RIGHT"), default=None,
+                        help="two DV cameras instead of eDVS boards, each a DV network stream tcp://HOST:PORT (the DV "
+                        "software's or dv-processing's network output) or a camera's serial number (needs the dv "
+                        "extra)")
     parser.add_argument("--simulate", metavar="RECORDING", default=None,
                         help="start two virtual eDVS streaming this recording instead of real boards")
     parser.add_argument("--speed", type=positive_number("--speed"), default=1.0,
@@ -78,14 +82,18 @@ def protocol_settings(args: argparse.Namespace) -> ProtocolSettings:
 
 
 @contextlib.contextmanager
-def open_rig(args: argparse.Namespace) -> Iterator[tuple[StereoEDVS, list[VirtualEDVS]]]:
-    """Open the two boards named on the command line (or two virtual ones with --simulate)."""
+def open_rig(args: argparse.Namespace) -> Iterator[tuple[StereoRig, list[VirtualEDVS]]]:
+    """Open the two cameras named on the command line: eDVS boards, DV cameras or streams (``--dv``), or two
+    virtual boards (``--simulate``)."""
     from cvstereo.sensors.stereo import StereoEDVS, StereoSettings
     from cvstereo.sensors.virtual import VirtualClock, VirtualEDVS
 
     settings = protocol_settings(args)
     devices: list[VirtualEDVS] = []
     with contextlib.ExitStack() as stack:
+        if args.dv:
+            yield stack.enter_context(_dv_rig(args)), devices
+            return
         if args.simulate:
             from cvstereo.io.npz import read_recording_npz
 
@@ -102,8 +110,8 @@ def open_rig(args: argparse.Namespace) -> Iterator[tuple[StereoEDVS, list[Virtua
             left, right = ports
         else:
             if not args.left or not args.right:
-                raise ValueError("give both --left PORT and --right PORT, or --simulate RECORDING to try without "
-                                 "hardware.")
+                raise ValueError("give both --left PORT and --right PORT, --dv LEFT RIGHT for DV cameras, or "
+                                 "--simulate RECORDING to try without hardware.")
             left, right = args.left, args.right
         rig = StereoEDVS(left, right, baud=args.baud, settings=settings, stereo=StereoSettings(clock=args.clock),
                          auto_format=args.event_format == "auto", auto_sync=args.sync_bit == "auto")
@@ -111,14 +119,45 @@ def open_rig(args: argparse.Namespace) -> Iterator[tuple[StereoEDVS, list[Virtua
         yield rig, devices
 
 
-def end_finished_streams(rig: StereoEDVS, devices: list[VirtualEDVS]) -> None:
-    """Tell the rig which simulated cameras have played their recording to the end and had every event they
-    sent delivered (:meth:`StereoEDVS.end_stream`): the last events of the other camera then need not wait for
-    the bounded wait of a silent camera. Real boards (``devices`` empty) never end."""
-    for camera, device in enumerate(devices):
-        side = rig.sides[camera]
-        if not side.ended and device.done and side.events >= device.sent_events:
+def _dv_rig(args: argparse.Namespace) -> StereoRig:
+    """The rig of ``--dv LEFT RIGHT`` (not opened), the addresses checked first."""
+    from cvstereo.sensors.dvlive import dv_sources, parse_dv_address
+    from cvstereo.sensors.stereo import StereoRig, StereoSettings
+
+    if args.simulate or args.left or args.right:
+        raise ValueError("--dv names both cameras: give it without --left, --right or --simulate.")
+    for where in args.dv:
+        try:
+            parse_dv_address(where)
+        except ValueError as exc:
+            raise ValueError(f"--dv {exc}") from None
+    return StereoRig(dv_sources(*args.dv), stereo=StereoSettings(clock=args.clock))
+
+
+def _stream_over(rig: StereoRig, devices: list[VirtualEDVS], camera: int) -> bool:
+    """Camera ``camera`` will send nothing more, and every event it sent was delivered: a simulated board that
+    played its recording to the end, or a source whose stream ended (a DV stream). Real boards never end."""
+    side = rig.sides[camera]
+    if devices:
+        return devices[camera].done and side.events >= devices[camera].sent_events
+    return getattr(side.cam, "ended", False)
+
+
+def end_finished_streams(rig: StereoRig, devices: list[VirtualEDVS]) -> None:
+    """Tell the rig which cameras' streams are over (:meth:`StereoRig.end_stream`): the last events of the
+    other camera then need not wait for the bounded wait of a silent camera."""
+    for camera, side in enumerate(rig.sides):
+        if not side.ended and _stream_over(rig, devices, camera):
             rig.end_stream(camera)
+
+
+def streams_over(rig: StereoRig, devices: list[VirtualEDVS]) -> bool:
+    """Both cameras will send nothing more and their readers have delivered what they sent (simulated boards
+    that played their recording and went silent, DV streams that ended): the run can end once the rig's
+    queues are empty."""
+    if devices:
+        return all(d.done for d in devices) and all(c.silent for c in rig.cams)
+    return all(getattr(c, "ended", False) for c in rig.cams)
 
 
 class Stop(threading.Event):

@@ -1,4 +1,5 @@
-"""Two eDVS128 boards on one clock, merged into time-ordered stereo packets.
+"""Two event cameras merged into time-ordered stereo packets (:class:`StereoRig`); two eDVS128 boards on one clock
+(:class:`StereoEDVS`).
 
 Clock strategies (:class:`StereoSettings.clock`):
 
@@ -27,11 +28,12 @@ from typing import Literal
 
 import numpy as np
 
+from cvstereo.errors import SensorError
 from cvstereo.model.events import EVENT_DTYPE, StereoPacket, count_before
 from cvstereo.sensors.edvs import EDVS, Chunk, host_us
 from cvstereo.sensors.protocol import DEFAULT_BAUD, ProtocolSettings
 
-__all__ = ["CAMERAS", "SILENT_WAIT_US", "StereoEDVS", "StereoSettings"]
+__all__ = ["CAMERAS", "SILENT_WAIT_US", "StereoEDVS", "StereoRig", "StereoSettings"]
 
 CAMERAS = ("left", "right")
 
@@ -122,28 +124,27 @@ class _Side:
         return (np.concatenate(out) if out else np.zeros(0, EVENT_DTYPE)), arrival
 
 
-class StereoEDVS:
-    """Two boards (left, right) on one clock.
+class StereoRig:
+    """Two event sources (left, right) merged on one clock: the watermark, the bounded wait, late events.
+
+    A source is one camera's reader (:class:`~cvstereo.sensors.edvs.EDVS`,
+    :class:`~cvstereo.sensors.dvlive.DVSource`): it has ``name``, ``port`` (where it reads from),
+    ``resolution``, ``open()``, ``start()``, ``stop()``, ``close()``, ``status()``, and while it streams a
+    ``queue`` of :class:`~cvstereo.sensors.edvs.Chunk` in its camera's time order, ``last_byte_us`` (host time
+    it last read anything), ``silent``, ``silence_s``, ``error`` and ``protocol``. The merging needs nothing
+    else, so that every source is merged, bounded and counted the same way.
 
     Parameters
     ----------
-    left_port, right_port : str
-    baud : int, keyword-only
-    settings : ProtocolSettings, keyword-only
-        Both boards use the same protocol settings.
+    sources : (left, right)
     stereo : StereoSettings, keyword-only
-    auto_format, auto_sync : bool, keyword-only
-        Detect the event format / sync bit of each board from its first bytes (see :class:`EDVS`).
     """
 
-    def __init__(self, left_port: str, right_port: str, *, baud: int = DEFAULT_BAUD,
-                 settings: ProtocolSettings | None = None, stereo: StereoSettings | None = None,
-                 auto_format: bool = False, auto_sync: bool = False):
-        self.settings = settings or ProtocolSettings()
+    def __init__(self, sources, *, stereo: StereoSettings | None = None):
         self.stereo = stereo or StereoSettings()
-        self.cams = [EDVS(p, baud=baud, settings=self.settings, name=n, silence_s=self.stereo.silence_s,
-                          auto_format=auto_format, auto_sync=auto_sync)
-                     for n, p in zip(CAMERAS, (left_port, right_port), strict=True)]
+        self.cams = list(sources)
+        if len(self.cams) != len(CAMERAS):
+            raise ValueError(f"a stereo rig takes {len(CAMERAS)} sources (left, right), got {len(self.cams)}")
         self.sides = [_Side(c) for c in self.cams]
         self.watermark: int | None = None
         #: Packets closed past a camera that held nothing back: silent (the bounded wait), or its stream ended.
@@ -154,41 +155,31 @@ class StereoEDVS:
         self._watched_since: int | None = None  # host time since which packet() calls came often
         self.residual_offset_us: int | None = None
 
-    def open(self) -> StereoEDVS:
-        """Open both ports (a missing one raises SensorError naming it; the other is closed again)."""
+    @property
+    def resolution(self) -> tuple[int, int]:
+        """The cameras' (width, height); both sources have it (see the sources' ``open``)."""
+        return self.cams[0].resolution
+
+    def open(self) -> StereoRig:
+        """Open both sources (one that cannot be opened raises SensorError naming it; the other is closed
+        again), and refuse two cameras of different resolutions (one matcher takes both)."""
         try:
             for cam in self.cams:
                 cam.open()
+            left, right = (tuple(cam.resolution) for cam in self.cams)
+            if left != right:
+                raise SensorError(f"the left camera ({self.cams[0].port}) is {left[0]}x{left[1]} and the right "
+                                  f"({self.cams[1].port}) {right[0]}x{right[1]}: a stereo pair needs two "
+                                  "cameras of one resolution.")
         except BaseException:
             self.close()
             raise
         return self
 
-    def start(self, *, biases: dict[int, int] | None = None) -> None:
-        """Reset and configure both boards, synchronise their clocks and start streaming."""
-        left, right = self.cams
+    def start(self) -> None:
+        """Start both sources streaming, back to back."""
         for cam in self.cams:
-            cam.configure(biases=biases)
-        c = self.settings.commands
-        # The host time of the clock reset lets each decoder count the 16-bit wraps before a camera's first
-        # event too (a camera that starts sending later must not start its clock later).
-        if self.stereo.clock == "master-slave":
-            left.command(c.master_arm)
-            right.command(c.slave)
-            epoch = host_us()
-            left.command(c.master_run)
-            for cam in self.cams:
-                cam.clock_reset(epoch)
-        else:
-            for cam in self.cams:
-                cam.reset_clock()
-        for cam in self.cams:
-            cam.drain(0.02)
-        for cam in self.cams:
-            cam.start(send_start=False)
-        # Back to back, so that the boards start as close together as the host allows.
-        for cam in self.cams:
-            cam.command(c.start)
+            cam.start()
 
     def stop(self) -> None:
         for cam in self.cams:
@@ -198,12 +189,11 @@ class StereoEDVS:
         for cam in self.cams:
             cam.close()
 
-    def __enter__(self) -> StereoEDVS:
+    def __enter__(self) -> StereoRig:
         return self.open()
 
     def __exit__(self, *exc) -> None:
         self.close()
-
     # -- merging ----------------------------------------------------------------------------------
     def _offset_estimate(self) -> int | None:
         offs = [s.min_offset for s in self.sides]
@@ -315,3 +305,53 @@ class StereoEDVS:
             "silent_wait_us": self.stereo.silent_wait_us,
             "packets_past_a_silent_camera": self.waited_out,
         }
+
+
+class StereoEDVS(StereoRig):
+    """Two eDVS128 boards (left, right) on one clock (the clock strategies: see the module docstring).
+
+    Parameters
+    ----------
+    left_port, right_port : str
+    baud : int, keyword-only
+    settings : ProtocolSettings, keyword-only
+        Both boards use the same protocol settings.
+    stereo : StereoSettings, keyword-only
+    auto_format, auto_sync : bool, keyword-only
+        Detect the event format / sync bit of each board from its first bytes (see :class:`EDVS`).
+    """
+
+    def __init__(self, left_port: str, right_port: str, *, baud: int = DEFAULT_BAUD,
+                 settings: ProtocolSettings | None = None, stereo: StereoSettings | None = None,
+                 auto_format: bool = False, auto_sync: bool = False):
+        self.settings = settings or ProtocolSettings()
+        stereo = stereo or StereoSettings()
+        super().__init__([EDVS(p, baud=baud, settings=self.settings, name=n, silence_s=stereo.silence_s,
+                               auto_format=auto_format, auto_sync=auto_sync)
+                          for n, p in zip(CAMERAS, (left_port, right_port), strict=True)], stereo=stereo)
+
+    def start(self, *, biases: dict[int, int] | None = None) -> None:
+        """Reset and configure both boards, synchronise their clocks and start streaming."""
+        left, right = self.cams
+        for cam in self.cams:
+            cam.configure(biases=biases)
+        c = self.settings.commands
+        # The host time of the clock reset lets each decoder count the 16-bit wraps before a camera's first
+        # event too (a camera that starts sending later must not start its clock later).
+        if self.stereo.clock == "master-slave":
+            left.command(c.master_arm)
+            right.command(c.slave)
+            epoch = host_us()
+            left.command(c.master_run)
+            for cam in self.cams:
+                cam.clock_reset(epoch)
+        else:
+            for cam in self.cams:
+                cam.reset_clock()
+        for cam in self.cams:
+            cam.drain(0.02)
+        for cam in self.cams:
+            cam.start(send_start=False)
+        # Back to back, so that the boards start as close together as the host allows.
+        for cam in self.cams:
+            cam.command(c.start)
