@@ -149,3 +149,24 @@ def test_arrays_at_another_sensor_size(pair):
         match(big_l, big_r, method="frame-area", threshold=0.5)
     got = match(big_l, big_r, method="frame-area", threshold=0.5, resolution=(346, 260))
     assert got.meta["resolution"] == [346, 260] and np.median(got.matches["disparity"]) == 6
+
+
+def test_the_matches_meta_holds_the_recordings_origin():
+    """meta["origin_us"]: the time shown as 0 (docs/formats.md), the earliest event of both cameras on a clock of
+    1.7e12 us, or the origin a clip of a recording keeps in its meta."""
+    import numpy as np
+
+    from cvstereo.model.events import make_events
+    from cvstereo.model.recording import Recording
+    from cvstereo.run import match
+
+    rng = np.random.default_rng(5)
+    t = 1_700_000_000_000 + np.sort(rng.integers(0, 400_000, 3000))
+    x, y, p = rng.integers(20, 128, t.size), rng.integers(0, 128, t.size), rng.integers(0, 2, t.size)
+    left = make_events(t, x, y, p)
+    right = make_events(t[5:] - 3, x[5:] - 10, y[5:], p[5:])  # the right camera starts later
+    rec = Recording(left, right, resolution=(128, 128))
+    expected = min(int(left["t"][0]), int(right["t"][0]))
+    assert match(rec, rig_check=False).meta["origin_us"] == expected
+    clip = Recording(left[100:], right[100:], resolution=(128, 128), meta={"origin_us": expected})
+    assert match(clip, rig_check=False).meta["origin_us"] == expected
