@@ -18,6 +18,8 @@ from pathlib import Path
 #: Wall time between the writers being told to start and their first packet, s: the reader connects meanwhile
 #: (a writer waits for its first client in any case).
 LEAD_S = 0.3
+#: Stream time per packet the tests' writers send, us.
+SLICE_US = 10_000
 
 
 def free_port() -> int:
@@ -28,15 +30,21 @@ def free_port() -> int:
 
 
 @contextlib.contextmanager
-def served(recording: Path, *, speed: float = 4.0, cameras=("left", "right"), extra=((), ())) -> Iterator[list[str]]:
+def served(recording: Path, *, speed: float = 2.0, slice_us: int = SLICE_US, cameras=("left", "right"),
+           extra=((), ())) -> Iterator[list[str]]:
     """Serve ``cameras`` of ``recording`` (``extra``: more dvserve options per camera); yield their addresses
-    ``tcp://127.0.0.1:PORT``. The writers are ready (listening) when this yields, and killed afterwards."""
+    ``tcp://127.0.0.1:PORT``. The writers are ready (listening) when this yields, and killed afterwards.
+
+    ``slice_us`` (10 ms of stream time a packet) and ``speed``: few packets a second, because dv-processing's
+    reader drops packets it is not asked for in time, which a test worker sharing its cores with another may
+    not be (a loss of one packet in a clean-clone run at 1 ms a packet and 4x real time); the 1 M events/s
+    case is bench/bench_dv_live.py's."""
     procs, addresses = [], []
     try:
         for cam, more in zip(cameras, extra, strict=True):
             port = free_port()
             procs.append(subprocess.Popen([sys.executable, "-m", "cvstereo.sensors.dvserve", str(recording), cam,
-                                           str(port), "--speed", str(speed), *more],
+                                           str(port), "--speed", str(speed), "--slice-us", str(slice_us), *more],
                                           stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True))
             addresses.append(f"tcp://127.0.0.1:{port}")
         for proc in procs:

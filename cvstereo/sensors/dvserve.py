@@ -58,7 +58,7 @@ def build_stores(dv, events: np.ndarray, slice_us: int = SLICE_US) -> list[tuple
 
 def serve(events: np.ndarray, resolution: tuple[int, int], port: int, *, host: str = "127.0.0.1",
           speed: float = 1.0, name: str = "cvstereo_dvserve", kind: str = "events", start_line=None,
-          log=sys.stdout) -> tuple[int, object]:
+          log=sys.stdout, slice_us: int = SLICE_US) -> tuple[int, object]:
     """Stream ``events`` on ``host:port`` (see the module docstring); the number of events written, and the
     writer, still open: dv-processing's writer can wait for ever in its destructor (see :func:`main`).
 
@@ -73,7 +73,7 @@ def serve(events: np.ndarray, resolution: tuple[int, int], port: int, *, host: s
         stream = dv.io.Stream.FrameStream(0, "frames", name, size)
     else:
         stream = dv.io.Stream.EventStream(0, "events", name, size)
-    stores = build_stores(dv, events)
+    stores = build_stores(dv, events, slice_us)
     writer = dv.io.NetworkWriter(host, int(port), stream, 10, lambda code, message: None)
     print("ready", flush=True, file=log)
     start = float((start_line or sys.stdin.readline)().strip() or time.time())
@@ -117,6 +117,8 @@ def main(argv=None) -> int:
     parser.add_argument("--speed", type=float, default=1.0, help="stream time per wall time")
     parser.add_argument("--resolution", type=int, nargs=2, metavar=("W", "H"), default=None,
                         help="the size the stream states (default: the recording's)")
+    parser.add_argument("--slice-us", type=int, default=SLICE_US,
+                        help=f"stream time per packet written, us (default {SLICE_US})")
     parser.add_argument("--stream", choices=("events", "frames"), default="events",
                         help="publish the events, or an (empty) frame stream")
     args = parser.parse_args(argv)
@@ -124,7 +126,7 @@ def main(argv=None) -> int:
 
     rec = read_recording_npz(args.recording)
     sent, _writer = serve(getattr(rec, args.camera), args.resolution or rec.resolution, args.port, host=args.host,
-                 speed=args.speed, name=f"cvstereo_{args.camera}", kind=args.stream)
+                 speed=args.speed, name=f"cvstereo_{args.camera}", kind=args.stream, slice_us=args.slice_us)
     print(f"sent {sent}", flush=True)
     # Out without dv-processing's teardown: its writer's destructor closes the connections, then can wait for
     # ever; leaving the process closes the sockets too, which ends the stream for its readers.

@@ -3,9 +3,8 @@ parameter sets, however the stream is cut; and the same as the reference."""
 
 from __future__ import annotations
 
-from contextlib import contextmanager
+from contextlib import nullcontext
 
-import numba
 import numpy as np
 import pytest
 from _event_scenes import feed_cut
@@ -23,17 +22,11 @@ from cvstereo.matchers.registry import create_matcher
 THREAD_COUNTS = (2, 3)
 
 
-@contextmanager
 def on_threads(matcher, n: int):
-    """``matcher`` set to ``n`` threads, and numba's thread count with it (capped at numba's pool), restored after
-    (until the threads knob sets both)."""
-    before = numba.get_num_threads()
+    """``matcher`` on ``n`` threads: its feed and flush set numba's and OpenCV's counts themselves
+    (:func:`cvstereo._threads.using_threads`)."""
     matcher.threads = n
-    numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))
-    try:
-        yield matcher
-    finally:
-        numba.set_num_threads(before)
+    return nullcontext(matcher)
 
 
 def _matched(make, left, right, cuts, n):

@@ -9,9 +9,8 @@ state bit for bit (:class:`cvstereo.matchers._shared.row_bands.BandedState`).
 
 from __future__ import annotations
 
-from contextlib import contextmanager
+from contextlib import nullcontext
 
-import numba
 import numpy as np
 import pytest
 from _event_scenes import feed_cut, random_pair, simulated_clip
@@ -32,16 +31,11 @@ NO_GAUSSIAN = {"threshold": 2.0}
 REFERENCES = {"event-area": event_area_reference, "event-vector": event_vector_reference}
 
 
-@contextmanager
 def thread_count(matcher, n: int):
-    """``matcher.threads = n`` and numba's thread count (capped at its pool) for the block, restored after."""
-    before = numba.get_num_threads()
+    """``matcher`` on ``n`` threads: its feed and flush set numba's and OpenCV's counts themselves
+    (:func:`cvstereo._threads.using_threads`)."""
     matcher.threads = n
-    numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))
-    try:
-        yield matcher
-    finally:
-        numba.set_num_threads(before)
+    return nullcontext(matcher)
 
 
 def make(method: str, variant: str, param_set: str, resolution, **extra):

@@ -53,7 +53,7 @@ def test_live_dv_receives_every_event_and_matches_as_the_file(clip, method, caps
     summary, status = report["summary"], report["status"]
     assert (summary["events_left"], summary["events_right"]) == (rec.left.size, rec.right.size)
     assert status["late_events"] == 0
-    expected = cvs.match(rec, method=method).matches
+    expected = cvs.match(rec, method=method, rig_check=False).matches  # live does not check the rig
     assert expected.size > 100
     assert summary["matches"] == expected.size
     assert summary["matches_sha256"] == hashlib.sha256(expected.tobytes()).hexdigest()

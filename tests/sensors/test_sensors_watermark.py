@@ -192,7 +192,7 @@ def test_the_merged_stream_matches_as_the_recording_read_from_file(rng):
 
     live = create_matcher("frame")
     got = [live.feed(p.left, p.right, until=p.until) for p in packets] + [live.flush()]
-    from_file = match(rec, method="frame").matches
+    from_file = match(rec, method="frame", rig_check=False).matches  # the events as fed
     np.testing.assert_array_equal(np.concatenate(got), from_file)
     assert from_file.size > 100
 
