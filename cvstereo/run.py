@@ -202,8 +202,8 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         if "rectified" in stages:
             return stages["rectified"].restore(found, anchor=matcher.anchor)
         if check is not None:
-            return check.restore(found)
-        return found if correction is None else correction.restore(found)
+            return check.restore(found, anchor=matcher.anchor)
+        return found if correction is None else correction.restore(found, anchor=matcher.anchor)
 
     bar = _progress_bar(progress, total, method)
     try:

@@ -95,16 +95,21 @@ class RigCorrection:
         """Wrap a packet source; iterate the result to get corrected packets (see :class:`CorrectedStream`)."""
         return CorrectedStream(self, packets)
 
-    def restore(self, matches: np.ndarray) -> np.ndarray:
+    def restore(self, matches: np.ndarray, *, anchor: str = "event") -> np.ndarray:
         """Map matches back to the recording's own coordinates.
 
-        Matches anchored on the right camera (``camera == 1``) get ``y - rows`` and ``t + time_offset_us``;
-        left-anchored matches are unchanged. The result is a new array, no longer time-ordered across
-        cameras: sort it (:func:`cvstereo.model.matches.sort_matches`) before writing.
+        Matches anchored on the right camera (``camera == 1``) get ``y - rows`` and, anchored on an event,
+        ``t + time_offset_us`` (the event's own time); left-anchored matches are unchanged. A window-anchored
+        match keeps its ``t``: the end of its window on the clock both cameras were matched on (the left
+        camera's, the recording's), which stays on the window grid (docs/formats.md). The result is a new array,
+        no longer time-ordered across cameras: sort it (:func:`cvstereo.model.matches.sort_matches`) before
+        writing.
 
         Parameters
         ----------
         matches : (N,) ndarray of MATCH_DTYPE
+        anchor : {"event", "window"}, keyword-only
+            The matcher's anchor.
 
         Returns
         -------
@@ -115,7 +120,8 @@ class RigCorrection:
         out = matches.copy()
         right = out["camera"] == 1
         out["y"][right] -= self.rows
-        out["t"][right] += int(self.time_offset_us)
+        if anchor == "event":
+            out["t"][right] += int(self.time_offset_us)
         return out
 
     def describe(self) -> dict:

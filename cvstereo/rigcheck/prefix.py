@@ -139,9 +139,10 @@ class PrefixRigCheck:
             self.corrected = out = correction.stream(out)
         return (yield from out)
 
-    def restore(self, matches: np.ndarray) -> np.ndarray:
-        """Matches of the corrected stream in the recording's rows and clock (:meth:`RigCorrection.restore`)."""
-        return matches if self.corrected is None else self.corrected.correction.restore(matches)
+    def restore(self, matches: np.ndarray, *, anchor: str = "event") -> np.ndarray:
+        """Matches of the corrected stream in the recording's rows and clock (:meth:`RigCorrection.restore
+        <cvstereo.geometry.rigcorrect.RigCorrection.restore>`; ``anchor``: the matcher's)."""
+        return matches if self.corrected is None else self.corrected.correction.restore(matches, anchor=anchor)
 
     def describe(self) -> dict:
         """The meta entry ``rigcheck``: the report (when the check ran), ``applied``, ``scope``, ``prefix_us``,
