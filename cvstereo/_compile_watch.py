@@ -117,7 +117,8 @@ def tiny_clip(resolution: tuple[int, int] = CLIP_SIZE):
 def compiled_path(matcher) -> tuple:
     """What selects the compiled kernels ``matcher`` runs: its class, each parameter's type and, for numbers,
     their sign (a scale of 0 switches a stage off; a size only goes into the kernels as an argument), the other
-    parameters as they are (variant choices, flags), and its thread count (parallel kernels are compiled apart).
+    parameters as they are (variant choices, flags), and whether it runs on more than one thread (the parallel
+    kernels are compiled apart; every count above one runs the same ones).
 
     Two matchers with the same path run the same kernels with the same argument types: preparing one prepares
     both. The built-in matchers choose kernels by strings, flags and zeros only (a count such as fused's
@@ -126,7 +127,8 @@ def compiled_path(matcher) -> tuple:
     """
     params = matcher.params
     fields = [(f.name, _branch_value(getattr(params, f.name))) for f in dataclasses.fields(params)]
-    return (type(matcher).__module__, type(matcher).__qualname__, tuple(fields), getattr(matcher, "threads", None))
+    return (type(matcher).__module__, type(matcher).__qualname__, tuple(fields),
+            (getattr(matcher, "threads", None) or 1) > 1)
 
 
 def _branch_value(value) -> object:

@@ -18,7 +18,7 @@ from cvstereo.matchers.registry import METHODS, create_matcher
 from cvstereo.model.events import StereoPacket, distinct_sorted, is_time_ordered
 from cvstereo.model.fingerprint import CAMERAS, EventFingerprint
 from cvstereo.model.matches import MatchResult, concat_matches
-from cvstereo.model.recording import ORIGIN_KEY, Recording
+from cvstereo.model.recording import ORIGIN_KEY, Recording, origin_of
 
 __all__ = ["DEFAULT_PACKET_US", "DIAGNOSTICS_WINDOW_US", "match", "run", "run_iter"]
 
@@ -215,7 +215,7 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
             bar.close()
     meta = result.meta
     meta.update(resolution=list(stream.resolution), input=source, param_set=param_set)
-    origin = _origin_of(stream.meta, meta["fingerprint"])
+    origin = origin_of(stream.meta, [meta["fingerprint"][c]["t_first"] for c in CAMERAS])
     if origin is not None:
         meta[ORIGIN_KEY] = origin
     if correction is not None:
@@ -228,17 +228,6 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         meta["rigcheck"] = check.describe()
         meta["elapsed_s"] = max(0.0, meta["elapsed_s"] - check.seconds)  # the matcher's time; the check's apart
     return result
-
-
-def _origin_of(recording_meta, fingerprint) -> int | None:
-    """The time (us) the recording's times are shown from, as :attr:`Recording.origin_us
-    <cvstereo.model.recording.Recording.origin_us>` gives it: its stored ``origin_us``, else its earliest event
-    (the fingerprint's first times, as read); None without events."""
-    stored = recording_meta.get(ORIGIN_KEY)
-    if stored is not None:
-        return int(stored)
-    firsts = [fingerprint[c]["t_first"] for c in CAMERAS if fingerprint[c]["t_first"] is not None]
-    return min(firsts) if firsts else None
 
 
 def run(matcher: StreamMatcher, packets: Iterable[StereoPacket], *,

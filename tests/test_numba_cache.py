@@ -201,6 +201,9 @@ def test_one_preparation_per_compiled_path(monkeypatch):
     threaded.threads = 2
     assert _compile_watch.compiled_path(threaded) != _compile_watch.compiled_path(made[0])
     assert _compile_watch.prepare(threaded, "event-time") and prepared[-1] is threaded
+    more_threads = create_matcher("event-time")  # any count above one runs the same parallel kernels
+    more_threads.threads = 3
+    assert _compile_watch.compiled_path(more_threads) == _compile_watch.compiled_path(threaded)
 
 
 def test_compilation_announced_once_per_group_and_timed_outermost(capsys):

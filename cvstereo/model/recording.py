@@ -17,7 +17,7 @@ from cvstereo.model.events import (
     time_slice,
 )
 
-__all__ = ["CAMERAS", "ORIGIN_KEY", "Recording", "check_origin"]
+__all__ = ["CAMERAS", "ORIGIN_KEY", "Recording", "check_origin", "origin_of"]
 
 CAMERAS = ("left", "right")
 
@@ -39,6 +39,16 @@ def check_origin(value, *, source: str = "meta") -> int:
                                f"of t = 0), got {value!r}; remove the key to count from the first event.")
     return int(value)
 
+
+def origin_of(meta: dict, first_times) -> int | None:
+    """The time (us) a recording's times are shown from: its stored ``meta["origin_us"]`` (a slice keeps its
+    recording's), else the earliest of ``first_times`` (each camera's first event time; empty cameras left out);
+    None when there is neither. One rule for a recording in memory (:attr:`Recording.origin_us`) and for a stream
+    whose first times come from its fingerprint (:func:`cvstereo.run.match`)."""
+    if meta.get(ORIGIN_KEY) is not None:
+        return int(meta[ORIGIN_KEY])
+    firsts = [int(t) for t in first_times if t is not None]
+    return min(firsts) if firsts else None
 
 @dataclass(frozen=True, eq=False)
 class Recording:
@@ -111,7 +121,7 @@ class Recording:
     def origin_us(self) -> int:
         """The absolute time (us) that times shown count from: ``meta["origin_us"]`` where stored (a slice keeps
         its recording's), else the earliest event of either camera; windows stay on the absolute clock."""
-        return int(self.meta[ORIGIN_KEY]) if ORIGIN_KEY in self.meta else self.t_start
+        return origin_of(self.meta, [int(e["t"][0]) for e in (self.left, self.right) if e.size]) or 0
 
     @property
     def duration_s(self) -> float:
