@@ -26,7 +26,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from cvstereo.model.matches import MatchResult
+from cvstereo.model.matches import MatchResult, cameras_swapped
 from cvstereo.model.recording import Recording
 
 __all__ = ["DEFAULT_COLUMNS", "FIGURES", "check_matches", "check_same_recording", "evaluate", "format_figure",
@@ -143,7 +143,10 @@ def evaluate(recording: Recording, matches, meta: Mapping | None = None) -> dict
     ----------
     recording : Recording
         Ground truth is optional: without it only ``matches``, ``mean``, ``std`` and the speed figures
-        are computed (the others are NaN).
+        are computed (the others are NaN). Where the rig check exchanged the cameras before matching
+        (:func:`cvstereo.model.matches.cameras_swapped` of the meta), a recording as read (the events the meta's
+        fingerprint was taken of) is scored with its cameras exchanged too, as the matches were computed; one
+        already in the matches' order (:func:`cvstereo.geometry.source.as_matched`) is scored as it is.
     matches : (N,) ndarray of MATCH_DTYPE, or MatchResult
     meta : mapping, optional
         The matches file's meta (``anchor``, ``window_us``, ``anchor_cameras``, ``elapsed_s``,
@@ -166,6 +169,7 @@ def evaluate(recording: Recording, matches, meta: Mapping | None = None) -> dict
     if not integral or isinstance(window_us, bool) or not 0 <= window_us <= 2**62:
         raise ValueError(f"meta 'window_us' must be a whole number of microseconds >= 0, got {window_us!r}.")
     window_us = int(window_us)
+    recording = _in_matched_order(recording, meta)
     check_matches(recording, matches)
     disp = matches["disparity"].astype(np.float64)
     n = int(disp.size)
@@ -240,6 +244,21 @@ def _anchor_cameras(value) -> list[int] | None:
     if not ok:
         raise ValueError(f"meta 'anchor_cameras' must list the cameras 0 and/or 1 once each, got {value!r}.")
     return [int(c) for c in value]
+
+
+def _in_matched_order(recording: Recording, meta: Mapping) -> Recording:
+    """``recording`` with its cameras in the order the matches used: exchanged where the run swapped them and
+    ``recording`` is the one its fingerprint was taken of (as read), as it is otherwise (already exchanged, or no
+    fingerprint to tell: then the caller's order stands)."""
+    if not cameras_swapped(meta) or "fingerprint" not in meta:
+        return recording
+    from cvstereo.model.fingerprint import difference
+
+    try:
+        as_read = difference(meta["fingerprint"], recording) is None
+    except ValueError:  # a fingerprint this version does not read: the caller's order stands
+        return recording
+    return recording.swapped() if as_read else recording
 
 
 def check_same_recording(recording: Recording, meta: Mapping, matches: np.ndarray | None = None) -> str | None:

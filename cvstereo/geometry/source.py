@@ -34,6 +34,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 
 from cvstereo.geometry.depth import DepthModel, depth_from_meta
+from cvstereo.model.matches import cameras_swapped
 from cvstereo.model.recording import Recording
 
 __all__ = ["ASPECTS", "OPTION_NAMES", "SOURCES", "Geometry", "GeometryConflict", "GeometryOptions", "as_matched",
@@ -344,12 +345,6 @@ def stored_depth(meta: Mapping, where: str) -> DepthModel | None:
 
 def as_matched(recording: Recording, matches_meta: Mapping) -> Recording:
     """The recording with its cameras in the order the matches used (exchanged where the rig check swapped
-    them: ``geometry.side.swap`` or ``rigcheck.applied.swap`` of the meta), so that scoring and pictures put each
-    match on the camera it was anchored on."""
-    def swap_in(entry, key):
-        value = matches_meta.get(entry)
-        value = value.get(key) if isinstance(value, Mapping) else None
-        return isinstance(value, Mapping) and value.get("swap") is True
-
-    swapped = swap_in("geometry", "side") or swap_in("rigcheck", "applied")
-    return recording.swapped() if swapped else recording
+    them: :func:`cvstereo.model.matches.cameras_swapped`), so that scoring and pictures put each match on the
+    camera it was anchored on."""
+    return recording.swapped() if cameras_swapped(matches_meta) else recording

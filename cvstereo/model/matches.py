@@ -5,14 +5,15 @@ The data only; the matches ``.npz`` is read and written by :mod:`cvstereo.io.npz
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from cvstereo.errors import EventFormatError
 
-__all__ = ["MATCH_DTYPE", "REQUIRED_META", "MatchResult", "concat_matches", "empty_matches", "join_records",
-           "make_matches", "sort_matches", "validate_matches"]
+__all__ = ["MATCH_DTYPE", "REQUIRED_META", "MatchResult", "cameras_swapped", "concat_matches", "empty_matches",
+           "join_records", "make_matches", "sort_matches", "validate_matches"]
 
 #: One disparity estimate anchored at pixel (x, y) of ``camera`` (0 = left, 1 = right) at time t.
 MATCH_DTYPE = np.dtype(
@@ -123,3 +124,15 @@ class MatchResult:
 
     def __len__(self) -> int:
         return int(self.matches.size)
+
+
+def cameras_swapped(meta: Mapping) -> bool:
+    """Whether the matches were computed with the recording's cameras exchanged (the rig check, or a geometry
+    source, found them the wrong way round: ``rigcheck.applied.swap`` or ``geometry.side.swap`` of the meta), so
+    that their left camera is the recording's right one."""
+    def swap_in(entry, key):
+        value = meta.get(entry)
+        value = value.get(key) if isinstance(value, Mapping) else None
+        return isinstance(value, Mapping) and value.get("swap") is True
+
+    return swap_in("geometry", "side") or swap_in("rigcheck", "applied")

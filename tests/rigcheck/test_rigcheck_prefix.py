@@ -192,3 +192,24 @@ def test_simulated_arm_swap_and_rows_found_on_the_prefix():
     assert shifted.meta["rigcheck"]["prefix_us"] < 650_000            # a prefix, not the whole clip
     want, got = _corrected_keys(aligned), _corrected_keys(shifted)
     assert len(want & got) >= MATCH_SHARE * len(want)
+
+
+def test_evaluate_scores_a_swapped_run_on_the_cameras_it_used():
+    # cvs.evaluate(recording, cvs.match(recording)) on a rig wired the wrong way round: the check swaps the cameras
+    # before matching, and scoring must follow (given the recording as read, or already in the matches' order),
+    # giving the figures of the correctly wired recording; scored the other way, every truth is negated.
+    from cvstereo.evaluation.metrics import evaluate
+    from cvstereo.geometry.source import as_matched
+    from cvstereo.io import read_recording
+    from cvstereo.simulate import cached_preset
+
+    full = read_recording(cached_preset("1arm-100cm", seconds=1.5))   # cached by test_rigcheck.py
+    rec = full.slice_time(full.t_start, full.t_start + 700_000)
+    wired = evaluate(rec, match(rec, method=METHOD))
+    swapped = rec.swapped()   # truth kept (negated, x_left - x_right of the swapped order)
+    result = match(swapped, method=METHOD)
+    assert result.meta["rigcheck"]["applied"]["swap"] is True
+    as_read = evaluate(swapped, result)
+    assert as_read == evaluate(as_matched(swapped, result.meta), result)
+    assert wired["bad2"] < 0.2 and abs(as_read["bad2"] - wired["bad2"]) < 0.02
+    assert abs(as_read["coverage"] - wired["coverage"]) < 0.02
