@@ -1,5 +1,9 @@
 """``cvstereo match RECORDING [RIGHT] --method M [--variant V] [--param key=value ...] -o MATCHES.npz``.
 
+Run a stereo matcher (the thesis' frame and event matchers, or OpenCV's StereoBM/SGBM on the same frames) over a
+recording and write the matches file (.npz). `cvstereo match --list-methods` lists methods, variants and parameters
+with their defaults.
+
 Runs one matcher over a recording, streamed from its file packet by packet (memory holds the matches, not the
 events), and writes the matches file of docs/formats.md. The command wires library steps together
 (:mod:`cvstereo.geometry.steps`): the geometry resolved, the match (:func:`cvstereo.run.match`, so the file
@@ -41,6 +45,7 @@ from cvstereo.cli._common import (
     require_range,
 )
 from cvstereo.cli._rerun import add_rerun_option, rerun_target
+from cvstereo.cli._subcommand import subcommand
 from cvstereo.cli._text import number, plain_text
 from cvstereo.cli.plot import add_cmap_option
 from cvstereo.evaluation.diagnostics import silence_warning
@@ -52,13 +57,7 @@ MAX_TIME_OFFSET_US = 86_400_000_000
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
-    p = sub.add_parser(
-        name,
-        help="run a stereo matcher over a recording and write a matches file",
-        description="Run a stereo matcher (the thesis' frame and event matchers, or OpenCV's StereoBM/SGBM on "
-        "the same frames) over a recording and write the matches file (.npz). "
-        "`cvstereo match --list-methods` lists methods, variants and parameters with their defaults.",
-    )
+    p = subcommand(sub, name, "run a stereo matcher over a recording and write a matches file", __doc__)
     add_recording_arguments(p, required=False)
     add_matcher_options(p)
     p.add_argument("-o", "--output", metavar="MATCHES.npz", default=None,
