@@ -11,9 +11,8 @@ holds what ``match()`` returns), the geometry and the depth of every match recor
 Unless the geometry comes from elsewhere (a calibration -- a DSEC sequence's own by default --, offsets, ``--auto``)
 or ``--param-set thesis``, the match checks the rig on the first second of the stream and applies what it finds
 (:mod:`cvstereo.rigcheck.prefix`; ``--no-rig-check`` turns it off). ``--auto``'s rig check looks at the whole
-recording, which it reads into memory before the match reads the file again. ``--list-methods`` prints every
-registered method with its variants and parameters. ``--param-set
-thesis|adaptive`` picks the parameter set (:mod:`cvstereo.matchers.sets`). A run that answers in less than 1 %
+recording, which it reads into memory before the match reads the file again. ``--param-set thesis|adaptive``
+picks the parameter set (:mod:`cvstereo.matchers.sets`). A run that answers in less than 1 %
 of the 40 ms windows with events says why on one ``warning:`` line on stderr (and still exits 0). Where the
 geometry comes from (calibration, options, the recording's rig, the rig check: :mod:`cvstereo.geometry.source`)
 is said on one ``geometry:`` line and stored in the file; the matches file and a ``--point-cloud`` appear

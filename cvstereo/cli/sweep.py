@@ -6,9 +6,8 @@ OUT/results.parquet and OUT/summary.md; finished cells are kept in OUT/cells/, s
 resumes an interrupted sweep (Ctrl-C or SIGTERM stops the cluster and keeps the finished cells). Needs the sweep
 extra: pip install 'cvstereo[sweep]'.
 
-Each cell is one match plus evaluation (:mod:`cvstereo.sweep`). Results: ``OUT/results.parquet`` (one row
-per cell), ``OUT/summary.md`` (best parameters per method) and ``OUT/cells/`` (one file per finished
-cell, so that an interrupted sweep resumes where it stopped).
+Each cell is one match plus evaluation (:mod:`cvstereo.sweep`): ``OUT/results.parquet`` holds one row per cell,
+``OUT/summary.md`` the best parameters per method.
 """
 
 from __future__ import annotations
