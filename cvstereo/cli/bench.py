@@ -1,4 +1,8 @@
-"""``cvstereo bench``: every matcher on the same recordings; results.json and results.md."""
+"""``cvstereo bench``: every matcher on the same recordings; results.json and results.md.
+
+Run every matcher and variant (and the OpenCV / dv-processing baselines where installed) on the thesis' six presets,
+the motorcycle scene and the real TUM recordings when present; write results.json and results.md.
+"""
 
 from __future__ import annotations
 
@@ -7,16 +11,14 @@ import sys
 from pathlib import Path
 
 from cvstereo.cli._common import add_progress_option, add_threads_option, matcher_threads, progress_wanted
+from cvstereo.cli._subcommand import subcommand
 
 __all__ = ["add_parser", "run"]
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
-    p = sub.add_parser(
-        name, help="benchmark every matcher: accuracy vs truth, thesis tables, speed, memory, distance",
-        description="Run every matcher and variant (and the OpenCV / dv-processing baselines where installed) "
-        "on the thesis' six presets, the motorcycle scene and the real TUM recordings when present; write "
-        "results.json and results.md.")
+    p = subcommand(sub, name, "benchmark every matcher: accuracy vs truth, thesis tables, speed, memory, distance",
+                   __doc__)
     p.add_argument("-o", "--output", default="bench",
                    help="folder for results.json and results.md (default: %(default)s)")
     p.add_argument("--quick", action="store_true",

@@ -1,4 +1,9 @@
-"""``cvstereo convert RECORDING [RIGHT] -o OUT [OUT_RIGHT]``: rewrite a recording in another format (atomically)."""
+"""``cvstereo convert RECORDING [RIGHT] -o OUT [OUT_RIGHT]``: rewrite a recording in another format (atomically).
+
+Read a recording in any supported format and write it in another. The output format comes from --to or the output
+name: .npz, .aedat, a text name (.txt/.dat) for a merged five-column file, or two text names (left, right) for one
+file per camera. Outputs appear only once complete. Ground truth is kept by .npz only.
+"""
 
 from __future__ import annotations
 
@@ -6,6 +11,7 @@ import argparse
 import sys
 
 from cvstereo.cli._common import add_recording_arguments, format_options, naming, recording_plan
+from cvstereo.cli._subcommand import subcommand
 
 __all__ = ["add_parser", "run"]
 
@@ -13,14 +19,7 @@ __all__ = ["add_parser", "run"]
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
     from cvstereo.io import FORMATS
 
-    p = sub.add_parser(
-        name,
-        help="convert a recording between formats (npz, eDVS text, merged text, AEDAT 2.0)",
-        description="Read a recording in any supported format and write it in another. The output format "
-        "comes from --to or the output name: .npz, .aedat, a text name (.txt/.dat) for a merged five-column "
-        "file, or two text names (left, right) for one file per camera. Outputs appear only once complete. "
-        "Ground truth is kept by .npz only.",
-    )
+    p = subcommand(sub, name, "convert a recording between formats (npz, eDVS text, merged text, AEDAT 2.0)", __doc__)
     add_recording_arguments(p)
     p.add_argument("-o", "--output", metavar="OUT", nargs="+", required=True,
                    help="output file, or the left and right output files for --to edvs-text")

@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 from cvstereo.cli._common import add_progress_option, progress_wanted
+from cvstereo.cli._subcommand import subcommand
 
 __all__ = ["DEMO_METHODS", "FIGURE_COMBOS", "FIGURE_FOLDER", "FIGURE_RECORDING", "FIGURE_WINDOW_US", "TABLE_FILES",
            "add_parser", "run", "shared_folder"]
@@ -32,8 +33,8 @@ FIGURE_FOLDER = "figures"
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
-    p = sub.add_parser(name, help="run the thesis' experiment on the built-in simulated recordings",
-                       description=__doc__.split("\n\n")[1])
+    p = subcommand(sub, name, "run the thesis' experiment on the built-in simulated recordings",
+                   __doc__)
     p.add_argument("-o", "--output", default="demo-output", help="folder for tables and figures (default: %(default)s)")
     p.add_argument("--seconds", type=float, default=None,
                    help="simulate only the first SECONDS of each preset (default: all 11 s, as the thesis)")

@@ -1,4 +1,10 @@
-"""``cvstereo depth-fit FILE:DISTANCE ...``: fit d = a/Z - c from recordings at measured distances."""
+"""``cvstereo depth-fit FILE:DISTANCE ...``: fit d = a/Z - c from recordings at measured distances.
+
+Fit the disparity-to-distance model d = a/Z - c (a = focal length x baseline, c from axes that are not exactly
+parallel) by least squares, from two or more recordings (or matches files) made at distances you measured (the
+thesis used a cord). Each file's median disparity is one point. Prints a and c and the option `--depth A C` that
+`match`, `plot` and `video` take; -o writes the model file that `--depth DEPTH.json` reads.
+"""
 
 from __future__ import annotations
 
@@ -6,19 +12,14 @@ import argparse
 import math
 
 from cvstereo.cli._common import add_matcher_options, matcher_overrides, matcher_threads, naming
+from cvstereo.cli._subcommand import subcommand
 from cvstereo.cli._text import number
 
 __all__ = ["add_parser", "run"]
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
-    p = sub.add_parser(
-        name, help="fit d = a/Z - c (disparity to metres) from recordings at measured distances",
-        description="Fit the disparity-to-distance model d = a/Z - c (a = focal length x baseline, c from axes "
-        "that are not exactly parallel) by least squares, from two or more recordings (or matches files) "
-        "made at distances you measured (the thesis used a cord). Each file's median disparity is one point. "
-        "Prints a and c and the option `--depth A C` that `match`, `plot` and `video` take; -o writes the model "
-        "file that `--depth DEPTH.json` reads.")
+    p = subcommand(sub, name, "fit d = a/Z - c (disparity to metres) from recordings at measured distances", __doc__)
     p.add_argument("points", nargs="+", metavar="FILE:DISTANCE",
                    help="a recording or a matches .npz, and its distance in metres, e.g. arm50.npz:0.5 (a pair of "
                    "one-file-per-camera files: match them first, `cvstereo match LEFT RIGHT -o m.npz`, and give "

@@ -1,4 +1,10 @@
-"""``cvstereo evaluate RECORDING [RIGHT] MATCHES``: the figures of docs/evaluation.md for one matches file."""
+"""``cvstereo evaluate RECORDING [RIGHT] MATCHES``: the figures of docs/evaluation.md for one matches file.
+
+Score a matches file (written by `cvstereo match`) against the recording it came from: mean and std of the
+disparities (the thesis' figures) and, where the recording has ground truth, error, bad-pixel rates, false-match
+rate and coverage (docs/evaluation.md). A DSEC sequence folder or an MVSEC data file is scored against its
+ground-truth disparity maps with DSEC's metrics: 1PE, 2PE, MAE, RMSE over the answered pixels, and the coverage.
+"""
 
 from __future__ import annotations
 
@@ -14,6 +20,7 @@ from cvstereo.cli._common import (
     naming,
     recording_plan,
 )
+from cvstereo.cli._subcommand import subcommand
 from cvstereo.cli._text import printable
 from cvstereo.io.dsec_sequence import recording_name
 
@@ -21,15 +28,7 @@ __all__ = ["add_parser", "run"]
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
-    p = sub.add_parser(
-        name,
-        help="score a matches file against a recording's ground truth",
-        description="Score a matches file (written by `cvstereo match`) against the recording it came from: "
-        "mean and std of the disparities (the thesis' figures) and, where the recording has ground truth, "
-        "error, bad-pixel rates, false-match rate and coverage (docs/evaluation.md). A DSEC sequence folder or an "
-        "MVSEC data file is scored against its ground-truth disparity maps with DSEC's metrics: 1PE, 2PE, MAE, "
-        "RMSE over the answered pixels, and the coverage.",
-    )
+    p = subcommand(sub, name, "score a matches file against a recording's ground truth", __doc__)
     add_recording_arguments(p, matches="required")
     g = p.add_argument_group("dense ground truth (a DSEC sequence folder, an MVSEC data file): DSEC's metrics")
     g.add_argument("--calibration", metavar="FILE", default=None,

@@ -1,4 +1,11 @@
-"""``cvstereo export-dsec SEQUENCE MATCHES -o DIR``: a matches file as DSEC's disparity submission (16-bit PNGs)."""
+"""``cvstereo export-dsec SEQUENCE MATCHES -o DIR``: a matches file as DSEC's disparity submission (16-bit PNGs).
+
+Write the disparity maps of a matches file (computed on a DSEC sequence folder, with --calibration for DSEC's
+rectification) in DSEC's submission format: DIR/SEQUENCE_NAME/NNNNNN.png, one 16-bit PNG of round(disparity x 256)
+per requested time, in the rectified left event camera's frame, 0 where no match answered; a map at time ts holds
+the matches of (ts - 50 ms, ts] (docs/evaluation.md). The times are DSEC's test timestamps file (--timestamps,
+'timestamp_us, file_index'), or by default the sequence's own ground-truth times and names.
+"""
 
 from __future__ import annotations
 
@@ -15,22 +22,15 @@ from cvstereo.cli._common import (
     naming,
     recording_plan,
 )
+from cvstereo.cli._subcommand import subcommand
 from cvstereo.io.output_plan import OutputKind
 
 __all__ = ["DISPARITY_PNG", "add_parser", "run"]
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
-    p = sub.add_parser(
-        name,
-        help="write a matches file as DSEC's disparity submission: 16-bit PNGs of disparity x 256",
-        description="Write the disparity maps of a matches file (computed on a DSEC sequence folder, with "
-        "--calibration for DSEC's rectification) in DSEC's submission format: DIR/SEQUENCE_NAME/NNNNNN.png, one "
-        "16-bit PNG of round(disparity x 256) per requested time, in the rectified left event camera's frame, 0 "
-        "where no match answered; a map at time ts holds the matches of (ts - 50 ms, ts] (docs/evaluation.md). "
-        "The times are DSEC's test timestamps file (--timestamps, 'timestamp_us, file_index'), or by default the "
-        "sequence's own ground-truth times and names.",
-    )
+    p = subcommand(sub, name, "write a matches file as DSEC's disparity submission: 16-bit PNGs of disparity x 256",
+                   __doc__)
     p.add_argument("recording", metavar="SEQUENCE", help="the DSEC sequence folder the matches were computed on")
     p.add_argument("matches", metavar="MATCHES", help="matches .npz written by `cvstereo match`")
     p.add_argument("-o", "--output", required=True, metavar="DIR",

@@ -1,4 +1,10 @@
-"""``cvstereo info FILE...``: what a recording holds, per camera, read as a stream (bounded memory)."""
+"""``cvstereo info FILE...``: what a recording holds, per camera, read as a stream (bounded memory).
+
+Describe each file: per camera the number of events, ON and OFF events, duration and event rate; the resolution;
+whether ground truth is present (and for how many events); and, for formats that cannot say, which retina was taken
+as left and whether coordinates count from 1, with how that was decided. A file holding one camera is described on
+its own.
+"""
 
 from __future__ import annotations
 
@@ -7,6 +13,7 @@ import argparse
 import numpy as np
 
 from cvstereo.cli._common import add_format_options, check_files, format_options, is_matches_file, naming
+from cvstereo.cli._subcommand import subcommand
 from cvstereo.cli._text import number, printable
 from cvstereo.model.recording import ORIGIN_KEY
 
@@ -14,14 +21,7 @@ __all__ = ["add_parser", "describe", "describe_matches", "run"]
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
-    p = sub.add_parser(
-        name,
-        help="events, ON/OFF counts, duration, rate and resolution of recordings",
-        description="Describe each file: per camera the number of events, ON and OFF events, duration and "
-        "event rate; the resolution; whether ground truth is present (and for how many events); and, for "
-        "formats that cannot say, which retina was taken as left and whether coordinates count from 1, "
-        "with how that was decided. A file holding one camera is described on its own.",
-    )
+    p = subcommand(sub, name, "events, ON/OFF counts, duration, rate and resolution of recordings", __doc__)
     p.add_argument("files", metavar="FILE", nargs="+",
                    help="recording files (.npz, .txt/.dat, .aedat, .aedat4, .h5) or DSEC sequence folders, each "
                    "described on its own (so both files of a one-file-per-camera pair too: give the DSEC sequence "

@@ -1,5 +1,9 @@
 """``cvstereo match RECORDING [RIGHT] --method M [--variant V] [--param key=value ...] -o MATCHES.npz``.
 
+Run a stereo matcher (the thesis' frame and event matchers, or OpenCV's StereoBM/SGBM on the same frames) over a
+recording and write the matches file (.npz). `cvstereo match --list-methods` lists methods, variants and parameters
+with their defaults.
+
 Runs one matcher over a recording, streamed from its file packet by packet (memory holds the matches, not the
 events), and writes the matches file of docs/formats.md. The command wires library steps together
 (:mod:`cvstereo.geometry.steps`): the geometry resolved, the match (:func:`cvstereo.run.match`, so the file
@@ -7,9 +11,8 @@ holds what ``match()`` returns), the geometry and the depth of every match recor
 Unless the geometry comes from elsewhere (a calibration -- a DSEC sequence's own by default --, offsets, ``--auto``)
 or ``--param-set thesis``, the match checks the rig on the first second of the stream and applies what it finds
 (:mod:`cvstereo.rigcheck.prefix`; ``--no-rig-check`` turns it off). ``--auto``'s rig check looks at the whole
-recording, which it reads into memory before the match reads the file again. ``--list-methods`` prints every
-registered method with its variants and parameters. ``--param-set
-thesis|adaptive`` picks the parameter set (:mod:`cvstereo.matchers.sets`). A run that answers in less than 1 %
+recording, which it reads into memory before the match reads the file again. ``--param-set thesis|adaptive``
+picks the parameter set (:mod:`cvstereo.matchers.sets`). A run that answers in less than 1 %
 of the 40 ms windows with events says why on one ``warning:`` line on stderr (and still exits 0). Where the
 geometry comes from (calibration, options, the recording's rig, the rig check: :mod:`cvstereo.geometry.source`)
 is said on one ``geometry:`` line and stored in the file; the matches file and a ``--point-cloud`` appear
@@ -41,6 +44,7 @@ from cvstereo.cli._common import (
     require_range,
 )
 from cvstereo.cli._rerun import add_rerun_option, rerun_target
+from cvstereo.cli._subcommand import subcommand
 from cvstereo.cli._text import number, plain_text
 from cvstereo.cli.plot import add_cmap_option
 from cvstereo.evaluation.diagnostics import silence_warning
@@ -52,13 +56,7 @@ MAX_TIME_OFFSET_US = 86_400_000_000
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
-    p = sub.add_parser(
-        name,
-        help="run a stereo matcher over a recording and write a matches file",
-        description="Run a stereo matcher (the thesis' frame and event matchers, or OpenCV's StereoBM/SGBM on "
-        "the same frames) over a recording and write the matches file (.npz). "
-        "`cvstereo match --list-methods` lists methods, variants and parameters with their defaults.",
-    )
+    p = subcommand(sub, name, "run a stereo matcher over a recording and write a matches file", __doc__)
     add_recording_arguments(p, required=False)
     add_matcher_options(p)
     p.add_argument("-o", "--output", metavar="MATCHES.npz", default=None,

@@ -1,9 +1,12 @@
 """``cvstereo rigcheck RECORDING [RIGHT] [--json]``: what a calibration would have told, from the events.
 
-Prints which camera is left, the row and time offset between the sensors, the disparity range, the ON/OFF
-and event-rate imbalance and the noise rate, each with a confidence (:func:`cvstereo.rigcheck.check_rig`),
-and whether the time offset is ambiguous (a periodic scene such as a fan). A figure that cannot be estimated
-reads ``n/a`` (``null`` in ``--json``).
+Estimate from the events alone which camera is left, the vertical (row) offset between the sensors, the time offset
+between the streams, the disparity range present, the ON/OFF and event-rate imbalance and the noise rate, each with
+a confidence in [0, 1]. `cvstereo match --auto` applies the findings (a time offset only when confident and not
+ambiguous: on a periodic scene such as a fan the coincidences peak once per blade period).
+
+The figures and confidences are :func:`cvstereo.rigcheck.check_rig`'s, with whether the time offset is
+ambiguous; a figure that cannot be estimated reads ``n/a`` (``null`` in ``--json``).
 """
 
 from __future__ import annotations
@@ -19,20 +22,14 @@ from cvstereo.cli._common import (
     progress_wanted,
     recording_plan,
 )
+from cvstereo.cli._subcommand import subcommand
 
 __all__ = ["add_parser", "run"]
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
-    p = sub.add_parser(
-        name,
-        help="estimate the rig (left/right, row and time offset, disparity range, imbalance, noise) from a recording",
-        description="Estimate from the events alone which camera is left, the vertical (row) offset between the "
-        "sensors, the time offset between the streams, the disparity range present, the ON/OFF and event-rate "
-        "imbalance and the noise rate, each with a confidence in [0, 1]. `cvstereo match --auto` applies the "
-        "findings (a time offset only when confident and not ambiguous: on a periodic scene such as a fan the "
-        "coincidences peak once per blade period).",
-    )
+    p = subcommand(sub, name, "estimate the rig (left/right, row and time offset, disparity range, imbalance, noise) "
+                   "from a recording", __doc__)
     add_recording_arguments(p)
     p.add_argument("--max-disparity", type=int, default=64, metavar="PX", help="largest disparity searched")
     p.add_argument("--max-row-offset", type=int, default=8, metavar="ROWS", help="largest row offset searched")

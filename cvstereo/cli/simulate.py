@@ -1,5 +1,8 @@
 """``cvstereo simulate``: write a simulated stereo recording with per-event ground truth.
 
+Simulate two DVS128 on the thesis' rig looking at a scene; write a recording .npz whose events carry their true
+disparity. Deterministic for a seed.
+
 Examples::
 
     cvstereo simulate --list-presets
@@ -23,6 +26,7 @@ import time
 from pathlib import Path
 
 from cvstereo.cli._common import add_progress_option, progress_wanted
+from cvstereo.cli._subcommand import subcommand
 
 __all__ = ["add_parser", "run"]
 
@@ -34,11 +38,7 @@ def add_parser(subparsers, name: str) -> argparse.ArgumentParser:
     """Register the subcommand."""
     from cvstereo.simulate import SCENES
 
-    p = subparsers.add_parser(
-        name, help="simulate a stereo pair of event cameras (recording with ground truth)",
-        description="Simulate two DVS128 on the thesis' rig looking at a scene; write a recording .npz whose "
-                    "events carry their true disparity. Deterministic for a seed.",
-    )
+    p = subcommand(subparsers, name, "simulate a stereo pair of event cameras (recording with ground truth)", __doc__)
     what = p.add_mutually_exclusive_group(required=True)
     what.add_argument("--preset", metavar="NAME", help="one of the thesis' recordings (see --list-presets)")
     what.add_argument("--scene", choices=tuple(SCENES), help="a scene with your parameters")

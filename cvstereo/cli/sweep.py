@@ -1,8 +1,13 @@
 """``cvstereo sweep``: a grid of methods x variants x parameter values over recordings, on Dask.
 
-Each cell is one match plus evaluation (:mod:`cvstereo.sweep`). Results: ``OUT/results.parquet`` (one row
-per cell), ``OUT/summary.md`` (best parameters per method) and ``OUT/cells/`` (one file per finished
-cell, so that an interrupted sweep resumes where it stopped).
+Run every combination of methods, variants and parameter values on every recording (match + evaluate per cell) on a
+Dask cluster: a local one with one worker per core by default, or an existing one (--scheduler). Results go to
+OUT/results.parquet and OUT/summary.md; finished cells are kept in OUT/cells/, so running the same command again
+resumes an interrupted sweep (Ctrl-C or SIGTERM stops the cluster and keeps the finished cells). Needs the sweep
+extra: pip install 'cvstereo[sweep]'.
+
+Each cell is one match plus evaluation (:mod:`cvstereo.sweep`): ``OUT/results.parquet`` holds one row per cell,
+``OUT/summary.md`` the best parameters per method.
 """
 
 from __future__ import annotations
@@ -11,6 +16,7 @@ import argparse
 import sys
 
 from cvstereo.cli._common import add_progress_option, progress_wanted
+from cvstereo.cli._subcommand import subcommand
 
 __all__ = ["GRID_EXAMPLE", "SHOWN_FAILURES", "add_parser", "run"]
 
@@ -47,15 +53,8 @@ examples:
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
-    p = sub.add_parser(
-        name, help="run a grid of matchers and parameters over recordings (Dask), one table of figures",
-        description="Run every combination of methods, variants and parameter values on every recording "
-        "(match + evaluate per cell) on a Dask cluster: a local one with one worker per core by default, or "
-        "an existing one (--scheduler). Results go to OUT/results.parquet and OUT/summary.md; finished cells "
-        "are kept in OUT/cells/, so running the same command again resumes an interrupted sweep (Ctrl-C or "
-        "SIGTERM stops the cluster and keeps the finished cells). "
-        "Needs the sweep extra: pip install 'cvstereo[sweep]'.",
-        epilog=GRID_EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = subcommand(sub, name, "run a grid of matchers and parameters over recordings (Dask), one table of figures",
+                   __doc__, epilog=GRID_EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("recordings", nargs="*", metavar="RECORDING",
                    help="recording files, globs, preset:NAME[:SECONDS] or suite:NAME")
     p.add_argument("--grid", metavar="GRID.toml", default=None, help="grid file (see the example below)")

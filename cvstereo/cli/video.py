@@ -17,6 +17,7 @@ from cvstereo.cli._common import (
     require_range,
 )
 from cvstereo.cli._rerun import add_rerun_option, rerun_target
+from cvstereo.cli._subcommand import subcommand
 from cvstereo.cli.plot import add_cmap_option, check_window_options, load_picture_inputs
 
 __all__ = ["MAX_FPS", "MAX_SCALE", "MIN_WIDTH_PX", "add_parser", "run"]
@@ -28,8 +29,8 @@ MIN_WIDTH_PX = 160
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
-    p = sub.add_parser(name, help="write an MP4 of a recording with its disparities (extra: video)",
-                       description=__doc__.split("\n\n")[1])
+    p = subcommand(sub, name, "write an MP4 of a recording with its disparities (extra: video)",
+                   __doc__)
     add_recording_arguments(p, matches="optional")
     p.add_argument("-o", "--output", required=True, metavar="OUT.mp4",
                    help="video file to write (.mp4, or a name without extension)")

@@ -4,15 +4,16 @@ from __future__ import annotations
 
 import argparse
 
+from cvstereo.cli._subcommand import subcommand
+
 __all__ = ["add_parser", "run"]
 
 
 def add_parser(sub, name: str) -> argparse.ArgumentParser:
     from cvstereo.warmup import PARAM_SETS
 
-    p = sub.add_parser(
-        name,
-        help="fill the compile cache, so that no later process compiles the matchers' kernels",
+    p = subcommand(
+        sub, name, "fill the compile cache, so that no later process compiles the matchers' kernels", __doc__,
         description="Run every available method (or those given) on a small built-in clip, with its default "
         f"variant under each parameter set ({', '.join(PARAM_SETS)}), so that numba compiles its kernels into "
         "its cache now: later processes load them instead of compiling at their first match. `make` runs it "

@@ -335,9 +335,14 @@ class StreamMatcher(abc.ABC):
         """
         return None
 
+    #: The matcher's signal level (:class:`~cvstereo.matchers._shared.signal_level.SignalLevel`), where it keeps
+    #: one (set in ``__init__``): :meth:`diagnostics` reports it.
+    _level = None
+
     def diagnostics(self) -> dict:
         """What the matcher observed of its own thresholds so far, for ``meta["diagnostics"]``
-        (:func:`cvstereo.evaluation.diagnostics.silence_warning` reads it); empty by default."""
-        return {}
+        (:func:`cvstereo.evaluation.diagnostics.silence_warning` reads it): its signal level's diagnostics
+        (:meth:`cvstereo.matchers._shared.signal_level.SignalLevel.diagnostics`) where it keeps one, else empty."""
+        return {} if self._level is None else self._level.diagnostics()
 
     method: ClassVar[str] = "?"

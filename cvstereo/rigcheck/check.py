@@ -134,7 +134,7 @@ def check_rig(recording: Recording, params: RigCheckParams | None = None, *,
         time_offset_period_us=float(tau.period_us),
         disparity_peak=disp.peak, disparity_peaks=disp.peaks, disparity_percentiles=pct,
         disparity_range=(pct[5], pct[95]), disparity_confidence=disp.confidence,
-        **counts._asdict(), duration_s=float(recording.duration_s), settings=settings,
+        **counts, duration_s=float(recording.duration_s), settings=settings,
     )
 
 

@@ -2,42 +2,33 @@
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 
 from cvstereo.rigcheck.peaks import clip01
 
-__all__ = ["BURST_PERCENTILE", "CountStatistics", "burst_ratio", "count_statistics", "isolated_events"]
+__all__ = ["BURST_PERCENTILE", "burst_ratio", "count_statistics", "isolated_events"]
 
 #: The percentile of the burst ratio: the report's ``burst_ratio_p95`` is named for it.
 BURST_PERCENTILE = 95
 
 
-class CountStatistics(NamedTuple):
-    """Counts and noise of the two cameras (left first)."""
-
-    events: tuple[int, int]
-    rate_ratio: float
-    rate_ratio_confidence: float
-    burst_ratio_p95: float
-    on_fraction: tuple[float, float]
-    on_fraction_confidence: float
-    noise_rate_hz: tuple[float, float]
-    noise_fraction: tuple[float, float]
-    noise_confidence: float
-
-
 def count_statistics(left, right, *, duration_s, resolution, noise_window_us, burst_window_us,
-                     burst_min_events) -> CountStatistics:
-    """Rate ratio, burst ratio, ON share and isolated-event noise, each with its confidence."""
+                     burst_min_events) -> dict:
+    """Rate ratio, burst ratio, ON share and isolated-event noise, each with its confidence (left camera first).
+
+    Returns
+    -------
+    dict
+        The count fields of :class:`~cvstereo.rigcheck.report.RigReport`, by name (``events`` to
+        ``noise_confidence``; their meaning is documented there, once): the report is built from them.
+    """
     n_l, n_r = int(left.size), int(right.size)
     rate_conf = clip01(1.0 - np.sqrt(1.0 / n_l + 1.0 / n_r) / 0.1)
     on = (float(left["p"].mean()), float(right["p"].mean()))
     on_conf = clip01(1.0 - max(np.sqrt(f * (1 - f) / n) for f, n in zip(on, (n_l, n_r), strict=True)) / 0.05)
     burst = burst_ratio(left, right, window_us=burst_window_us, min_events=burst_min_events)
     iso = [isolated_events(ev, window_us=noise_window_us, resolution=resolution) for ev in (left, right)]
-    return CountStatistics(
+    return dict(
         events=(n_l, n_r), rate_ratio=float(n_r / n_l), rate_ratio_confidence=rate_conf,
         burst_ratio_p95=burst, on_fraction=on, on_fraction_confidence=on_conf,
         noise_rate_hz=(float(iso[0] / duration_s), float(iso[1] / duration_s)),

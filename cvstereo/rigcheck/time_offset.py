@@ -20,7 +20,7 @@ from cvstereo.model.polarity import sign
 from cvstereo.rigcheck.params import RigCheckParams
 from cvstereo.rigcheck.peaks import contrast, fft_len, half_width, smooth_lags, subsample_peak, support
 
-__all__ = ["PAIRS", "REGRESSION", "PairsEstimate", "RowSpectra", "SlopeFit", "TimeOffset", "equal_peaks",
+__all__ = ["PAIRS", "REGRESSION", "RowSpectra", "SlopeFit", "TimeOffset", "equal_peaks",
            "time_offset", "time_offset_pairs", "time_offset_regression"]
 
 # The defaults of the pixel-coincidence options, for callers of time_offset_pairs without a RigCheckParams.
@@ -35,7 +35,7 @@ REGRESSION = "shift-velocity regression"
 
 
 class TimeOffset(NamedTuple):
-    """A time-offset estimate."""
+    """A time-offset estimate (of :func:`time_offset`, and of either estimator alone)."""
 
     offset_us: float
     """How much later the right camera stamps the same change, us."""
@@ -46,19 +46,9 @@ class TimeOffset(NamedTuple):
     """Other offsets the pixel coincidences support as well (a periodic scene), nearest first."""
     period_us: float = float("nan")
     """Spacing of those equal peaks (the scene's period), NaN without them."""
-
-
-class PairsEstimate(NamedTuple):
-    """What :func:`time_offset_pairs` found."""
-
-    offset_us: float
-    confidence: float
-    half_width_us: float
-    """Half width of the histogram's peak at half its height (inf without any pair)."""
-    alternatives_us: tuple[float, ...] = ()
-    """Lags of the other peaks as high as the chosen one within their uncertainty, nearest first."""
-    period_us: float = float("nan")
-    """Median spacing of the equal peaks, NaN when there is only one."""
+    half_width_us: float = float("nan")
+    """Half width of the coincidence histogram's peak at half its height (inf without any pair); NaN from the
+    regression."""
 
 
 class SlopeFit(NamedTuple):
@@ -89,7 +79,7 @@ def time_offset(left, right, *, row, disparity, resolution, params: RigCheckPara
         if reg is not None and reg.confidence >= params.reg_min_confidence:
             # A periodic scene shows in the coincidences whichever estimator answers.
             return reg._replace(alternatives_us=pairs.alternatives_us, period_us=pairs.period_us)
-    return TimeOffset(pairs.offset_us, pairs.confidence, PAIRS, pairs.alternatives_us, pairs.period_us)
+    return pairs
 
 
 def time_offset_regression(left, right, *, row, disparity, resolution,
@@ -330,7 +320,7 @@ def _fixed_effects_slope(tile, s, v, w, n_tiles, params: RigCheckParams) -> Slop
 def time_offset_pairs(left, right, *, row, disparity, resolution, max_lag_us, bin_us,
                       equal_share=_DEFAULTS.time_equal_share, equal_sigmas=_DEFAULTS.time_equal_sigmas,
                       max_events=_DEFAULTS.pairs_max_events,
-                      smooth_bins=_DEFAULTS.pairs_smooth_bins) -> PairsEstimate:
+                      smooth_bins=_DEFAULTS.pairs_smooth_bins) -> TimeOffset:
     """How much later the right camera fires than the left at corresponding pixels.
 
     For every left event at (x, y), the right events of the same polarity at (x - d, y - row) for d within one
@@ -372,7 +362,7 @@ def time_offset_pairs(left, right, *, row, disparity, resolution, max_lag_us, bi
         dt = times[first] - np.repeat(t_left, n)
         hist += np.bincount(np.round(dt / bin_us).astype(np.int64) + lag, minlength=2 * lag + 1)[:2 * lag + 1]
     if hist.sum() == 0:
-        return PairsEstimate(0.0, 0.0, float("inf"))
+        return TimeOffset(0.0, 0.0, PAIRS, half_width_us=float("inf"))
     sigma = smooth_bins
     corr = smooth_lags(hist - np.median(hist), sigma=sigma)
     # Counts are Poisson: the smoothed histogram's variance is the counts smoothed by the squared kernel.
@@ -386,8 +376,8 @@ def time_offset_pairs(left, right, *, row, disparity, resolution, max_lag_us, bi
     others = sorted((i for i in equal if abs(i - k) > width_bins), key=lambda i: (abs(i - k), i))
     period = float(np.median(np.diff(sorted([k, *others]))) * bin_us) if others else float("nan")
     conf = contrast(corr, k, exclude=width_bins) * support(left.size, right.size)
-    return PairsEstimate(time, conf, float(width_bins * bin_us),
-                         tuple(float((subsample_peak(corr, i) - lag) * bin_us) for i in others), period)
+    return TimeOffset(time, conf, PAIRS, tuple(float((subsample_peak(corr, i) - lag) * bin_us) for i in others),
+                      period, float(width_bins * bin_us))
 
 
 def equal_peaks(v, var, *, equal_share, z=_DEFAULTS.time_equal_sigmas):

@@ -210,6 +210,29 @@ def test_help_through_the_cli_has_no_rst_markup(capsys):
         assert out.startswith(f"usage: cvstereo {command}") and _markup_in(out) == [], command
 
 
+def test_help_shows_the_modules_description_paragraph_only(capsys):
+    # cli._subcommand: a command's description is its module docstring's second paragraph, lines joined;
+    # the usage line before it and the paragraphs for code readers after it stay out of --help.
+    with pytest.raises(SystemExit):
+        main(["rigcheck", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert "Estimate from the events alone which camera is left, the vertical (row) offset between the sensors," in out
+    assert "once per blade period)." in out
+    assert "what a calibration would have told" not in out and "reads n/a" not in out
+
+
+def test_a_command_module_without_a_description_is_refused():
+    import argparse
+
+    from cvstereo.cli._subcommand import subcommand
+
+    sub = argparse.ArgumentParser().add_subparsers()
+    with pytest.raises(ValueError, match="cvstereo nodoc: the command module's docstring has no description"):
+        subcommand(sub, "nodoc", "a summary", "``cvstereo nodoc``: only a usage line.")
+    assert subcommand(sub, "given", "a summary", "``cvstereo given``.", description="Its own.").description == \
+        "Its own."
+
+
 def test_list_methods_has_no_rst_markup(capsys):
     _run(["match", "--list-methods"], capsys)  # warm: the registry's imports may print nothing, checked below
     out = _run(["match", "--list-methods"], capsys)

@@ -104,11 +104,6 @@ class MergedEventMatcher(StreamMatcher):
                                   value_name="dynamic-frame value")
         self._scratch = Scratch()
 
-    def diagnostics(self) -> dict:
-        """The signal-level diagnostics of the run so far
-        (:meth:`cvstereo.matchers._shared.signal_level.SignalLevel.diagnostics`)."""
-        return self._level.diagnostics()
-
     #: The kernel, serial and parallel (:func:`cvstereo.matchers._shared.row_bands.compile_twice` of a loop over the
     #: row bands): ``kernel(stream, bands, cuts, search, out_pos, out_disparity, counts, values, right_start)``,
     #: ``values`` one buffer per band.

@@ -1,9 +1,20 @@
 """Reference implementations of every matcher: readable code that follows ``docs/algorithms.md`` step by step.
 
-One module per matcher (:mod:`.frame_clusters`, :mod:`.frame_area`, :mod:`.event_time`, :mod:`.event_area`,
-:mod:`.event_vector`), and the reference dynamic frames (:mod:`.dynamic_frames`). Each matcher's function
-``<name>_reference(left, right, params, *, resolution)`` takes the whole stream at once and returns a
-time-ordered matches array. They are slow (use them on short inputs) and exist so that tests can hold the fast
+One module per matcher (``cvstereo.matchers.<name>.reference``), and the reference dynamic frames
+(:mod:`.reference_frames`). Each matcher's function ``<name>_reference(left, right, params, *, resolution)``
+takes the whole stream at once and returns a time-ordered matches array; its own docstring says what its rows
+are. The arguments, the same for every one:
+
+Parameters
+----------
+left, right : (N,) ndarray of EVENT_DTYPE
+    Each camera's events, time-ordered.
+params : the matcher's parameter class (``cvstereo.matchers.<name>.params``), optional
+    None: the class's defaults.
+resolution : (width, height), keyword-only
+    The sensor size (default: the DVS128's).
+
+They are slow (use them on short inputs) and exist so that tests can hold the fast
 matchers to them: same anchors, same disparities, bit for bit. They share with the fast matchers only what is
 not code of a kernel: the parameter classes
 (``cvstereo.matchers.<name>.params``), named constants (:mod:`cvstereo.matchers._shared.consistency`,

@@ -15,17 +15,15 @@ def event_area_reference(left: np.ndarray, right: np.ndarray, params: EventAreaP
                          resolution: tuple[int, int] = DEFAULT_RESOLUTION) -> np.ndarray:
     """Match a whole stereo stream with the event-area algorithm, one event at a time.
 
-    Parameters
-    ----------
-    left, right : (N,) ndarray of EVENT_DTYPE
-    params : EventAreaParams, optional
-    resolution : (width, height), keyword-only
-
     Returns
     -------
     (M,) ndarray of MATCH_DTYPE
         One row per matched event of either camera, in processing order (time-ordered). Each event is
         matched before it updates its own frame.
+
+    See Also
+    --------
+    cvstereo.matchers._shared.reference : the arguments, the same for every reference function.
     """
     prm = params if params is not None else EventAreaParams()
     width, height = resolution

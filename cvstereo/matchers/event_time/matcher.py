@@ -63,6 +63,7 @@ from cvstereo.matchers.event_time.params import EventTimeParams
 from cvstereo.matchers.protocol import StreamMatcher
 from cvstereo.model.events import paired_window_segments
 from cvstereo.model.matches import empty_matches
+from cvstereo.model.polarity import POLARITY_MODES
 
 __all__ = ["NO_TIME", "EventTimeMatcher"]
 
@@ -286,12 +287,7 @@ class EventTimeMatcher(StreamMatcher):
     """
 
     Params = EventTimeParams
-    variants: ClassVar[dict[str, dict]] = {
-        "shared": {"polarity": "shared"},
-        "separate": {"polarity": "separate"},
-        "on": {"polarity": "on"},
-        "off": {"polarity": "off"},
-    }
+    variants: ClassVar[dict[str, dict]] = {mode: {"polarity": mode} for mode in POLARITY_MODES}
     anchor = "event"
     method = "event-time"
 
@@ -325,11 +321,6 @@ class EventTimeMatcher(StreamMatcher):
 
     def anchor_cameras(self) -> tuple[int, ...]:
         return (self.params.reference_camera,)
-
-    def diagnostics(self) -> dict:
-        """The signal-level diagnostics of the run so far
-        (:meth:`cvstereo.matchers._shared.signal_level.SignalLevel.diagnostics`)."""
-        return self._level.diagnostics()
 
     def _feed(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:
         prm = self.params

@@ -95,16 +95,14 @@ def event_time_reference(left: np.ndarray, right: np.ndarray, params: EventTimeP
                          resolution: tuple[int, int] = DEFAULT_RESOLUTION) -> np.ndarray:
     """Match a whole stereo stream with the event-time algorithm, one event at a time.
 
-    Parameters
-    ----------
-    left, right : (N,) ndarray of EVENT_DTYPE
-    params : EventTimeParams, optional
-    resolution : (width, height), keyword-only
-
     Returns
     -------
     (M,) ndarray of MATCH_DTYPE
         One row per matched reference event, time-ordered.
+
+    See Also
+    --------
+    cvstereo.matchers._shared.reference : the arguments, the same for every reference function.
     """
     prm = params if params is not None else EventTimeParams()
     ref = prm.reference_camera

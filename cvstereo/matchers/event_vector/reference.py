@@ -71,17 +71,15 @@ def event_vector_reference(left: np.ndarray, right: np.ndarray, params: EventVec
                            resolution: tuple[int, int] = DEFAULT_RESOLUTION) -> np.ndarray:
     """Match a whole stereo stream with the event-vector algorithm, one event at a time.
 
-    Parameters
-    ----------
-    left, right : (N,) ndarray of EVENT_DTYPE
-    params : EventVectorParams, optional
-    resolution : (width, height), keyword-only
-
     Returns
     -------
     (M,) ndarray of MATCH_DTYPE
         One row per matched event of either camera, in processing order (time-ordered). Everything is
         computed before the event updates its own frame.
+
+    See Also
+    --------
+    cvstereo.matchers._shared.reference : the arguments, the same for every reference function.
     """
     prm = params if params is not None else EventVectorParams()
     width = resolution[0]

@@ -48,7 +48,7 @@ from cvstereo.matchers._shared.sparse_frames import SparseFrames, bit_positions
 from cvstereo.matchers._shared.support import supported
 from cvstereo.matchers.frame.params import WIDTH_EPS, FrameClusterParams
 from cvstereo.model.matches import empty_matches, make_matches
-from cvstereo.model.polarity import slot_of_p
+from cvstereo.model.polarity import POLARITY_MODES, slot_of_p
 
 __all__ = ["FrameClusterMatcher", "active_values"]
 
@@ -67,12 +67,7 @@ class FrameClusterMatcher(FrameMatcher):
     """
 
     Params = FrameClusterParams
-    variants: ClassVar[dict[str, dict]] = {
-        "shared": {"polarity": "shared"},
-        "separate": {"polarity": "separate"},
-        "on": {"polarity": "on"},
-        "off": {"polarity": "off"},
-    }
+    variants: ClassVar[dict[str, dict]] = {mode: {"polarity": mode} for mode in POLARITY_MODES}
     method = "frame"
 
     def __init__(self, params=None, *, resolution=(128, 128)):
@@ -86,11 +81,6 @@ class FrameClusterMatcher(FrameMatcher):
 
     def anchor_cameras(self) -> tuple[int, ...]:
         return (self.params.anchor_camera,)
-
-    def diagnostics(self) -> dict:
-        """The signal-level diagnostics of the run so far
-        (:meth:`cvstereo.matchers._shared.signal_level.SignalLevel.diagnostics`)."""
-        return self._level.diagnostics()
 
     def match_window(self, window: Window) -> np.ndarray:
         prm = self.params

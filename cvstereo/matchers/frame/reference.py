@@ -170,17 +170,15 @@ def frame_clusters_reference(left: np.ndarray, right: np.ndarray, params: FrameC
                              resolution: tuple[int, int] = DEFAULT_RESOLUTION) -> np.ndarray:
     """Match a whole stereo stream with the frame-based cluster matcher, window by window, frame by frame.
 
-    Parameters
-    ----------
-    left, right : (N,) ndarray of EVENT_DTYPE
-    params : FrameClusterParams, optional
-    resolution : (width, height), keyword-only
-
     Returns
     -------
     (M,) ndarray of MATCH_DTYPE
         Per window (stamped with its end), the anchor camera's pixels of matched clusters that saw events of
         the cluster's frame, in (y, x, p) order.
+
+    See Also
+    --------
+    cvstereo.matchers._shared.reference : the arguments, the same for every reference function.
     """
     prm = params if params is not None else FrameClusterParams()
     width, height = resolution

@@ -306,11 +306,6 @@ class FrameAreaMatcher(FrameMatcher):
     def anchor_cameras(self) -> tuple[int, ...]:
         return (self.params.reference_camera,)
 
-    def diagnostics(self) -> dict:
-        """The signal-level diagnostics of the run so far
-        (:meth:`cvstereo.matchers._shared.signal_level.SignalLevel.diagnostics`)."""
-        return self._level.diagnostics()
-
     def _frames(self, counts: np.ndarray) -> list[tuple[int, np.ndarray]]:
         """(channel, frame) per frame of the polarity mode (one for ``shared``): :func:`polarity_frames`."""
         prm = self.params

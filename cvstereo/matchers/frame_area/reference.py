@@ -114,17 +114,15 @@ def frame_area_reference(left: np.ndarray, right: np.ndarray, params: FrameAreaP
                          resolution: tuple[int, int] = DEFAULT_RESOLUTION) -> np.ndarray:
     """Match a whole stereo stream with the frame-area algorithm, window by window.
 
-    Parameters
-    ----------
-    left, right : (N,) ndarray of EVENT_DTYPE
-    params : FrameAreaParams, optional
-    resolution : (width, height), keyword-only
-
     Returns
     -------
     (M,) ndarray of MATCH_DTYPE
         Per window (stamped with its end), the reference camera's pixels that saw events and got a disparity,
         row-major; ``p`` = 1 where the reference frame is > 0.
+
+    See Also
+    --------
+    cvstereo.matchers._shared.reference : the arguments, the same for every reference function.
     """
     prm = params if params is not None else FrameAreaParams()
     level = SignalLevel(prm, absolute=prm.threshold, unit=filtered_unit(prm),

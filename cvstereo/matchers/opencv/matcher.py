@@ -59,7 +59,13 @@ def opencv_range(default: int, width: int, low: int = 0) -> int:
 
 
 class _OpenCVMatcher(FrameMatcher):
-    """Common part of the baselines: frames -> 8-bit images -> OpenCV -> matches at left event pixels."""
+    """Common part of the baselines: frames -> 8-bit images -> OpenCV -> matches at left event pixels.
+
+    Parameters
+    ----------
+    params : the subclass's ``Params`` (StereoBMParams, StereoSGBMParams), optional
+    resolution : (width, height), keyword-only
+    """
 
     variants: ClassVar[dict[str, dict]] = {"default": {}}
 
@@ -162,13 +168,8 @@ def matches_at_left_events(t_end: int, left_counts: np.ndarray, disparity: np.nd
 
 
 class StereoBMMatcher(_OpenCVMatcher):
-    """OpenCV ``StereoBM`` on the thesis' 40 ms frames (method ``stereobm``).
-
-    Parameters
-    ----------
-    params : StereoBMParams, optional
-    resolution : (width, height), keyword-only
-    """
+    """OpenCV ``StereoBM`` on the thesis' 40 ms frames (method ``stereobm``): its arguments are
+    those of the common base, ``_OpenCVMatcher``."""
 
     Params = StereoBMParams
     method = "stereobm"
@@ -193,13 +194,8 @@ _SGBM_MODES = {"sgbm": cv2.STEREO_SGBM_MODE_SGBM, "hh": cv2.STEREO_SGBM_MODE_HH,
 
 
 class StereoSGBMMatcher(_OpenCVMatcher):
-    """OpenCV ``StereoSGBM`` on the thesis' 40 ms frames (method ``sgbm``).
-
-    Parameters
-    ----------
-    params : StereoSGBMParams, optional
-    resolution : (width, height), keyword-only
-    """
+    """OpenCV ``StereoSGBM`` on the thesis' 40 ms frames (method ``sgbm``): its arguments are
+    those of the common base, ``_OpenCVMatcher``."""
 
     Params = StereoSGBMParams
     method = "sgbm"
