@@ -12,11 +12,10 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 
 from cvstereo._compile_watch import COMPILE_MESSAGE, compile_seconds, watch_compiles
+from cvstereo.matchers.sets import PARAM_SETS  # the parameter sets whose default variants are warmed
 
 __all__ = ["COMPILE_MESSAGE", "PARAM_SETS", "compile_seconds", "warm_up"]
 
-#: The parameter sets whose default variants are warmed (docs/algorithms.md).
-PARAM_SETS = ("adaptive", "thesis")
 #: The thread counts warmed: one (the serial kernels) and more than one (the parallel ones).
 _THREAD_COUNTS = (1, 2)
 
