@@ -35,13 +35,13 @@ loop naming its kernel is cached once.
 
 from __future__ import annotations
 
-import types
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from cvstereo.matchers._shared.merge_order import ROW_CAM, ROW_INDEX, ROW_Y
+from cvstereo.matchers._shared.twin_kernels import compile_twice
 
 __all__ = ["REBALANCE_EVENTS", "REBALANCE_SHARE", "BandedState", "band_rows", "compile_twice", "emit_at", "even_cuts",
            "gather_band_values", "merge_band_matches", "splat_rows"]
@@ -51,27 +51,6 @@ __all__ = ["REBALANCE_EVENTS", "REBALANCE_SHARE", "BandedState", "band_rows", "c
 REBALANCE_SHARE = 1.5
 #: ... once at least this many events have passed since the last cut (a new cut copies the whole state).
 REBALANCE_EVENTS = 1 << 20
-
-
-def compile_twice(fn, **options):
-    """``fn`` compiled serially (``njit(cache=True, **options)``) and in parallel (``parallel=True`` too).
-
-    Each compile is made from a copy of ``fn`` under its own name (``<name>_serial``, ``<name>_parallel``):
-    numba's on-disk cache keys a function by its name and signature, not by its options, so that one
-    name for both would load the serial code for the parallel compile.
-
-    Returns
-    -------
-    serial, parallel : numba dispatchers
-    """
-    def twin(suffix):
-        copy = types.FunctionType(fn.__code__, fn.__globals__, fn.__name__ + suffix, fn.__defaults__, fn.__closure__)
-        copy.__qualname__ = fn.__qualname__ + suffix
-        copy.__doc__, copy.__module__ = fn.__doc__, fn.__module__
-        return copy
-
-    return (njit(cache=True, **options)(twin("_serial")),
-            njit(cache=True, parallel=True, **options)(twin("_parallel")))
 
 
 @njit(cache=True, inline="always")
@@ -121,42 +100,72 @@ def emit_at(out_pos, out_disparity, n, k, disparity):  # pragma: no cover - comp
     return n + 1
 
 
-@njit(cache=True)
-def merge_band_matches(stream, counts, out_pos, out_disparity, cam, index, disparity):  # pragma: no cover
+def _merge_chunks(stream, counts, out_pos, out_disparity, cam, index, disparity, n_chunks):  # pragma: no cover
+    """:func:`merge_band_matches` in ``n_chunks`` pieces of the stream (its positions cut evenly), each merged on
+    its own (in parallel in the parallel compile): a piece's matches start after those of every earlier position,
+    counted in each band's sorted positions."""
+    n_bands = counts.shape[0]
+    size = stream.shape[1]
+    for c in prange(n_chunks):
+        first, stop = c * size // n_chunks, (c + 1) * size // n_chunks
+        head = np.empty(n_bands, np.int64)
+        end = np.empty(n_bands, np.int64)
+        m = 0
+        for b in range(n_bands):
+            head[b] = np.searchsorted(out_pos[b, :counts[b]], first)
+            end[b] = np.searchsorted(out_pos[b, :counts[b]], stop)
+            m += head[b]
+        while True:
+            best = -1
+            for b in range(n_bands):
+                if head[b] < end[b] and (best < 0 or out_pos[b, head[b]] < out_pos[best, head[best]]):
+                    best = b
+            if best < 0:
+                break
+            k = out_pos[best, head[best]]
+            cam[m] = stream[ROW_CAM, k]
+            index[m] = stream[ROW_INDEX, k]
+            disparity[m] = out_disparity[best, head[best]]
+            head[best] += 1
+            m += 1
+
+
+def _gather_chunks(stream, band_values, values, right_start, cuts, n_chunks):  # pragma: no cover - compiled
+    """:func:`gather_band_values` in ``n_chunks`` pieces of the stream, in parallel in the parallel compile."""
+    size = stream.shape[1]
+    for c in prange(n_chunks):
+        for k in range(c * size // n_chunks, (c + 1) * size // n_chunks):
+            y = stream[ROW_Y, k]
+            band = 0
+            while cuts[band + 1] <= y:
+                band += 1
+            at = stream[ROW_CAM, k] * right_start + stream[ROW_INDEX, k]
+            values[at] = band_values[band, at]
+
+
+#: :func:`_merge_chunks` and :func:`_gather_chunks`, serial and parallel: with several bands the merge-back runs
+#: on the bands' threads too, so that it does not add to the serial part of a run.
+_MERGE_KERNELS = compile_twice(_merge_chunks)
+_GATHER_KERNELS = compile_twice(_gather_chunks)
+
+
+def merge_band_matches(stream, counts, out_pos, out_disparity, cam, index, disparity) -> int:
     """The bands' matches (band ``b``: ``counts[b]`` rows of ``out_pos[b]``, ``out_disparity[b]``, each in stream
     order) merged into the merged stream's order: camera, index into its events and disparity of each; returns
-    their number. Each event has one owner band, so positions never repeat."""
+    their number. Each event has one owner band, so positions never repeat. One band: a serial copy; several: one
+    piece of the stream per band, merged in parallel."""
     n_bands = counts.shape[0]
-    head = np.zeros(n_bands, np.int64)
-    total = 0
-    for b in range(n_bands):
-        total += counts[b]
-    for m in range(total):
-        best = -1
-        for b in range(n_bands):
-            if head[b] < counts[b] and (best < 0 or out_pos[b, head[b]] < out_pos[best, head[best]]):
-                best = b
-        k = out_pos[best, head[best]]
-        cam[m] = stream[ROW_CAM, k]
-        index[m] = stream[ROW_INDEX, k]
-        disparity[m] = out_disparity[best, head[best]]
-        head[best] += 1
-    return total
+    _MERGE_KERNELS[n_bands > 1](stream, counts, out_pos, out_disparity, cam, index, disparity, n_bands)
+    return int(counts.sum())
 
 
-@njit(cache=True)
-def gather_band_values(stream, band_values, values, right_start, cuts):  # pragma: no cover - compiled
+def gather_band_values(stream, band_values, values, right_start, cuts) -> None:
     """Each event's value from its owner band's buffer (``band_values[b]``, written at the event's place in
     ``values``: the left camera's i-th event at ``i``, the right camera's at ``right_start + i``) into
-    ``values``. Each band writes a buffer of its own: bands writing neighbouring entries of one array would
-    share its cache lines at almost every event."""
-    for k in range(stream.shape[1]):
-        y = stream[ROW_Y, k]
-        band = 0
-        while cuts[band + 1] <= y:
-            band += 1
-        at = stream[ROW_CAM, k] * right_start + stream[ROW_INDEX, k]
-        values[at] = band_values[band, at]
+    ``values``, one piece of the stream per band in parallel. Each band writes a buffer of its own: bands writing
+    neighbouring entries of one array would share its cache lines at almost every event."""
+    n_bands = band_values.shape[0]
+    _GATHER_KERNELS[n_bands > 1](stream, band_values, values, right_start, cuts, n_bands)
 
 
 class BandedState:
