@@ -22,8 +22,9 @@ events' rows, so that the bands own about equal shares of them (:meth:`BandedSta
 The matches of each band carry their position in the merged stream and are merged back into the stream's
 order (:func:`merge_band_matches`); the per-event values are gathered from their owner bands
 (:func:`gather_band_values`). The private copies persist from packet to packet (:class:`BandedState`), so
-that nothing is copied per packet; a change of the number of bands, or a cut anew, assembles the full state from
-the owners' rows and copies it into the new bands. With one band
+that nothing is copied per packet; a change of the number of bands assembles the full state from the owners' rows
+and copies it into the new bands, and a cut anew (the events moved to other rows) moves the rows that change hands
+only. With one band
 the state is the matcher's own arrays and every row is kept: the one-thread path.
 
 Each kernel is one Python function compiled twice (:func:`compile_twice`): serially, where its ``prange`` over
@@ -48,9 +49,10 @@ __all__ = ["REBALANCE_EVENTS", "REBALANCE_SHARE", "BandedState", "band_rows", "c
 
 #: A band owning more than this times its fair share (1 / bands) of a window's events is a reason to cut anew
 #: (the threads wait for the busiest band) ...
-REBALANCE_SHARE = 1.5
-#: ... once at least this many events have passed since the last cut (a new cut copies the whole state).
-REBALANCE_EVENTS = 1 << 20
+REBALANCE_SHARE = 1.1
+#: ... once at least this many events have passed since the last cut (a cut anew copies the rows that change hands
+#: and adds to the bands' ``mass``, which loosens event-area's bounds until its next rebuild).
+REBALANCE_EVENTS = 1 << 17
 
 
 @njit(cache=True, inline="always")
@@ -73,9 +75,9 @@ def even_cuts(n_bands: int, height: int, rows: np.ndarray | None = None) -> np.n
     """
     if rows is None or rows.size == 0:
         inner = np.arange(1, n_bands) * height // n_bands
-    else:
-        ordered = np.sort(rows)
-        inner = ordered[np.arange(1, n_bands) * ordered.size // n_bands].astype(np.int64)
+    else:  # the rows of the sorted events k = i * size // n_bands, from the events per row (no sort of them)
+        on_or_before = np.cumsum(np.bincount(rows, minlength=height))
+        inner = np.searchsorted(on_or_before, np.arange(1, n_bands) * rows.size // n_bands, side="right")
     cuts = np.concatenate([[0], inner, [height]]).astype(np.int64)
     for b in range(1, n_bands):  # at least one row per band, and room for the bands after it
         cuts[b] = min(max(cuts[b], cuts[b - 1] + 1), height - (n_bands - b))
@@ -224,12 +226,15 @@ class BandedState:
         The bands own about equal shares of the events (:func:`even_cuts` of ``rows``), so that no thread waits
         long for another; the state is cut anew only when the number of bands changes, or when a band owns more
         than :data:`REBALANCE_SHARE` times its share of the window's events and :data:`REBALANCE_EVENTS` have
-        passed since the last cut. A cut gives each band a copy of the full state, zero outside the rows it keeps
-        (so that its ``mass``, which a rebuild sums over all rows, counts the rows it keeps only).
+        passed since the last cut, when the bands' boundaries move (:meth:`_move_cuts`). A new number of bands
+        gives each band a copy of the full state; either way a band is zero outside the rows it keeps (so that its
+        ``mass``, which a rebuild sums over all rows, counts the rows it keeps only).
         """
         n_bands = max(1, min(int(n_bands), self._height))
         self._since_cut += rows.size
-        if n_bands == self.n_bands and (n_bands == 1 or not self._unbalanced(rows)):
+        if n_bands == self.n_bands:
+            if n_bands > 1 and self._unbalanced(rows):
+                self._move_cuts(even_cuts(n_bands, self._height, rows))
             return self.bands
         full = self.full()
         self.n_bands, self.cuts, self._since_cut = n_bands, even_cuts(n_bands, self._height, rows), 0
@@ -249,5 +254,36 @@ class BandedState:
     def _unbalanced(self, rows: np.ndarray) -> bool:
         if self._since_cut < REBALANCE_EVENTS or rows.size == 0:
             return False
-        owned = np.bincount(np.searchsorted(self.cuts, rows, side="right") - 1, minlength=self.n_bands)
+        owned = np.add.reduceat(np.bincount(rows, minlength=self._height), self.cuts[:-1])
         return owned.max() > REBALANCE_SHARE * rows.size / self.n_bands
+
+    def _move_cuts(self, cuts: np.ndarray) -> None:
+        """Move the bands' boundaries to ``cuts`` in place: each band takes the rows it keeps and did not own from
+        their old owners (exact there) and zeroes those it no longer keeps, so that a new cut copies the rows that
+        changed hands only, not the whole state. A band's summed bound (``mass``) adds those of the bands it took rows
+        from: its rows now hold their entries too."""
+        old = self.cuts
+        keep = [(self.rows_of(b)[2:], (max(0, cuts[b] - self._halo), min(self._height, cuts[b + 1] + self._halo)))
+                for b in range(self.n_bands)]
+        taken = []  # per band: (old owner, first row, stop) of each stretch it takes
+        for b, (_, (lo, hi)) in enumerate(keep):
+            # The rows kept now and not owned before, the halo too: a band's column sums are exact on its own rows
+            # only (a halo row's sums lack the splats on the rows beyond it).
+            stretches = [(lo, min(hi, old[b])), (max(lo, old[b + 1]), hi)]
+            taken.append([(o, max(a, old[o]), min(z, old[o + 1])) for a, z in stretches
+                          for o in range(self.n_bands) if max(a, old[o]) < min(z, old[o + 1])])
+        for name in self._row_fields:  # every copy first: a band's dropped rows may be another's new ones
+            banded = getattr(self.bands, name)
+            for b, stretches in enumerate(taken):
+                for o, a, z in stretches:  # an old owner's own rows: never its own new rows, so not written here
+                    banded[b, :, :, a:z] = banded[o, :, :, a:z]
+            for b, ((old_lo, old_hi), (lo, hi)) in enumerate(keep):
+                banded[b, :, :, old_lo:min(old_hi, lo)] = 0
+                banded[b, :, :, max(old_lo, hi):old_hi] = 0
+        for name in self._summed_fields:
+            banded = getattr(self.bands, name)
+            before = banded.copy()
+            for b, stretches in enumerate(taken):
+                for o in {o for o, _, _ in stretches}:
+                    banded[b] += before[o]
+        self.cuts, self._since_cut = cuts, 0
