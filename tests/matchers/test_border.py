@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cvstereo.matchers._shared.border import BorderParams, BorderRule, border_rule_for
+from cvstereo.matchers._shared.border import BorderParams, BorderRule, _inward_order, border_rule_for
 from cvstereo.matchers.registry import available_methods, matcher_class
 from cvstereo.matchers.sets import resolve
 from cvstereo.model.matches import make_matches
@@ -68,6 +68,30 @@ def test_a_window_is_decided_inward_first():
     rule = BorderRule((32, 1), horizon_us=1000, rows=0)
     m = _matches([(40, 3, 0, 0, 2.0), (40, 20, 0, 0, 8.0)])
     assert rule(m)["x"].tolist() == [20]
+
+
+@pytest.mark.parametrize("span", [1, 3, 40, 20_000])  # runs of equal times of every length: merge sort, insertion
+def test_the_decision_order_is_time_then_inward_first(span):
+    # The order the rule decides in equals numpy's lexsort by time, then room largest first, ties as given
+    # (the independent expectation); out of time order it says so, and the rule falls back to that lexsort.
+    rng = np.random.default_rng(span)
+    n, width = 500, 64
+    t = np.sort(rng.integers(0, span, n)).astype(np.int64)
+    x = rng.integers(0, width, n).astype(np.int16)
+    cam = rng.integers(0, 2, n).astype(np.uint8)
+    room = np.where(cam == 0, x.astype(np.int64), width - 1 - x.astype(np.int64))
+    order = np.empty(n, np.int64)
+    assert _inward_order(t, x, cam, width, order)
+    assert np.array_equal(order, np.lexsort((-room, t)))
+    if span > 1:
+        assert not _inward_order(t[::-1].copy(), x, cam, width, order)
+
+
+def test_matches_out_of_time_order_get_the_same_decisions():
+    rows = [(40, 3, 0, 0, 2.0), (40, 20, 0, 0, 8.0), (10, 25, 0, 0, 9.0)]
+    ordered = BorderRule((32, 1), horizon_us=1000, rows=0)(_matches(sorted(rows)))
+    shuffled = BorderRule((32, 1), horizon_us=1000, rows=0)(_matches(rows))
+    assert sorted(shuffled["x"].tolist()) == sorted(ordered["x"].tolist()) == [20, 25]
 
 
 def test_decisions_do_not_depend_on_the_packets():

@@ -98,15 +98,57 @@ class BorderRule:
         """The matches the rule keeps, in their order; the accepted ones become evidence for later matches."""
         if not matches.size:
             return matches
-        x = matches["x"].astype(np.int64)
-        room = np.where(matches["camera"] == 0, x, self._disparity.shape[2] - 1 - x)
         # Matches of one time (a window's) are decided inward first, so that the window's own answers away
         # from the border are evidence for its answers near it, whatever order the matcher lists them in.
-        order = np.lexsort((-room, matches["t"]))
+        width = self._disparity.shape[2]
+        order = np.empty(matches.size, np.int64)
+        if not _inward_order(matches["t"], matches["x"], matches["camera"], width, order):
+            # Not in time order (the matchers' contract; a caller's own matches may not be): a full sort.
+            x = matches["x"].astype(np.int64)
+            order = np.lexsort((-np.where(matches["camera"] == 0, x, width - 1 - x), matches["t"]))
         keep = _border_keep(order, matches["t"], matches["x"], matches["y"], matches["camera"],
                             matches["disparity"], self._disparity, self._time, self._largest, self.horizon_us,
                             self.rows)
         return matches if keep.all() else matches[keep]
+
+
+#: Runs of equal times up to this long are ordered by an insertion sort (no allocation), longer ones by a merge sort.
+_SHORT_RUN = 32
+
+
+@njit(cache=True, nogil=True)
+def _inward_order(t, x, camera, width, order):
+    """Write into ``order`` the order in which the rule decides time-ordered matches: by time, at equal times by
+    room (:meth:`BorderRule.__call__`) largest first, ties in their given order (``np.lexsort((-room, t))``, which
+    a stable sort of each run of equal times gives without sorting the whole); False if ``t`` is not in order."""
+    n = t.size
+    i = 0
+    while i < n:
+        j = i + 1
+        while j < n and t[j] == t[i]:
+            j += 1
+        if j < n and t[j] < t[i]:
+            return False
+        if j - i <= _SHORT_RUN:  # a stable insertion sort by room, largest first
+            for k in range(i, j):
+                room = np.int64(x[k]) if camera[k] == 0 else width - 1 - np.int64(x[k])
+                m = k
+                while m > i:
+                    prev = order[m - 1]
+                    if (np.int64(x[prev]) if camera[prev] == 0 else width - 1 - np.int64(x[prev])) >= room:
+                        break
+                    order[m] = prev
+                    m -= 1
+                order[m] = k
+        else:
+            key = np.empty(j - i, np.int64)
+            for k in range(i, j):
+                key[k - i] = -(np.int64(x[k]) if camera[k] == 0 else width - 1 - np.int64(x[k]))
+            sub = np.argsort(key, kind="mergesort")
+            for k in range(j - i):
+                order[i + k] = i + sub[k]
+        i = j
+    return True
 
 
 @njit(cache=True, nogil=True)

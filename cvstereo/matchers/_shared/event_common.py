@@ -136,7 +136,7 @@ class MergedEventMatcher(StreamMatcher):
         kernel(stream, bands, cuts, self._search(thresholds), out_pos, out_band, counts, band_values, right_start)
         if n_bands > 1:
             gather_band_values(stream, band_values, values, right_start, cuts)
-        return int(merge_band_matches(stream, counts, out_pos, out_band, out_cam, out_index, out_disparity))
+        return merge_band_matches(stream, counts, out_pos, out_band, out_cam, out_index, out_disparity)
 
     def _process(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:
         if left.size + right.size == 0:
@@ -158,7 +158,7 @@ class MergedEventMatcher(StreamMatcher):
         thresholds = self._level.thresholds(k)
         # Merged straight from the events' fields: no int64 copy of the columns first (half the merge's time).
         stream = merged_stream(*_fields(left), *_fields(right), self._bank.slot_of_p,
-                               scratch.take("stream", STREAM_ROWS * n, np.int64))
+                               scratch.take("stream", STREAM_ROWS * n, np.int64), pieces=getattr(self, "threads", 1))
         m = self._run_kernel(stream, thresholds, out_cam, out_index, out_disparity, (values, left.size))
         self._level.add(k, 0, values[:left.size])
         self._level.add(k, 1, values[left.size:])

@@ -14,7 +14,9 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
+
+from cvstereo.matchers._shared.twin_kernels import compile_twice
 
 
 def left_is_next(il: int, nl: int, ir: int, nr: int, tl, tr) -> bool:
@@ -79,19 +81,22 @@ def stream_event(stream, k):
             stream[ROW_P, k], stream[ROW_SLOT, k])
 
 
-def merged_stream(tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p, buffer=None):
+def merged_stream(tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p, buffer=None, pieces=1):
     """Both cameras' events as one stream in the merged order, the kernels' input.
 
     Parameters
     ----------
     tl, xl, yl, pl, tr, xr, yr, pr : int ndarray
         Columns of the left and the right camera's events (:func:`cvstereo.frames.dynamic.event_columns`, or
-        the fields of the event arrays themselves).
+        the fields of the event arrays themselves), each camera's in time order.
     slot_of_p : (2,) int64 ndarray
         Frame slot of p = 0 (OFF) and p = 1 (ON); -1 where the polarity mode drops it.
     buffer : 1-D int64 ndarray, optional
         Memory to build the stream in, at least ``STREAM_ROWS * (len(tl) + len(tr))`` long (a caller that merges
         once per window reuses one instead of allocating one per window); a fresh array by default.
+    pieces : int, optional
+        Merge the stream in this many pieces at once (> 1: numba's parallel compile, for a matcher on as many
+        threads); the same stream whatever their number.
 
     Returns
     -------
@@ -101,14 +106,56 @@ def merged_stream(tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p, buffer=None):
     """
     n = tl.shape[0] + tr.shape[0]
     out = np.empty((STREAM_ROWS, n), np.int64) if buffer is None else buffer[: STREAM_ROWS * n].reshape(STREAM_ROWS, n)
-    return out[:, : _merge_into(out, tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p)]
+    pieces = max(1, min(int(pieces), tl.shape[0]))
+    return out[:, : _MERGE_KERNELS[pieces > 1](out, tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p, pieces)]
+
+
+def _merge_pieces(out, tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p, pieces):  # pragma: no cover - compiled
+    """Write :func:`merged_stream`'s rows into the columns of ``out`` (STREAM_ROWS, >= M) in ``pieces`` pieces, in
+    parallel in the parallel compile; return M.
+
+    Piece ``c`` begins at the left event ``c * nl // pieces`` and the first right event not earlier than it
+    (:func:`left_is_next`: left first at equal times), so that the events before it are a prefix of the merged
+    order; with a polarity dropped, a first pass counts what each piece keeps, where it writes from.
+    """
+    nl, nr = tl.shape[0], tr.shape[0]
+    first_l = np.empty(pieces + 1, np.int64)
+    first_r = np.empty(pieces + 1, np.int64)
+    for c in range(pieces):
+        first_l[c] = c * nl // pieces
+        first_r[c] = 0 if c == 0 else np.searchsorted(tr, tl[first_l[c]])
+    first_l[pieces], first_r[pieces] = nl, nr
+    start = np.zeros(pieces + 1, np.int64)
+    if pieces > 1:
+        kept = np.empty(pieces, np.int64)
+        both = slot_of_p[0] >= 0 and slot_of_p[1] >= 0
+        for c in prange(pieces):
+            kept[c] = first_l[c + 1] - first_l[c] + first_r[c + 1] - first_r[c]
+            if not both:
+                kept[c] = (_kept(pl, first_l[c], first_l[c + 1], slot_of_p)
+                           + _kept(pr, first_r[c], first_r[c + 1], slot_of_p))
+        for c in range(pieces):
+            start[c + 1] = start[c] + kept[c]
+    end = np.empty(pieces, np.int64)  # where each piece ended: start[c + 1] (pieces > 1), or M (one piece)
+    for c in prange(pieces):
+        end[c] = _merge_piece(out, tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p, first_l[c], first_l[c + 1],
+                              first_r[c], first_r[c + 1], start[c])
+    return end[pieces - 1]
 
 
 @njit(cache=True)
-def _merge_into(out, tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p):  # pragma: no cover - compiled
-    """Write :func:`merged_stream`'s rows into the columns of ``out`` (STREAM_ROWS, >= M); return M."""
-    nl, nr = tl.shape[0], tr.shape[0]
-    il = ir = m = 0
+def _kept(p, first, stop, slot_of_p):  # pragma: no cover - compiled
+    """How many of the events ``first .. stop - 1`` of polarities ``p`` have a frame slot."""
+    n = 0
+    for i in range(first, stop):
+        n += slot_of_p[1 if p[i] > 0 else 0] >= 0
+    return n
+
+
+@njit(cache=True)
+def _merge_piece(out, tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p, il, nl, ir, nr, m):  # pragma: no cover - compiled
+    """Merge the left events ``il .. nl - 1`` and the right ones ``ir .. nr - 1`` into the columns of ``out`` from
+    ``m`` on; return the column after the last written."""
     while il < nl or ir < nr:
         if left_is_next_jit(il, nl, ir, nr, tl, tr):
             cam, i, t, x, y, p = 0, il, tl[il], xl[il], yl[il], pl[il]
@@ -123,3 +170,6 @@ def _merge_into(out, tl, xl, yl, pl, tr, xr, yr, pr, slot_of_p):  # pragma: no c
             m += 1
     return m
 
+
+#: :func:`_merge_pieces`, serial (one piece) and parallel.
+_MERGE_KERNELS = compile_twice(_merge_pieces)

@@ -22,8 +22,9 @@ events' rows, so that the bands own about equal shares of them (:meth:`BandedSta
 The matches of each band carry their position in the merged stream and are merged back into the stream's
 order (:func:`merge_band_matches`); the per-event values are gathered from their owner bands
 (:func:`gather_band_values`). The private copies persist from packet to packet (:class:`BandedState`), so
-that nothing is copied per packet; a change of the number of bands, or a cut anew, assembles the full state from
-the owners' rows and copies it into the new bands. With one band
+that nothing is copied per packet; a change of the number of bands assembles the full state from the owners' rows
+and copies it into the new bands, and a cut anew (the events moved to other rows) moves the rows that change hands
+only. With one band
 the state is the matcher's own arrays and every row is kept: the one-thread path.
 
 Each kernel is one Python function compiled twice (:func:`compile_twice`): serially, where its ``prange`` over
@@ -35,43 +36,23 @@ loop naming its kernel is cached once.
 
 from __future__ import annotations
 
-import types
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from cvstereo.matchers._shared.merge_order import ROW_CAM, ROW_INDEX, ROW_Y
+from cvstereo.matchers._shared.twin_kernels import compile_twice
 
 __all__ = ["REBALANCE_EVENTS", "REBALANCE_SHARE", "BandedState", "band_rows", "compile_twice", "emit_at", "even_cuts",
            "gather_band_values", "merge_band_matches", "splat_rows"]
 
 #: A band owning more than this times its fair share (1 / bands) of a window's events is a reason to cut anew
 #: (the threads wait for the busiest band) ...
-REBALANCE_SHARE = 1.5
-#: ... once at least this many events have passed since the last cut (a new cut copies the whole state).
-REBALANCE_EVENTS = 1 << 20
-
-
-def compile_twice(fn, **options):
-    """``fn`` compiled serially (``njit(cache=True, **options)``) and in parallel (``parallel=True`` too).
-
-    Each compile is made from a copy of ``fn`` under its own name (``<name>_serial``, ``<name>_parallel``):
-    numba's on-disk cache keys a function by its name and signature, not by its options, so that one
-    name for both would load the serial code for the parallel compile.
-
-    Returns
-    -------
-    serial, parallel : numba dispatchers
-    """
-    def twin(suffix):
-        copy = types.FunctionType(fn.__code__, fn.__globals__, fn.__name__ + suffix, fn.__defaults__, fn.__closure__)
-        copy.__qualname__ = fn.__qualname__ + suffix
-        copy.__doc__, copy.__module__ = fn.__doc__, fn.__module__
-        return copy
-
-    return (njit(cache=True, **options)(twin("_serial")),
-            njit(cache=True, parallel=True, **options)(twin("_parallel")))
+REBALANCE_SHARE = 1.1
+#: ... once at least this many events have passed since the last cut (a cut anew copies the rows that change hands
+#: and adds to the bands' ``mass``, which loosens event-area's bounds until its next rebuild).
+REBALANCE_EVENTS = 1 << 17
 
 
 @njit(cache=True, inline="always")
@@ -94,9 +75,9 @@ def even_cuts(n_bands: int, height: int, rows: np.ndarray | None = None) -> np.n
     """
     if rows is None or rows.size == 0:
         inner = np.arange(1, n_bands) * height // n_bands
-    else:
-        ordered = np.sort(rows)
-        inner = ordered[np.arange(1, n_bands) * ordered.size // n_bands].astype(np.int64)
+    else:  # the rows of the sorted events k = i * size // n_bands, from the events per row (no sort of them)
+        on_or_before = np.cumsum(np.bincount(rows, minlength=height))
+        inner = np.searchsorted(on_or_before, np.arange(1, n_bands) * rows.size // n_bands, side="right")
     cuts = np.concatenate([[0], inner, [height]]).astype(np.int64)
     for b in range(1, n_bands):  # at least one row per band, and room for the bands after it
         cuts[b] = min(max(cuts[b], cuts[b - 1] + 1), height - (n_bands - b))
@@ -121,42 +102,72 @@ def emit_at(out_pos, out_disparity, n, k, disparity):  # pragma: no cover - comp
     return n + 1
 
 
-@njit(cache=True)
-def merge_band_matches(stream, counts, out_pos, out_disparity, cam, index, disparity):  # pragma: no cover
+def _merge_chunks(stream, counts, out_pos, out_disparity, cam, index, disparity, n_chunks):  # pragma: no cover
+    """:func:`merge_band_matches` in ``n_chunks`` pieces of the stream (its positions cut evenly), each merged on
+    its own (in parallel in the parallel compile): a piece's matches start after those of every earlier position,
+    counted in each band's sorted positions."""
+    n_bands = counts.shape[0]
+    size = stream.shape[1]
+    for c in prange(n_chunks):
+        first, stop = c * size // n_chunks, (c + 1) * size // n_chunks
+        head = np.empty(n_bands, np.int64)
+        end = np.empty(n_bands, np.int64)
+        m = 0
+        for b in range(n_bands):
+            head[b] = np.searchsorted(out_pos[b, :counts[b]], first)
+            end[b] = np.searchsorted(out_pos[b, :counts[b]], stop)
+            m += head[b]
+        while True:
+            best = -1
+            for b in range(n_bands):
+                if head[b] < end[b] and (best < 0 or out_pos[b, head[b]] < out_pos[best, head[best]]):
+                    best = b
+            if best < 0:
+                break
+            k = out_pos[best, head[best]]
+            cam[m] = stream[ROW_CAM, k]
+            index[m] = stream[ROW_INDEX, k]
+            disparity[m] = out_disparity[best, head[best]]
+            head[best] += 1
+            m += 1
+
+
+def _gather_chunks(stream, band_values, values, right_start, cuts, n_chunks):  # pragma: no cover - compiled
+    """:func:`gather_band_values` in ``n_chunks`` pieces of the stream, in parallel in the parallel compile."""
+    size = stream.shape[1]
+    for c in prange(n_chunks):
+        for k in range(c * size // n_chunks, (c + 1) * size // n_chunks):
+            y = stream[ROW_Y, k]
+            band = 0
+            while cuts[band + 1] <= y:
+                band += 1
+            at = stream[ROW_CAM, k] * right_start + stream[ROW_INDEX, k]
+            values[at] = band_values[band, at]
+
+
+#: :func:`_merge_chunks` and :func:`_gather_chunks`, serial and parallel: with several bands the merge-back runs
+#: on the bands' threads too, so that it does not add to the serial part of a run.
+_MERGE_KERNELS = compile_twice(_merge_chunks)
+_GATHER_KERNELS = compile_twice(_gather_chunks)
+
+
+def merge_band_matches(stream, counts, out_pos, out_disparity, cam, index, disparity) -> int:
     """The bands' matches (band ``b``: ``counts[b]`` rows of ``out_pos[b]``, ``out_disparity[b]``, each in stream
     order) merged into the merged stream's order: camera, index into its events and disparity of each; returns
-    their number. Each event has one owner band, so positions never repeat."""
+    their number. Each event has one owner band, so positions never repeat. One band: a serial copy; several: one
+    piece of the stream per band, merged in parallel."""
     n_bands = counts.shape[0]
-    head = np.zeros(n_bands, np.int64)
-    total = 0
-    for b in range(n_bands):
-        total += counts[b]
-    for m in range(total):
-        best = -1
-        for b in range(n_bands):
-            if head[b] < counts[b] and (best < 0 or out_pos[b, head[b]] < out_pos[best, head[best]]):
-                best = b
-        k = out_pos[best, head[best]]
-        cam[m] = stream[ROW_CAM, k]
-        index[m] = stream[ROW_INDEX, k]
-        disparity[m] = out_disparity[best, head[best]]
-        head[best] += 1
-    return total
+    _MERGE_KERNELS[n_bands > 1](stream, counts, out_pos, out_disparity, cam, index, disparity, n_bands)
+    return int(counts.sum())
 
 
-@njit(cache=True)
-def gather_band_values(stream, band_values, values, right_start, cuts):  # pragma: no cover - compiled
+def gather_band_values(stream, band_values, values, right_start, cuts) -> None:
     """Each event's value from its owner band's buffer (``band_values[b]``, written at the event's place in
     ``values``: the left camera's i-th event at ``i``, the right camera's at ``right_start + i``) into
-    ``values``. Each band writes a buffer of its own: bands writing neighbouring entries of one array would
-    share its cache lines at almost every event."""
-    for k in range(stream.shape[1]):
-        y = stream[ROW_Y, k]
-        band = 0
-        while cuts[band + 1] <= y:
-            band += 1
-        at = stream[ROW_CAM, k] * right_start + stream[ROW_INDEX, k]
-        values[at] = band_values[band, at]
+    ``values``, one piece of the stream per band in parallel. Each band writes a buffer of its own: bands writing
+    neighbouring entries of one array would share its cache lines at almost every event."""
+    n_bands = band_values.shape[0]
+    _GATHER_KERNELS[n_bands > 1](stream, band_values, values, right_start, cuts, n_bands)
 
 
 class BandedState:
@@ -215,12 +226,15 @@ class BandedState:
         The bands own about equal shares of the events (:func:`even_cuts` of ``rows``), so that no thread waits
         long for another; the state is cut anew only when the number of bands changes, or when a band owns more
         than :data:`REBALANCE_SHARE` times its share of the window's events and :data:`REBALANCE_EVENTS` have
-        passed since the last cut. A cut gives each band a copy of the full state, zero outside the rows it keeps
-        (so that its ``mass``, which a rebuild sums over all rows, counts the rows it keeps only).
+        passed since the last cut, when the bands' boundaries move (:meth:`_move_cuts`). A new number of bands
+        gives each band a copy of the full state; either way a band is zero outside the rows it keeps (so that its
+        ``mass``, which a rebuild sums over all rows, counts the rows it keeps only).
         """
         n_bands = max(1, min(int(n_bands), self._height))
         self._since_cut += rows.size
-        if n_bands == self.n_bands and (n_bands == 1 or not self._unbalanced(rows)):
+        if n_bands == self.n_bands:
+            if n_bands > 1 and self._unbalanced(rows):
+                self._move_cuts(even_cuts(n_bands, self._height, rows))
             return self.bands
         full = self.full()
         self.n_bands, self.cuts, self._since_cut = n_bands, even_cuts(n_bands, self._height, rows), 0
@@ -240,5 +254,36 @@ class BandedState:
     def _unbalanced(self, rows: np.ndarray) -> bool:
         if self._since_cut < REBALANCE_EVENTS or rows.size == 0:
             return False
-        owned = np.bincount(np.searchsorted(self.cuts, rows, side="right") - 1, minlength=self.n_bands)
+        owned = np.add.reduceat(np.bincount(rows, minlength=self._height), self.cuts[:-1])
         return owned.max() > REBALANCE_SHARE * rows.size / self.n_bands
+
+    def _move_cuts(self, cuts: np.ndarray) -> None:
+        """Move the bands' boundaries to ``cuts`` in place: each band takes the rows it keeps and did not own from
+        their old owners (exact there) and zeroes those it no longer keeps, so that a new cut copies the rows that
+        changed hands only, not the whole state. A band's summed bound (``mass``) adds those of the bands it took rows
+        from: its rows now hold their entries too."""
+        old = self.cuts
+        keep = [(self.rows_of(b)[2:], (max(0, cuts[b] - self._halo), min(self._height, cuts[b + 1] + self._halo)))
+                for b in range(self.n_bands)]
+        taken = []  # per band: (old owner, first row, stop) of each stretch it takes
+        for b, (_, (lo, hi)) in enumerate(keep):
+            # The rows kept now and not owned before, the halo too: a band's column sums are exact on its own rows
+            # only (a halo row's sums lack the splats on the rows beyond it).
+            stretches = [(lo, min(hi, old[b])), (max(lo, old[b + 1]), hi)]
+            taken.append([(o, max(a, old[o]), min(z, old[o + 1])) for a, z in stretches
+                          for o in range(self.n_bands) if max(a, old[o]) < min(z, old[o + 1])])
+        for name in self._row_fields:  # every copy first: a band's dropped rows may be another's new ones
+            banded = getattr(self.bands, name)
+            for b, stretches in enumerate(taken):
+                for o, a, z in stretches:  # an old owner's own rows: never its own new rows, so not written here
+                    banded[b, :, :, a:z] = banded[o, :, :, a:z]
+            for b, ((old_lo, old_hi), (lo, hi)) in enumerate(keep):
+                banded[b, :, :, old_lo:min(old_hi, lo)] = 0
+                banded[b, :, :, max(old_lo, hi):old_hi] = 0
+        for name in self._summed_fields:
+            banded = getattr(self.bands, name)
+            before = banded.copy()
+            for b, stretches in enumerate(taken):
+                for o in {o for o, _, _ in stretches}:
+                    banded[b] += before[o]
+        self.cuts, self._since_cut = cuts, 0

@@ -139,10 +139,12 @@ def _event_area_band(stream, bands, cuts, band, search, out_pos, out_disparity, 
                 advance_due_summed(stored, scale, clock, sums, mass, pending, c, t, decay, period, half)
         c1 = scale[cam]
         c2 = scale[other]
-        value = stored[cam, slot, y, x] * c1
-        if first_row <= y < end_row:  # the band's own event: its value and its search
+        own_event = first_row <= y < end_row  # the band's own event: its value and its search
+        # Another band's event is not read: its pixel lies on rows this band does not keep (a cache miss each).
+        value = stored[cam, slot, y, x] * c1 if own_event else 0.0
+        if own_event:
             values[cam * right_start + i] = abs(value)
-        if (first_row <= y < end_row and abs(value) >= thresholds[cam] and half <= x < width - half
+        if (own_event and abs(value) >= thresholds[cam] and half <= x < width - half
                 and half <= y < height - half):
             # The frames compared: the event's own (plane 0 is frame ``slot``), or all of them in slot order.
             first_slot = 0 if all_frames else slot

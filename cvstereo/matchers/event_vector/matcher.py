@@ -108,10 +108,12 @@ def _event_vector_band(stream, bands, cuts, band, search, out_pos, out_disparity
             if tick_due(clock[cc, NEXT_TICK], clock[cc, TOUCHED], t, period):
                 advance_due_bounded(stored, scale, clock, bound, cc, t, decay, period)
         c1 = scale[cam]
-        value = stored[cam, slot, y, x] * c1
-        if first_row <= y < end_row:  # the band's own event: its value and its search
+        own_event = first_row <= y < end_row  # the band's own event: its value and its search
+        # Another band's event is not read: its pixel lies on rows this band does not keep (a cache miss each).
+        value = stored[cam, slot, y, x] * c1 if own_event else 0.0
+        if own_event:
             values[cam * right_start + i] = abs(value)
-        if first_row <= y < end_row and abs(value) >= thresholds[cam]:
+        if own_event and abs(value) >= thresholds[cam]:
             a1, b1, l1, r1 = own_vector(stored, bound, cam, slot, y, x, c1, thresholds[cam])
             lo = x if cam == 1 else max(0, x - max_d)  # the candidate pixels lo..hi of the other row
             hi = min(width - 1, x + max_d) if cam == 1 else x
