@@ -139,11 +139,17 @@ def _match_features(fl, fr, counts, active, recent, prior, prm, scratch, split, 
     n_rows = chunk_count(h, chunks)
     for ch in prange(n_rows):
         for yy in range(ch, h, n_rows):
+            # Counted locally, stored once: neighbouring rows' counts share a cache line, and rows are taken by
+            # different threads, which would pass that line back and forth at every pixel.
+            n_active = 0
+            n_anchors = 0
             for xx in range(w):
                 if active[yy, xx]:
-                    row_start[yy + 1] += 1
+                    n_active += 1
                     if counts[0, yy, xx] + counts[1, yy, xx] > 0:
-                        slot_start[yy + 1] += 1
+                        n_anchors += 1
+            row_start[yy + 1] = n_active
+            slot_start[yy + 1] = n_anchors
     for yy in range(h):
         row_start[yy + 1] += row_start[yy]
         slot_start[yy + 1] += slot_start[yy]
@@ -196,19 +202,21 @@ def _match_features(fl, fr, counts, active, recent, prior, prm, scratch, split, 
                             flags)
     else:
         if prm.paths == 4:
-            # Column paths, column blocks in parallel: down (costs, and total = above), then up (below).
+            # Column paths, chunks of adjacent column blocks in parallel: down (costs, and total = above), then up
+            # (below). Adjacent blocks, so that a chunk's pixels of a row are one run of the (active pixels x nd)
+            # planes rather than several apart, which cost the memory's prefetch.
             n_blocks = (w + COLUMN_BLOCK - 1) // COLUMN_BLOCK
             n_cols = chunk_count(n_blocks, chunks)
             for ch in prange(n_cols):
+                x0 = ch * n_blocks // n_cols * COLUMN_BLOCK
+                x1 = min((ch + 1) * n_blocks // n_cols * COLUMN_BLOCK, w)
                 for s in range(2):
                     step = 1 - 2 * s
                     cur = 0
                     for i in range(h):
                         yy = i if step > 0 else h - 1 - i
-                        for b in range(ch, n_blocks, n_cols):
-                            _column_run(fl, right_rev, prior, index, ax, yy, b * COLUMN_BLOCK,
-                                        min((b + 1) * COLUMN_BLOCK, w), step, prm, total if step > 0 else below,
-                                        costs, cols, cols_min, cur)
+                        _column_run(fl, right_rev, prior, index, ax, yy, x0, x1, step, prm,
+                                    total if step > 0 else below, costs, cols, cols_min, cur)
                         cur = 1 - cur
         # Row paths and answers, rows in parallel.
         for ch in prange(n_rows):

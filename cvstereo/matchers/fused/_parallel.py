@@ -2,8 +2,9 @@
 
 The fused matcher calls the parallel build only when it runs on more than one thread
 (:meth:`~cvstereo.matchers.fused.matcher.FusedMatcher.match_window`), so that the one-thread path is the serial
-build and keeps its speed. Work is split into *chunks* that take every ``n``-th row (or column block), so that
-each thread gets a share of the busy rows wherever the events are; the number of chunks follows the thread count,
+build and keeps its speed. Work is split into *chunks* that take every ``n``-th row, so that each thread gets a
+share of the busy rows wherever the events are, or (the fused matcher's column paths) a range of adjacent column
+blocks, so that a chunk's pixels of a row lie together in memory; the number of chunks follows the thread count,
 but no result depends on it: a chunk's rows are computed exactly as they would be alone.
 """
 
@@ -15,8 +16,8 @@ from numba import njit
 
 __all__ = ["CHUNKS_PER_THREAD", "COLUMN_BLOCK", "chunk_count", "chunks_for", "serial_and_parallel"]
 
-#: Columns per block where columns are split into blocks: a chunk takes every n-th block (the fused matcher's column
-#: paths and active-pixel mask).
+#: Columns per block where columns are split into blocks (the fused matcher's column paths, a range of blocks a
+#: chunk, and active-pixel mask, a block a task).
 COLUMN_BLOCK = 32
 
 #: Chunks per thread: several, so that a thread whose chunks end early is not left idle for long.
