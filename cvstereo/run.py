@@ -122,8 +122,8 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
     param_set : {"adaptive", "thesis"}, keyword-only
         :mod:`cvstereo.matchers.sets`; recorded in meta under ``param_set``.
     threads : int, optional, keyword-only
-        Threads the matcher and the rig check may run on (default: the cores this process may use;
-        docs/guide/threads.md). The matches do not depend on it, so it is not recorded in meta.
+        Threads the matcher may run on (default: the cores this process may use; docs/guide/threads.md). The
+        matches do not depend on it, so it is not recorded in meta.
     rig_check : bool, keyword-only
         Check the rig on the first second of the stream and apply what it finds with confidence (camera order,
         row offset, a confident time offset) to all of it (:class:`cvstereo.rigcheck.prefix.PrefixRigCheck`;
@@ -180,7 +180,7 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
             and time_offset_us is None:
         from cvstereo.rigcheck.prefix import PrefixRigCheck
 
-        check = PrefixRigCheck(tuple(stream.resolution), threads=threads)
+        check = PrefixRigCheck(tuple(stream.resolution))
     if rectification is not None:
         if correction is not None:
             raise ValueError("give a calibration or row/time offsets, not both: rectification already aligns the rows.")

@@ -6,9 +6,7 @@ import dataclasses
 from collections.abc import Callable
 
 import numpy as np
-import scipy.fft
 
-from cvstereo._threads import check_threads, default_threads
 from cvstereo.geometry.rigcorrect import RigCorrection
 from cvstereo.model.recording import Recording
 from cvstereo.rigcheck.disparity import disparity_overlays, side_and_disparity
@@ -25,7 +23,7 @@ STAGES = ("row offset", "time offset", "row offset again", "time offset again", 
 
 
 def check_rig(recording: Recording, params: RigCheckParams | None = None, *,
-              progress: Callable[[str], None] | None = None, threads: int | None = None, **overrides) -> RigReport:
+              progress: Callable[[str], None] | None = None, **overrides) -> RigReport:
     """Estimate the rig's imperfections from the events of a recording.
 
     Parameters
@@ -37,10 +35,6 @@ def check_rig(recording: Recording, params: RigCheckParams | None = None, *,
     progress : callable, optional, keyword-only
         Called with the name of each stage of :data:`STAGES` as it starts (a stage that is not needed is
         not called), e.g. to move a progress bar.
-    threads : int, optional, keyword-only
-        Threads of the time offset's Fourier transforms, most of the check's time on a large sensor (default: a
-        matcher's default, the cores this process may use, or ``$CVSTEREO_THREADS``). The findings do not
-        depend on it: the transforms give the same numbers on any count.
     **overrides
         Fields of :class:`RigCheckParams` to replace, e.g. ``max_disparity=32, max_seconds=6``.
 
@@ -56,12 +50,6 @@ def check_rig(recording: Recording, params: RigCheckParams | None = None, *,
         An override that is no field of :class:`RigCheckParams`.
     """
     params = RigCheckParams.with_overrides(params, overrides)
-    with scipy.fft.set_workers(default_threads() if threads is None else check_threads(threads)):
-        return _check_rig(recording, params, progress)
-
-
-def _check_rig(recording: Recording, params: RigCheckParams, progress) -> RigReport:
-    """:func:`check_rig` on its validated options."""
     if params.max_seconds is not None:
         recording = recording.slice_time(recording.t_start, recording.t_start + int(params.max_seconds * 1e6))
     for name, ev in (("left", recording.left), ("right", recording.right)):

@@ -91,8 +91,6 @@ class PrefixRigCheck:
         The check's options (``time_apply_confidence`` decides the time offset); default :data:`LIGHT_PARAMS`.
     swap_min_confidence, row_min_confidence : float
         Confidence the swap and the row offset need before they are applied.
-    threads : int, optional
-        Threads of the check (:func:`~cvstereo.rigcheck.check.check_rig`'s ``threads``); default: the cores.
     """
 
     resolution: tuple[int, int]
@@ -102,7 +100,6 @@ class PrefixRigCheck:
     params: RigCheckParams = LIGHT_PARAMS
     swap_min_confidence: float = SWAP_MIN_CONFIDENCE
     row_min_confidence: float = ROW_MIN_CONFIDENCE
-    threads: int | None = None
     report: object = field(default=None, init=False)
     skipped: str | None = field(default=None, init=False)
     applied: dict = field(default_factory=lambda: {"swap": False, "row_offset": 0, "time_offset_us": 0},
@@ -165,7 +162,7 @@ class PrefixRigCheck:
             if left is None:
                 raise ValueError("the stream has no events")
             self.report = report = check_rig(Recording(left, right, resolution=self.resolution), self.params,
-                                             max_seconds=None, threads=self.threads)
+                                             max_seconds=None)
         except ValueError as exc:
             reason = str(exc).removeprefix("check_rig: ")
             self.skipped = f"not checked on the first {self.prefix_us / 1000:g} ms: {reason}"
