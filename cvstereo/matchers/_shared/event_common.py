@@ -103,6 +103,7 @@ class MergedEventMatcher(StreamMatcher):
         self._level = SignalLevel(self.params, absolute=self.params.threshold, unit=dynamic_unit(self.params),
                                   value_name="dynamic-frame value")
         self._scratch = Scratch()
+        self._last_search = (None, None)  # (thresholds' bytes, the kernel's parameters for them)
 
     #: The kernel, serial and parallel (:func:`cvstereo.matchers._shared.row_bands.compile_twice` of a loop over the
     #: row bands): ``kernel(stream, bands, cuts, search, out_pos, out_disparity, counts, values, right_start)``,
@@ -112,6 +113,14 @@ class MergedEventMatcher(StreamMatcher):
     @abc.abstractmethod
     def _search(self, thresholds: np.ndarray) -> tuple:
         """The kernel's parameters (a NamedTuple) for a level window with each camera's ``thresholds``."""
+
+    def _search_for(self, thresholds: np.ndarray) -> tuple:
+        """:meth:`_search`, built once per thresholds in force: they change once per level window, while a live
+        stream's small packets each run the kernel (building them again cost more than a 1 ms packet's kernel)."""
+        key = thresholds.tobytes()
+        if self._last_search[0] != key:
+            self._last_search = (key, self._search(thresholds.copy()))
+        return self._last_search[1]
 
     def _run_kernel(self, stream: np.ndarray, thresholds: np.ndarray, out_cam: np.ndarray, out_index: np.ndarray,
                     out_disparity: np.ndarray, out_values: tuple[np.ndarray, int]) -> int:
@@ -133,7 +142,7 @@ class MergedEventMatcher(StreamMatcher):
             kernel = self.kernels[1]
             band_values = self._scratch.take("band_values", n_bands * values.size, np.float64).reshape(n_bands, -1)
         cuts = self._bands.cuts
-        kernel(stream, bands, cuts, self._search(thresholds), out_pos, out_band, counts, band_values, right_start)
+        kernel(stream, bands, cuts, self._search_for(thresholds), out_pos, out_band, counts, band_values, right_start)
         if n_bands > 1:
             gather_band_values(stream, band_values, values, right_start, cuts)
         return merge_band_matches(stream, counts, out_pos, out_band, out_cam, out_index, out_disparity)
