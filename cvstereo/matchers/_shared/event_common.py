@@ -116,7 +116,7 @@ class MergedEventMatcher(StreamMatcher):
 
     def _search_for(self, thresholds: np.ndarray) -> tuple:
         """:meth:`_search`, built once per thresholds in force: they change once per level window, while a live
-        stream's small packets each run the kernel (building them again cost more than a 1 ms packet's kernel)."""
+        stream's small packets each run the kernel (building them again cost as much as a small packet's kernel)."""
         key = thresholds.tobytes()
         if self._last_search[0] != key:
             self._last_search = (key, self._search(thresholds.copy()))
