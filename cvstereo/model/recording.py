@@ -50,6 +50,7 @@ def origin_of(meta: dict, first_times) -> int | None:
     firsts = [int(t) for t in first_times if t is not None]
     return min(firsts) if firsts else None
 
+
 @dataclass(frozen=True, eq=False)
 class Recording:
     """Events of the left and right camera on one clock (docs/formats.md, "Stereo recording file").
