@@ -160,8 +160,12 @@ def threading_layer() -> str:
         return chosen
 
 
-@contextlib.contextmanager
-def using_threads(threads: int) -> Iterator[None]:
+#: What :func:`using_threads` returns where nothing is to be set: one object, no generator per call (a live
+#: stream's small packets each enter it).
+_NOTHING_TO_SET = contextlib.nullcontext()
+
+
+def using_threads(threads: int) -> contextlib.AbstractContextManager[None]:
     """Run the block with numba's and OpenCV's thread counts set to ``threads``; restore them after.
 
     ``threads == 1`` leaves numba's pool alone (and unstarted): a matcher runs its serial kernels then. Above 1,
@@ -170,6 +174,16 @@ def using_threads(threads: int) -> Iterator[None]:
     per process, so matchers running in threads at once share the last one set.
     Where numba has only the ``workqueue`` layer, parallel runs take turns.
     """
+    if threads == 1:
+        cv2 = sys.modules.get("cv2")
+        if cv2 is None or cv2.getNumThreads() == 1:
+            return _NOTHING_TO_SET
+    return _set_threads(threads)
+
+
+@contextlib.contextmanager
+def _set_threads(threads: int) -> Iterator[None]:
+    """:func:`using_threads` where a count is to be set."""
     running = min(threads, pool_size())
     restores = []
     cv2 = sys.modules.get("cv2")

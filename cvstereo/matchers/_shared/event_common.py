@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 from cvstereo.frames.dynamic import FrameBank, dynamic_unit
-from cvstereo.matchers._shared.merge_order import ROW_Y, STREAM_ROWS, merged_stream
+from cvstereo.matchers._shared.merge_order import ROW_CAM, ROW_INDEX, ROW_Y, STREAM_ROWS, merged_stream
 from cvstereo.matchers._shared.row_bands import gather_band_values, merge_band_matches
 from cvstereo.matchers._shared.signal_level import SignalLevel
 from cvstereo.matchers.protocol import StreamMatcher
@@ -28,39 +28,45 @@ from cvstereo.model.events import count_before, empty_events, paired_window_segm
 from cvstereo.model.matches import MATCH_DTYPE, concat_matches, empty_matches
 
 
-def matches_at(events: tuple[np.ndarray, np.ndarray], cam: np.ndarray, index: np.ndarray,
+def matches_at(events: tuple[np.ndarray, np.ndarray], stream: np.ndarray, pos: np.ndarray,
                disparity: np.ndarray) -> np.ndarray:
-    """Matches anchored at the events ``index[k]`` of camera ``cam[k]``, in the given order.
+    """Matches anchored at the merged stream's events ``pos[k]``, in the given order.
 
     Parameters
     ----------
     events : (left, right) ndarrays of EVENT_DTYPE
         Each camera's events.
-    cam, index : (M,) int64 ndarray
+    stream : (STREAM_ROWS, N) int64 ndarray
+        Their merged stream (:func:`cvstereo.matchers._shared.merge_order.merged_stream`): camera and index into
+        its events of each.
+    pos : (M,) int64 ndarray
+        Positions in the stream of the matched events.
     disparity : (M,) float64 ndarray
 
     Returns
     -------
     (M,) ndarray of MATCH_DTYPE
     """
-    out = np.empty(cam.size, dtype=MATCH_DTYPE)  # every field of every row is written: no zero fill first
-    if cam.size:
-        _fill_matches(out, events[0], events[1], cam, index, disparity)
+    out = np.empty(pos.size, dtype=MATCH_DTYPE)  # every field of every row is written: no zero fill first
+    if pos.size:
+        _fill_matches(out, events[0], events[1], stream[ROW_CAM], stream[ROW_INDEX], pos, disparity)
     return out
 
 
 @njit(cache=True)
-def _fill_matches(out, left, right, cam, index, disparity):  # pragma: no cover - compiled
-    """Write match ``n`` from event ``index[n]`` of ``left`` or ``right`` (by ``cam[n]``), one pass.
+def _fill_matches(out, left, right, cam, index, pos, disparity):  # pragma: no cover - compiled
+    """Write match ``n`` from the event of stream position ``pos[n]`` (event ``index`` of camera ``cam`` there),
+    one pass.
 
     Numpy's way (a mask per camera, then a fancy-indexed copy of each structured field) cost a visible share of
     event-vector's time per match (bench/results/docstring-figures.md).
     """
-    for n in range(cam.shape[0]):
-        ev = left[index[n]] if cam[n] == 0 else right[index[n]]
+    for n in range(pos.shape[0]):
+        k = pos[n]
+        ev = left[index[k]] if cam[k] == 0 else right[index[k]]
         row = out[n]
         row.t, row.x, row.y, row.p = ev.t, ev.x, ev.y, ev.p
-        row.camera = cam[n]
+        row.camera = cam[k]
         row.disparity = disparity[n]
 
 
@@ -122,30 +128,32 @@ class MergedEventMatcher(StreamMatcher):
             self._last_search = (key, self._search(thresholds.copy()))
         return self._last_search[1]
 
-    def _run_kernel(self, stream: np.ndarray, thresholds: np.ndarray, out_cam: np.ndarray, out_index: np.ndarray,
-                    out_disparity: np.ndarray, out_values: tuple[np.ndarray, int]) -> int:
+    def _run_kernel(self, stream: np.ndarray, thresholds: np.ndarray,
+                    out_values: tuple[np.ndarray, int]) -> tuple[np.ndarray, np.ndarray]:
         """Run the merged events (``stream``: :func:`cvstereo.matchers._shared.merge_order.merged_stream`) through the
         kernel with the thresholds of each camera, in one row band per thread
-        (:mod:`cvstereo.matchers._shared.row_bands`: the same matches however many); write one row per match into
-        the outputs, in the stream's order, each event's |D| before its update into ``out_values`` =
-        ``(values, right_start)`` (the left camera's i-th event at ``values[i]``, the right camera's at
-        ``values[right_start + i]``; NaN where its polarity is dropped) and return the number of matches."""
-        bands = self._bands.layout(getattr(self, "threads", 1), stream[ROW_Y])
+        (:mod:`cvstereo.matchers._shared.row_bands`: the same matches however many); write each event's |D| before
+        its update into ``out_values`` = ``(values, right_start)`` (the left camera's i-th event at ``values[i]``,
+        the right camera's at ``values[right_start + i]``; NaN where its polarity is dropped) and return the
+        matches in the stream's order: their positions in it and their disparities (views of scratch buffers)."""
+        bands = self._bands.layout(self._threads, stream[ROW_Y])
         n_bands, n = self._bands.n_bands, max(1, stream.shape[1])
         out_pos = self._scratch.take("band_pos", n_bands * n, np.int64).reshape(n_bands, n)
         out_band = self._scratch.take("band_disparity", n_bands * n, np.float64).reshape(n_bands, n)
         counts = np.zeros(n_bands, np.int64)
         values, right_start = out_values
-        if n_bands == 1:
-            kernel, band_values = self.kernels[0], values[np.newaxis]
-        else:
-            kernel = self.kernels[1]
-            band_values = self._scratch.take("band_values", n_bands * values.size, np.float64).reshape(n_bands, -1)
         cuts = self._bands.cuts
-        kernel(stream, bands, cuts, self._search_for(thresholds), out_pos, out_band, counts, band_values, right_start)
-        if n_bands > 1:
-            gather_band_values(stream, band_values, values, right_start, cuts)
-        return merge_band_matches(stream, counts, out_pos, out_band, out_cam, out_index, out_disparity)
+        if n_bands == 1:  # the serial kernel; its matches are in the stream's order already
+            self.kernels[0](stream, bands, cuts, self._search_for(thresholds), out_pos, out_band, counts,
+                            values[np.newaxis], right_start)
+            return out_pos[0, :counts[0]], out_band[0, :counts[0]]
+        band_values = self._scratch.take("band_values", n_bands * values.size, np.float64).reshape(n_bands, -1)
+        self.kernels[1](stream, bands, cuts, self._search_for(thresholds), out_pos, out_band, counts, band_values,
+                        right_start)
+        gather_band_values(stream, band_values, values, right_start, cuts)
+        pos, disparity = self._scratch.take("pos", n, np.int64), self._scratch.take("disparity", n, np.float64)
+        m = merge_band_matches(stream.shape[1], counts, out_pos, out_band, pos, disparity)
+        return pos[:m], disparity[:m]
 
     def _process(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:
         if left.size + right.size == 0:
@@ -160,18 +168,16 @@ class MergedEventMatcher(StreamMatcher):
         """The events of one level window: the thresholds in force for it, then the kernel, then the level."""
         n = left.size + right.size
         scratch = self._scratch
-        out_cam, out_index = scratch.take("cam", n, np.int64), scratch.take("index", n, np.int64)
-        out_disparity = scratch.take("disparity", n, np.float64)
         values = scratch.take("values", n, np.float64)  # the left camera's events, then the right camera's
         values.fill(np.nan)  # where the kernel writes nothing (a dropped polarity)
         thresholds = self._level.thresholds(k)
         # Merged straight from the events' fields: no int64 copy of the columns first (half the merge's time).
         stream = merged_stream(*_fields(left), *_fields(right), self._bank.slot_of_p,
-                               scratch.take("stream", STREAM_ROWS * n, np.int64), pieces=getattr(self, "threads", 1))
-        m = self._run_kernel(stream, thresholds, out_cam, out_index, out_disparity, (values, left.size))
+                               scratch.take("stream", STREAM_ROWS * n, np.int64), pieces=self._threads)
+        pos, disparity = self._run_kernel(stream, thresholds, (values, left.size))
         self._level.add(k, 0, values[:left.size])
         self._level.add(k, 1, values[left.size:])
-        return matches_at((left, right), out_cam[:m], out_index[:m], out_disparity[:m])
+        return matches_at((left, right), stream, pos, disparity)
 
     def _feed(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:
         ready, held = [], []

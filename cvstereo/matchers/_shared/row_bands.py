@@ -102,12 +102,11 @@ def emit_at(out_pos, out_disparity, n, k, disparity):  # pragma: no cover - comp
     return n + 1
 
 
-def _merge_chunks(stream, counts, out_pos, out_disparity, cam, index, disparity, n_chunks):  # pragma: no cover
-    """:func:`merge_band_matches` in ``n_chunks`` pieces of the stream (its positions cut evenly), each merged on
-    its own (in parallel in the parallel compile): a piece's matches start after those of every earlier position,
-    counted in each band's sorted positions."""
+def _merge_chunks(size, counts, out_pos, out_disparity, pos, disparity, n_chunks):  # pragma: no cover - compiled
+    """:func:`merge_band_matches` in ``n_chunks`` pieces of the stream (``size`` positions cut evenly), each merged
+    on its own (in parallel in the parallel compile): a piece's matches start after those of every earlier
+    position, counted in each band's sorted positions."""
     n_bands = counts.shape[0]
-    size = stream.shape[1]
     for c in prange(n_chunks):
         first, stop = c * size // n_chunks, (c + 1) * size // n_chunks
         head = np.empty(n_bands, np.int64)
@@ -124,9 +123,7 @@ def _merge_chunks(stream, counts, out_pos, out_disparity, cam, index, disparity,
                     best = b
             if best < 0:
                 break
-            k = out_pos[best, head[best]]
-            cam[m] = stream[ROW_CAM, k]
-            index[m] = stream[ROW_INDEX, k]
+            pos[m] = out_pos[best, head[best]]
             disparity[m] = out_disparity[best, head[best]]
             head[best] += 1
             m += 1
@@ -151,13 +148,14 @@ _MERGE_KERNELS = compile_twice(_merge_chunks)
 _GATHER_KERNELS = compile_twice(_gather_chunks)
 
 
-def merge_band_matches(stream, counts, out_pos, out_disparity, cam, index, disparity) -> int:
-    """The bands' matches (band ``b``: ``counts[b]`` rows of ``out_pos[b]``, ``out_disparity[b]``, each in stream
-    order) merged into the merged stream's order: camera, index into its events and disparity of each; returns
-    their number. Each event has one owner band, so positions never repeat. One band: a serial copy; several: one
-    piece of the stream per band, merged in parallel."""
+def merge_band_matches(size, counts, out_pos, out_disparity, pos, disparity) -> int:
+    """The matches of several bands (band ``b``: ``counts[b]`` rows of ``out_pos[b]``, ``out_disparity[b]``, each
+    in stream order) merged into the merged stream's order (of ``size`` events): the position in the stream and
+    the disparity of each, into ``pos`` and ``disparity``; returns their number. Each event has one owner band, so
+    positions never repeat. One piece of the stream per band, merged in parallel. (One band's matches are in
+    order already: no merge.)"""
     n_bands = counts.shape[0]
-    _MERGE_KERNELS[n_bands > 1](stream, counts, out_pos, out_disparity, cam, index, disparity, n_bands)
+    _MERGE_KERNELS[n_bands > 1](size, counts, out_pos, out_disparity, pos, disparity, n_bands)
     return int(counts.sum())
 
 
@@ -230,6 +228,8 @@ class BandedState:
         gives each band a copy of the full state; either way a band is zero outside the rows it keeps (so that its
         ``mass``, which a rebuild sums over all rows, counts the rows it keeps only).
         """
+        if n_bands == 1 == self.n_bands:  # the one-thread path: its arrays in place, nothing to cut or count
+            return self.bands
         n_bands = max(1, min(int(n_bands), self._height))
         self._since_cut += rows.size
         if n_bands == self.n_bands:
