@@ -87,6 +87,20 @@ def test_the_decision_order_is_time_then_inward_first(span):
         assert not _inward_order(t[::-1].copy(), x, cam, width, order)
 
 
+def test_a_long_run_with_columns_off_the_sensor_is_still_ordered_like_lexsort():
+    # A caller's own matches may lie off the sensor: the counting sort of long runs has no bin for them, and the
+    # run is then merge-sorted (the same order, by the independent lexsort).
+    rng = np.random.default_rng(7)
+    n, width = 300, 64
+    t = np.zeros(n, np.int64)
+    x = rng.integers(-5, width + 5, n).astype(np.int16)
+    cam = rng.integers(0, 2, n).astype(np.uint8)
+    room = np.where(cam == 0, x.astype(np.int64), width - 1 - x.astype(np.int64))
+    order = np.empty(n, np.int64)
+    assert _inward_order(t, x, cam, width, order)
+    assert np.array_equal(order, np.lexsort((-room, t)))
+
+
 def test_matches_out_of_time_order_get_the_same_decisions():
     rows = [(40, 3, 0, 0, 2.0), (40, 20, 0, 0, 8.0), (10, 25, 0, 0, 9.0)]
     ordered = BorderRule((32, 1), horizon_us=1000, rows=0)(_matches(sorted(rows)))

@@ -140,15 +140,39 @@ def _inward_order(t, x, camera, width, order):
                     order[m] = prev
                     m -= 1
                 order[m] = k
-        else:
-            key = np.empty(j - i, np.int64)
-            for k in range(i, j):
-                key[k - i] = -(np.int64(x[k]) if camera[k] == 0 else width - 1 - np.int64(x[k]))
-            sub = np.argsort(key, kind="mergesort")
-            for k in range(j - i):
-                order[i + k] = i + sub[k]
+        else:  # a stable counting sort by room, largest first: rooms are columns, 0 .. width - 1
+            _counting_order(x, camera, width, i, j, order)
         i = j
     return True
+
+
+@njit(cache=True, nogil=True)
+def _counting_order(x, camera, width, first, stop, order):
+    """:func:`_inward_order` of the run ``first .. stop - 1`` (one time): ``order[first:stop]`` by room, largest
+    first, ties in their given order. A counting sort over the ``width`` possible rooms (one pass to count, one to
+    place) where a comparison sort of a dense window's thousands of matches cost more than the rule itself; a
+    room off the sensor (a caller's own matches) falls back to a merge sort."""
+    count = np.zeros(width + 1, np.int64)  # count[width - 1 - room], then where that room's matches start
+    for k in range(first, stop):
+        room = np.int64(x[k]) if camera[k] == 0 else width - 1 - np.int64(x[k])
+        if room < 0 or room >= width:
+            key = np.empty(stop - first, np.int64)
+            for kk in range(first, stop):
+                key[kk - first] = -(np.int64(x[kk]) if camera[kk] == 0 else width - 1 - np.int64(x[kk]))
+            sub = np.argsort(key, kind="mergesort")
+            for kk in range(stop - first):
+                order[first + kk] = first + sub[kk]
+            return
+        count[width - 1 - room] += 1
+    start = first
+    for r in range(width):
+        n = count[r]
+        count[r] = start
+        start += n
+    for k in range(first, stop):
+        r = width - 1 - (np.int64(x[k]) if camera[k] == 0 else width - 1 - np.int64(x[k]))
+        order[count[r]] = k
+        count[r] += 1
 
 
 @njit(cache=True, nogil=True)
