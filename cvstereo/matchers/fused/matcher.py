@@ -97,7 +97,7 @@ from __future__ import annotations
 from typing import ClassVar
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from cvstereo.frames.windows import FrameMatcher, Window
 from cvstereo.matchers.fused._constants import CONSISTENT_MAX_UNCERTAINTY, LR_PENALTY, RECENT_WINDOWS
@@ -111,8 +111,9 @@ from cvstereo.matchers.fused._features import (
 from cvstereo.matchers.fused._features import surface_features as surface_features_serial
 from cvstereo.matchers.fused._features import window_masks as window_masks_serial
 from cvstereo.matchers.fused._kernels import KernelScratch, kernel_params, match_features, match_features_parallel
-from cvstereo.matchers.fused._parallel import chunk_count, chunks_for, serial_and_parallel
-from cvstereo.matchers.fused.params import BORDER_MIN_ANSWERS, PRIOR_MAX_UNCERTAINTY, FusedParams
+from cvstereo.matchers.fused._parallel import chunks_for
+from cvstereo.matchers.fused._partner import unpartnered, unpartnered_parallel
+from cvstereo.matchers.fused.params import PRIOR_MAX_UNCERTAINTY, FusedParams
 from cvstereo.matchers.fused.signal import level_of
 from cvstereo.model.matches import MATCH_DTYPE
 
@@ -160,58 +161,6 @@ def occluded(x, y, disparity, uncertainty, margin, support):
                     k -= 1
                 lowest[k] = r
     return out
-
-
-def _unpartnered(x, y, disparity, uncertainty, rows, chunks):
-    """The partner test (design part 10): which answers lie where their true partner is outside the right image.
-
-    Parameters
-    ----------
-    x, y, disparity, uncertainty
-        The answers, as for :func:`occluded`.
-    rows : int
-        ``border_rows``: the band of rows ``y - rows .. y + rows`` whose answers give a row's disparity.
-    chunks : int
-        The rows are split into this many chunks (in parallel in the parallel build; the result does not depend
-        on it).
-
-    Returns
-    -------
-    (M,) bool ndarray
-        True for an answer left of its band's disparity: ``x < D``, D the median disparity of the answers of
-        uncertainty at most 0.5 in the band, where the band has at least :data:`BORDER_MIN_ANSWERS` of them.
-    """
-    m = x.size
-    out = np.zeros(m, np.bool_)
-    if m == 0:
-        return out
-    h = y[m - 1] + 1
-    start = np.zeros(h + 1, np.int64)  # row yy's answers: start[yy] .. start[yy + 1]
-    for i in range(m):
-        start[y[i] + 1] += 1
-    for yy in range(h):
-        start[yy + 1] += start[yy]
-    n_chunks = chunk_count(h, chunks)
-    for ch in prange(n_chunks):  # every n_chunks-th row: a share of the busy rows for each chunk
-        vals = np.empty(m)
-        for yy in range(ch, h, n_chunks):
-            if start[yy] == start[yy + 1]:
-                continue
-            c = 0
-            for i in range(start[max(yy - rows, 0)], start[min(yy + rows + 1, h)]):
-                if uncertainty[i] <= CONSISTENT_MAX_UNCERTAINTY:
-                    vals[c] = disparity[i]
-                    c += 1
-            if c < BORDER_MIN_ANSWERS:
-                continue
-            band = np.sort(vals[:c])
-            d = band[c // 2] if c % 2 else (band[c // 2 - 1] + band[c // 2]) / 2.0
-            for i in range(start[yy], start[yy + 1]):
-                out[i] = x[i] < d
-    return out
-
-
-unpartnered, unpartnered_parallel = serial_and_parallel(_unpartnered)
 
 
 @njit(cache=True, nogil=True)
