@@ -21,7 +21,7 @@ def _values(rng, n, kind):
 def test_quantile_equals_numpy_of_the_live_runs(rng, kind, q):
     runs, live = SortedRuns(), []
     for step in range(60):
-        v = _values(rng, int(rng.integers(0, 400)), kind)
+        v = _values(rng, int(rng.integers(0, 3000)), kind)  # runs on both sides of RADIX_MIN
         runs.append(v)
         live.append(v)
         while len(live) > 1 and rng.random() < 0.4:  # drop the oldest runs now and then
@@ -65,3 +65,17 @@ def test_small_cases_by_hand():
 def test_empty_history_says_so():
     with pytest.raises(ValueError, match="no values"):
         SortedRuns().quantile(0.9)
+
+
+@pytest.mark.parametrize("kind", ["continuous", "float32-like", "zeros", "wide"])
+def test_the_radix_sort_of_bit_patterns_equals_numpy_sort(rng, kind):
+    from cvstereo.matchers._shared.sorted_runs import _sort_patterns
+
+    for n in (0, 1, 2, 255, 256, 5000):
+        if kind == "wide":  # subnormals to huge: every byte of the patterns varies
+            v = np.abs(rng.normal(0, 1, n)) * 10.0 ** rng.integers(-320, 300, n)
+        else:
+            v = _values(rng, n, kind)
+        bits = v.copy().view(np.int64)
+        _sort_patterns(bits, np.empty(n, np.int64))
+        assert np.array_equal(bits.view(np.float64), np.sort(v))

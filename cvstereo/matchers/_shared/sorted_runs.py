@@ -1,13 +1,12 @@
 """A first-in first-out history of sorted runs of values, with exact quantiles in O(runs * log(size)).
 
 :class:`cvstereo.matchers._shared.signal_level.SignalLevel` needs, once per 40 ms window, the 0.9 quantile of the last
-second's
-values (up to a few hundred thousand at 640x480). ``np.quantile`` over their concatenation costs a full
+second's values (up to a few hundred thousand at 640x480). ``np.quantile`` over their concatenation costs a full
 partition each time; here each window's values are kept as one run of a flat buffer and sorted once (by the
-first quantile after they arrived), and an order statistic is found by a binary search over the values (their
-float64 bit patterns, which order non-negative floats as the floats) that counts, in each run, the values below
-it. The quantile is then
-numpy's ``linear`` method (its default) from the two order statistics around the quantile's position, with
+first quantile after they arrived; a long run by a radix sort of the values' float64 bit patterns, which order
+non-negative floats as the floats), and an order statistic is found by a binary search over those bit patterns
+that counts, in each run, the values below it. The quantile is then numpy's ``linear`` method (its default)
+from the two order statistics around the quantile's position, with
 numpy's own arithmetic, so that it equals ``np.quantile`` of the concatenated values bit for bit.
 
 >>> runs = SortedRuns()
@@ -23,6 +22,10 @@ from collections import deque
 
 import numba
 import numpy as np
+
+#: Runs of at least this many values are sorted by :func:`_sort_patterns`, shorter ones by numpy's sort (the radix
+#: sort's fixed passes cost more than a comparison sort of a short run; both give the same order).
+RADIX_MIN = 1024
 
 
 class SortedRuns:
@@ -40,6 +43,7 @@ class SortedRuns:
         self._hi = 0  # end of the newest run
         self._stops: deque[int] = deque()  # end of each run, oldest first (buffer positions)
         self._unsorted = 0  # the newest this many runs are not sorted yet
+        self._spare = np.empty(0, np.int64)  # the radix sort's second buffer
         self.size = 0
 
     def __len__(self) -> int:
@@ -81,11 +85,49 @@ class SortedRuns:
         stops = np.fromiter(self._stops, np.int64, len(self._stops))
         starts = np.concatenate(([self._lo], stops[:-1]))
         for r in range(len(stops) - self._unsorted, len(stops)):
-            self._buf[starts[r]: stops[r]].sort()
+            run = self._buf[starts[r]: stops[r]]
+            if run.size < RADIX_MIN:
+                run.sort()
+                continue
+            if self._spare.size < run.size:
+                self._spare = np.empty(2 * run.size, np.int64)
+            _sort_patterns(run.view(np.int64), self._spare)
         self._unsorted = 0
         virtual = (n - 1) * float(q)
         a, b = _neighbours(self._buf, self._buf.view(np.int64), starts, stops, n, virtual)
         return _lerp(a, b, virtual)
+
+
+@numba.njit(cache=True, nogil=True)
+def _sort_patterns(bits, spare):  # pragma: no cover - compiled
+    """Sort ``bits`` (the float64 bit patterns of non-negative, non-NaN values, which order as the values) in
+    place: a least-significant-byte radix sort, one counting pass and one stable scatter per byte, skipping the
+    bytes all values share; ``spare`` holds at least as many. Its passes are linear in the values, where a
+    comparison sort of a window's thousands of values was most of the signal level's cost (a serial part of
+    every run: docs/guide/threads.md)."""
+    n = bits.size
+    src, dst = bits, spare[:n]
+    count = np.empty(256, np.int64)
+    in_bits = True
+    for shift in range(0, 64, 8):
+        count[:] = 0
+        for i in range(n):
+            count[(src[i] >> shift) & 255] += 1
+        if n == 0 or count[(src[0] >> shift) & 255] == n:  # every value has this byte: already in order by it
+            continue
+        start = 0
+        for b in range(256):
+            c = count[b]
+            count[b] = start
+            start += c
+        for i in range(n):
+            b = (src[i] >> shift) & 255
+            dst[count[b]] = src[i]
+            count[b] += 1
+        src, dst = dst, src
+        in_bits = not in_bits
+    if not in_bits:
+        bits[:] = src
 
 
 def _lerp(a: float, b: float, virtual: float) -> float:
