@@ -112,8 +112,15 @@ class BorderRule:
         return matches if keep.all() else matches[keep]
 
 
-#: Runs of equal times up to this long are ordered by an insertion sort (no allocation), longer ones by a merge sort.
+#: Runs of equal times up to this long are ordered by an insertion sort (no allocation), longer ones by a counting
+#: sort (:func:`_counting_order`).
 _SHORT_RUN = 32
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _room(x, camera, k, width):
+    """Match ``k``'s room: the columns between its pixel and the image's edge on the side where its partner lies."""
+    return np.int64(x[k]) if camera[k] == 0 else width - 1 - np.int64(x[k])
 
 
 @njit(cache=True, nogil=True)
@@ -131,11 +138,11 @@ def _inward_order(t, x, camera, width, order):
             return False
         if j - i <= _SHORT_RUN:  # a stable insertion sort by room, largest first
             for k in range(i, j):
-                room = np.int64(x[k]) if camera[k] == 0 else width - 1 - np.int64(x[k])
+                room = _room(x, camera, k, width)
                 m = k
                 while m > i:
                     prev = order[m - 1]
-                    if (np.int64(x[prev]) if camera[prev] == 0 else width - 1 - np.int64(x[prev])) >= room:
+                    if _room(x, camera, prev, width) >= room:
                         break
                     order[m] = prev
                     m -= 1
@@ -152,13 +159,13 @@ def _counting_order(x, camera, width, first, stop, order):
     first, ties in their given order. A counting sort over the ``width`` possible rooms (one pass to count, one to
     place) where a comparison sort of a dense window's thousands of matches cost more than the rule itself; a
     room off the sensor (a caller's own matches) falls back to a merge sort."""
-    count = np.zeros(width + 1, np.int64)  # count[width - 1 - room], then where that room's matches start
+    count = np.zeros(width, np.int64)  # count[width - 1 - room], then where that room's matches start
     for k in range(first, stop):
-        room = np.int64(x[k]) if camera[k] == 0 else width - 1 - np.int64(x[k])
+        room = _room(x, camera, k, width)
         if room < 0 or room >= width:
             key = np.empty(stop - first, np.int64)
             for kk in range(first, stop):
-                key[kk - first] = -(np.int64(x[kk]) if camera[kk] == 0 else width - 1 - np.int64(x[kk]))
+                key[kk - first] = -_room(x, camera, kk, width)
             sub = np.argsort(key, kind="mergesort")
             for kk in range(stop - first):
                 order[first + kk] = first + sub[kk]
@@ -170,7 +177,7 @@ def _counting_order(x, camera, width, first, stop, order):
         count[r] = start
         start += n
     for k in range(first, stop):
-        r = width - 1 - (np.int64(x[k]) if camera[k] == 0 else width - 1 - np.int64(x[k]))
+        r = width - 1 - _room(x, camera, k, width)
         order[count[r]] = k
         count[r] += 1
 
