@@ -5,8 +5,8 @@ An answer at ``x`` whose row band's disparity ``D`` exceeds ``x`` would have its
 the right camera's image: what it found there is something else. ``D`` is the median disparity of the band's
 consistent answers (rows ``y - border_rows .. y + border_rows``), exact as a sort of the band's values gives it.
 Each row's values are sorted once, and a band's median is walked to through its rows' sorted runs (a merge of at
-most ``2 * border_rows + 1`` runs up to the middle): a sort of every band's values repeated each row's values in
-``2 * border_rows + 1`` sorts.
+most ``2 * border_rows + 1`` runs up to the middle), where a sort of every band's values would sort each row's
+values ``2 * border_rows + 1`` times.
 """
 
 from __future__ import annotations
