@@ -196,3 +196,55 @@ def test_a_reset_before_any_decay_tick_rebuilds_the_column_sums(param_set):
     got = feed_cut(EventAreaMatcher(params, resolution=(120, 10)), left, right, [])
     assert expected.size > 100 and np.all(expected["disparity"][expected["t"] >= gap] == shift)
     np.testing.assert_array_equal(got, expected)
+
+
+def _mismatched_sensors():
+    """The same edges, 6 px apart: the right camera fires four times as many events per edge as the left (a lower
+    contrast threshold), so its frame values are about four times as large."""
+    left, _ = moving_edges(shift=6, events_per_pixel=2, seed=1)
+    _, right = moving_edges(shift=6, events_per_pixel=8, seed=2)
+    return left, right
+
+
+def _adaptive_params(**changes):
+    from cvstereo.matchers.sets import resolve
+
+    _, values = resolve("event-area", None, "adaptive")
+    return EventAreaMatcher.make_params("gaussian", **{**values, "level_window_us": 5_000, "level_warmup": 20,
+                                                       **changes})
+
+
+def test_value_units_event_compares_sensors_of_different_thresholds():
+    left, right = _mismatched_sensors()
+    assert _adaptive_params().value_units == "event"  # the adaptive set's choice
+    results = {}
+    for units in ("own", "event"):
+        matches = feed_cut(EventAreaMatcher(_adaptive_params(value_units=units)), left, right, range(0, 40_000, 3_000))
+        results[units] = matches[matches["t"] >= 10_000]  # after the levels' warm-up
+    # In each camera's own units a patch of the busy camera never resembles one of the quiet camera: (almost)
+    # nothing matches, and nothing at the true shift. In the event's units both cameras' events find it.
+    assert results["own"].size < 0.01 * results["event"].size
+    assert not np.any(results["own"]["disparity"] == 6)
+    for cam in (0, 1):
+        mine = results["event"][results["event"]["camera"] == cam]
+        assert mine.size > 0.3 * (left.size if cam == 0 else right.size)
+        assert np.mean(mine["disparity"] == 6) >= 0.9
+
+
+@pytest.mark.parametrize("units", ["own", "event"])
+def test_value_units_fast_equals_reference_on_mismatched_sensors(units):
+    from cvstereo.matchers._shared.border import border_rule_for
+
+    left, right = _mismatched_sensors()
+    left, right = left[left["t"] < 16_000], right[right["t"] < 16_000]
+    params = _adaptive_params(value_units=units)
+    expected = border_rule_for(params, (128, 128))(event_area_reference(left, right, params))
+    got = feed_cut(EventAreaMatcher(params), left, right, range(0, 16_000, 1_333))
+    np.testing.assert_array_equal(got, expected)
+
+
+def test_other_gains_are_the_ratio_of_the_thresholds_in_force():
+    thresholds = np.array([0.5, 2.0])
+    np.testing.assert_array_equal(EventAreaParams().other_gains(thresholds), [1.0, 1.0])  # the thesis: off
+    np.testing.assert_allclose(EventAreaParams(value_units="event").other_gains(thresholds), [0.25, 4.0])
+    np.testing.assert_array_equal(EventAreaParams(value_units="event").other_gains(np.array([0.0, 2.0])), [1, 1])

@@ -91,6 +91,8 @@ class AreaSearch(NamedTuple):
     all_frames: bool  #: the SAD sums over all of a camera's frames (``sad_frames="all"``), else the event's own
     own_ratio: float
     uniqueness: float
+    #: (2,) the factor on the other camera's values in the SAD of each camera's events (``value_units``)
+    other_gains: np.ndarray
     #: the bound of the column sums' drift per unit of mass of all the entries one lower bound sums
     #: (:func:`cvstereo.matchers._shared.frame_bounds.sum_drift`)
     drift: float
@@ -107,7 +109,8 @@ def _event_area_band(stream, bands, cuts, band, search, out_pos, out_disparity, 
     # Once per call: the loop below indexes the arrays themselves.
     stored, scale, clock = bands.stored[band], bands.scale[band], bands.clock[band]
     sums, mass, pending = bands.sums[band], bands.mass[band], bands.pending[band]
-    kernel, decay, period, thresholds, half, max_d, max_cost, all_frames, own_ratio, uniqueness, drift = search
+    (kernel, decay, period, thresholds, half, max_d, max_cost, all_frames, own_ratio, uniqueness, other_gains,
+     drift) = search
     n_frames = stored.shape[1]
     height = stored.shape[2]
     width = stored.shape[3]
@@ -138,7 +141,7 @@ def _event_area_band(stream, bands, cuts, band, search, out_pos, out_disparity, 
             if tick_due(clock[c, NEXT_TICK], clock[c, TOUCHED], t, period) or pending[c] >= SUM_REBUILD:
                 advance_due_summed(stored, scale, clock, sums, mass, pending, c, t, decay, period, half)
         c1 = scale[cam]
-        c2 = scale[other]
+        c2 = scale[other] * other_gains[cam]  # the other camera's values in this one's units (value_units)
         own_event = first_row <= y < end_row  # the band's own event: its value and its search
         # Another band's event is not read: its pixel lies on rows this band does not keep (a cache miss each).
         value = stored[cam, slot, y, x] * c1 if own_event else 0.0
@@ -323,4 +326,4 @@ class EventAreaMatcher(MergedEventMatcher):
         drift = sum_drift(1.0, prm.block) * prm.block * prm.compared_frames  # all entries of one lower bound
         return AreaSearch(bank.kernel, *bank.decay_args, thresholds, prm.block // 2, int(prm.max_disparity),
                           prm.max_costs(thresholds), prm.sad_frames == "all", float(prm.own_ratio),
-                          float(prm.uniqueness), drift)
+                          float(prm.uniqueness), prm.other_gains(thresholds), drift)

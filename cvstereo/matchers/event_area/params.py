@@ -62,7 +62,8 @@ class EventAreaParams(BorderParams, SignalLevelParams, DynamicFrameParams):
             "the no-gaussian variant has the same scale (at 1.5 x it kept 288 "
             "estimates on movingPersons, now 1471, of which 1467 within 1 px of 13: 71 % of the thesis set's 2079)",
         params={**ADAPTIVE_THESIS, "threshold_scale": 0.5, "level_floor": 0.5, "cost_scale": 0.6,
-                "polarity": "separate", "sad_frames": "all", "own_ratio": 0.6, "uniqueness": 0.2},
+                "polarity": "separate", "sad_frames": "all", "own_ratio": 0.6, "uniqueness": 0.2,
+                "value_units": "event"},
     )
 
     threshold: float = param(1.2, ge=0)
@@ -73,12 +74,23 @@ class EventAreaParams(BorderParams, SignalLevelParams, DynamicFrameParams):
     sad_frames: Literal["own", "all"] = "own"
     own_ratio: float = param(0.0, ge=0, note="0: off, the thesis")
     uniqueness: float = param(0.0, ge=0, note="0: off, the thesis")
+    value_units: Literal["own", "event"] = "own"
 
 
     @property
     def compared_frames(self) -> int:
         """How many frames per camera one SAD sums over (2 only for ``sad_frames="all"`` with separate frames)."""
         return 2 if self.sad_frames == "all" and self.polarity == "separate" else 1
+
+    def other_gains(self, thresholds: np.ndarray) -> np.ndarray:
+        """(2,) the factor by which the other camera's frame values are multiplied in the SAD of an event of camera
+        ``c`` (entry ``c``), given the (2,) thresholds in force: ``thresholds[c] / thresholds[1 - c]`` for
+        ``value_units="event"`` (where both are positive), else 1."""
+        gains = np.ones(2)
+        t = np.asarray(thresholds, float)
+        if self.value_units == "event" and t[0] > 0 and t[1] > 0:
+            gains[:] = t[0] / t[1], t[1] / t[0]
+        return gains
 
     def max_costs(self, thresholds: np.ndarray) -> np.ndarray:
         """The SAD bound of each camera's events, given the (2,) thresholds in force (see ``cost_scale``): per

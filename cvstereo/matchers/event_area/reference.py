@@ -35,6 +35,7 @@ def event_area_reference(left: np.ndarray, right: np.ndarray, params: EventAreaP
                 half <= y < height - half):
             return None
         minimum = prm.max_costs(thresholds)[cam]
+        gain = prm.other_gains(thresholds)[cam]  # the other camera's values in this camera's units
         # The frames compared: the event's own, or (sad_frames="all") all of the camera's, in slot order.
         slots = range(own.n_frames) if prm.sad_frames == "all" else (slot,)
         if prm.own_ratio > 0:
@@ -54,7 +55,7 @@ def event_area_reference(left: np.ndarray, right: np.ndarray, params: EventAreaP
             for s in slots:
                 for j in range(-half, half + 1):
                     for i in range(-half, half + 1):
-                        sad += abs(own.value(s, x + i, y + j) - other.value(s, x2 + i, y + j))
+                        sad += abs(own.value(s, x + i, y + j) - other.value(s, x2 + i, y + j) * gain)
             sads[d] = sad
             if sad < minimum:  # strict: ties keep the smaller disparity
                 minimum = sad

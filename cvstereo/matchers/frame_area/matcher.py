@@ -52,7 +52,7 @@ __all__ = ["FrameAreaMatcher", "scan_sad"]
 
 
 def scan_sad(reference: np.ndarray, other: np.ndarray, *, threshold: float, max_disparity: int, block: int = 5,
-             reference_camera: int = 1) -> np.ndarray:
+             reference_camera: int = 1, gain: float = 1.0) -> np.ndarray:
     """Algorithm 2 with the SAD computed only for the pixels the scan actually searches (numba).
 
     Same result as the reference ``scan_disparity_map(reference, sad_volume(reference, other, ...), ...)``
@@ -64,6 +64,8 @@ def scan_sad(reference: np.ndarray, other: np.ndarray, *, threshold: float, max_
     reference, other : (height, width) float ndarray
     threshold, max_disparity, block, reference_camera : keyword-only
         See :class:`FrameAreaParams`.
+    gain : float, keyword-only
+        ``other`` is multiplied by it (in float64) before the SAD (:meth:`FrameAreaParams.frame_gains`).
 
     Returns
     -------
@@ -71,7 +73,7 @@ def scan_sad(reference: np.ndarray, other: np.ndarray, *, threshold: float, max_
         Disparity, NaN where none was written.
     """
     ref = np.ascontiguousarray(reference, dtype=np.float64)
-    oth = np.ascontiguousarray(other, dtype=np.float64)
+    oth = np.ascontiguousarray(other, dtype=np.float64) * gain
     h, w = ref.shape
     r = block // 2
     inner = np.zeros((h, w), dtype=bool)
@@ -144,10 +146,11 @@ def _plan_sparse(above, ref_plane, r, done, owner, searched):  # pragma: no cove
 
 
 @numba.njit(cache=True, nogil=True)
-def _search_needed(values, support, ref_plane, oth_plane, max_disparity, r, step, searched,
-                   need):  # pragma: no cover - compiled
+def _search_needed(values, support, ref_plane, oth_plane, max_disparity, r, step, searched, need,
+                   gain):  # pragma: no cover - compiled
     """The disparity each needed search of :func:`_plan_sparse` finds (-1 for the others), as
-    :func:`_scan_sad_kernel` does: the same float64 sums in the same order, but
+    :func:`_scan_sad_kernel` does (the other plane's values times ``gain``): the same float64 sums in the same
+    order, but
     - a block of the other frame that holds no support pixel is all zeros, so its SAD is the same number for
       every such disparity: only the first of them can win (ties go to the smaller disparity), the rest are
       skipped;
@@ -184,7 +187,7 @@ def _search_needed(values, support, ref_plane, oth_plane, max_disparity, r, step
             for j in range(-r, r + 1):
                 for k in range(-r, r + 1):
                     a = np.float64(ref[y + j, x + k])
-                    sad += abs(a - np.float64(oth[y + j, xo + k])) if not empty else abs(a - 0.0)
+                    sad += abs(a - np.float64(oth[y + j, xo + k]) * gain) if not empty else abs(a - 0.0)
                 if sad >= best:
                     break
             if sad < best:  # strict: ties go to the smaller disparity
@@ -205,7 +208,7 @@ def _unmark(done, searched, n_searched, r):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, nogil=True)
 def _scan_sparse(values, support, touched, above, ref_plane, oth_plane, lr_check, max_disparity, r, step, capacity,
-                 done, owner, searched):  # pragma: no cover - compiled
+                 done, owner, searched, gains):  # pragma: no cover - compiled
     """One frame pair's matches on sparse planes: Algorithm 2's scan of ``ref_plane`` and, with ``lr_check``,
     the scan of ``oth_plane`` the other way (each plane's pixels at or above its camera's threshold marked in
     ``above``) and
@@ -216,6 +219,7 @@ def _scan_sparse(values, support, touched, above, ref_plane, oth_plane, lr_check
     with events, for the other camera's those that last wrote a pixel such a disparity names.
     ``done``, ``owner`` are (2, height, width) buffers (``done`` all False on entry and again on return),
     ``searched`` a (2, 2, height * width) one: index 0 for the reference scan, 1 for the other camera's.
+    ``gains``: the factors on the compared plane of each scan (:meth:`FrameAreaParams.frame_gains`).
     Returns x, y, p (1 where the reference value is > 0) and the disparity of the reference pixels with events
     (``touched``) that got one (and passed the check), row by row, x ascending.
     """
@@ -236,7 +240,8 @@ def _scan_sparse(values, support, touched, above, ref_plane, oth_plane, lr_check
                     out_y[n] = y
                     need[owner[0, y, x]] = True
                     n += 1
-    found = _search_needed(values, support, ref_plane, oth_plane, max_disparity, r, step, searched[0], need)
+    found = _search_needed(values, support, ref_plane, oth_plane, max_disparity, r, step, searched[0], need,
+                           gains[0])
     n_back = 0
     found_back = found  # replaced below with lr_check
     if lr_check:
@@ -247,7 +252,7 @@ def _scan_sparse(values, support, touched, above, ref_plane, oth_plane, lr_check
             if 0 <= xo < w and done[1, out_y[m], xo]:
                 need_back[owner[1, out_y[m], xo]] = True
         found_back = _search_needed(values, support, oth_plane, ref_plane, max_disparity, r, -step, searched[1],
-                                    need_back)
+                                    need_back, gains[1])
     ref = values[ref_plane]
     out_p = np.empty(n, np.int8)
     out_d = np.empty(n, np.float32)
@@ -336,12 +341,13 @@ class FrameAreaMatcher(FrameMatcher):
             self._add_levels(k, ch, ref if has_ref else None, oth, ref_counts, oth_counts)
             if not has_ref:
                 continue  # no reference events: nothing above threshold, no pixel to report at
+            gain, back_gain = prm.frame_gains(thresholds)  # each scan compares in its own camera's units
             disp = scan_sad(ref, oth, threshold=threshold, max_disparity=prm.max_disparity, block=prm.block,
-                            reference_camera=ref_cam)
+                            reference_camera=ref_cam, gain=gain)
             keep = ~np.isnan(disp)
             if prm.lr_check:
                 back = scan_sad(oth, ref, threshold=thresholds[1 - ref_cam], max_disparity=prm.max_disparity,
-                                block=prm.block, reference_camera=1 - ref_cam)
+                                block=prm.block, reference_camera=1 - ref_cam, gain=back_gain)
                 keep = lr_consistent(disp, back, reference_camera=ref_cam)
             y, x = np.nonzero(event_mask(ref_counts, channel=ch) & keep)
             parts.append(make_matches(window.t_end, x, y, (ref[y, x] > 0).astype(np.int8), ref_cam, disp[y, x]))
@@ -371,7 +377,7 @@ class FrameAreaMatcher(FrameMatcher):
                 x, y, p, disp = _scan_sparse(
                     sf.values, sf.support, sf.touched, sf.above, ref_plane, oth_plane, bool(prm.lr_check),
                     int(prm.max_disparity), prm.block // 2, 1 if ref_cam == 1 else -1, ref_ev.size, self._done,
-                    self._owner, self._searched)
+                    self._owner, self._searched, prm.frame_gains(thresholds))
                 parts.append(make_matches(window.t_end, x, y, p, ref_cam, disp))
         finally:
             sf.clear()

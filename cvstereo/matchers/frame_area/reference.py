@@ -132,6 +132,7 @@ def frame_area_reference(left: np.ndarray, right: np.ndarray, params: FrameAreaP
         k = (t_end - prm.window_us) // prm.level_window_us
         thresholds = level.thresholds(k)
         threshold = thresholds[prm.reference_camera]
+        gain, back_gain = prm.frame_gains(thresholds)  # each scan compares in its own camera's units
         ref_ev, oth_ev = (ev_r, ev_l) if prm.reference_camera == 1 else (ev_l, ev_r)
         for signs in frame_signs(prm.polarity):  # each frame of the polarity mode on its own
             # This frame's events (p = 1 ON, 0 OFF), and their signed frame.
@@ -145,12 +146,13 @@ def frame_area_reference(left: np.ndarray, right: np.ndarray, params: FrameAreaP
             level.add(k, 1 - prm.reference_camera, values_at_events(oth, sel_oth))
             if not (ev_l.size and ev_r.size):
                 continue
-            volume = sad_volume(ref, oth, max_disparity=prm.max_disparity, block=prm.block,
-                                reference_camera=prm.reference_camera)
+            volume = sad_volume(ref, np.asarray(oth, np.float64) * gain, max_disparity=prm.max_disparity,
+                                block=prm.block, reference_camera=prm.reference_camera)
             disp = scan_disparity_map(ref, volume, threshold=threshold, block=prm.block)
             keep = ~np.isnan(disp)
             if prm.lr_check:  # the other camera scanned as the reference, and both maps compared
-                back_volume = sad_volume(oth, ref, max_disparity=prm.max_disparity, block=prm.block,
+                back_volume = sad_volume(oth, np.asarray(ref, np.float64) * back_gain,
+                                         max_disparity=prm.max_disparity, block=prm.block,
                                          reference_camera=1 - prm.reference_camera)
                 back = scan_disparity_map(oth, back_volume, threshold=thresholds[1 - prm.reference_camera],
                                           block=prm.block)
