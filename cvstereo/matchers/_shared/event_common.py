@@ -20,6 +20,7 @@ import numpy as np
 from numba import njit
 
 from cvstereo.frames.dynamic import FrameBank, dynamic_unit
+from cvstereo.matchers._shared.frame_gains import FrameGains
 from cvstereo.matchers._shared.merge_order import ROW_CAM, ROW_INDEX, ROW_Y, STREAM_ROWS, merged_stream
 from cvstereo.matchers._shared.row_bands import gather_band_values, merge_band_matches
 from cvstereo.matchers._shared.signal_level import SignalLevel
@@ -109,27 +110,40 @@ class MergedEventMatcher(StreamMatcher):
         self._level = SignalLevel(self.params, absolute=self.params.threshold, unit=dynamic_unit(self.params),
                                   value_name="dynamic-frame value")
         self._scratch = Scratch()
-        self._last_search = (None, None)  # (thresholds' bytes, the kernel's parameters for them)
+        self._last_search = (None, None)  # (thresholds' and gains' bytes, the kernel's parameters for them)
+        #: The gains between the cameras (:class:`cvstereo.matchers._shared.frame_gains.FrameGains`) where the
+        #: matcher compares in one camera's units (:meth:`_value_units`); None: each camera's values as they are.
+        units = self._value_units()
+        self._gains = None if units == "own" else FrameGains(self.params, n_frames=self._bank.n_frames,
+                                                             unit=dynamic_unit(self.params), per_frame=units == "frame")
 
     #: The kernel, serial and parallel (:func:`cvstereo.matchers._shared.row_bands.compile_twice` of a loop over the
     #: row bands): ``kernel(stream, bands, cuts, search, out_pos, out_disparity, counts, values, right_start)``,
     #: ``values`` one buffer per band.
     kernels: tuple
 
-    @abc.abstractmethod
-    def _search(self, thresholds: np.ndarray) -> tuple:
-        """The kernel's parameters (a NamedTuple) for a level window with each camera's ``thresholds``."""
+    def _value_units(self) -> str:
+        """``"own"`` (the default): the kernel compares each camera's values as they are; ``"camera"`` or
+        ``"frame"``: the other camera's values multiplied by one gain per camera or per frame (``value_units``)."""
+        return "own"
 
-    def _search_for(self, thresholds: np.ndarray) -> tuple:
-        """:meth:`_search`, built once per thresholds in force: they change once per level window, while a live
-        stream's small packets each run the kernel (building them again cost as much as a small packet's kernel)."""
-        key = thresholds.tobytes()
+    @abc.abstractmethod
+    def _search(self, thresholds: np.ndarray, gains: np.ndarray | None) -> tuple:
+        """The kernel's parameters (a NamedTuple) for a level window with each camera's ``thresholds`` and the
+        frames' ``gains`` (:meth:`FrameGains.gains <cvstereo.matchers._shared.frame_gains.FrameGains.gains>`; None
+        where the parameters ask for none)."""
+
+    def _search_for(self, thresholds: np.ndarray, gains: np.ndarray | None = None) -> tuple:
+        """:meth:`_search`, built once per thresholds and gains in force: they change once per level window, while a
+        live stream's small packets each run the kernel (building them again cost as much as a small packet's
+        kernel)."""
+        key = thresholds.tobytes() + (b"" if gains is None else gains.tobytes())
         if self._last_search[0] != key:
-            self._last_search = (key, self._search(thresholds.copy()))
+            self._last_search = (key, self._search(thresholds.copy(), None if gains is None else gains.copy()))
         return self._last_search[1]
 
-    def _run_kernel(self, stream: np.ndarray, thresholds: np.ndarray,
-                    out_values: tuple[np.ndarray, int]) -> tuple[np.ndarray, np.ndarray]:
+    def _run_kernel(self, stream: np.ndarray, thresholds: np.ndarray, out_values: tuple[np.ndarray, int],
+                    gains: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Run the merged events (``stream``: :func:`cvstereo.matchers._shared.merge_order.merged_stream`) through the
         kernel with the thresholds of each camera, in one row band per thread
         (:mod:`cvstereo.matchers._shared.row_bands`: the same matches however many); write each event's |D| before
@@ -144,12 +158,12 @@ class MergedEventMatcher(StreamMatcher):
         values, right_start = out_values
         cuts = self._bands.cuts
         if n_bands == 1:  # the serial kernel; its matches are in the stream's order already
-            self.kernels[0](stream, bands, cuts, self._search_for(thresholds), out_pos, out_band, counts,
+            self.kernels[0](stream, bands, cuts, self._search_for(thresholds, gains), out_pos, out_band, counts,
                             values[np.newaxis], right_start)
             return out_pos[0, :counts[0]], out_band[0, :counts[0]]
         band_values = self._scratch.take("band_values", n_bands * values.size, np.float64).reshape(n_bands, -1)
-        self.kernels[1](stream, bands, cuts, self._search_for(thresholds), out_pos, out_band, counts, band_values,
-                        right_start)
+        self.kernels[1](stream, bands, cuts, self._search_for(thresholds, gains), out_pos, out_band, counts,
+                        band_values, right_start)
         gather_band_values(stream, band_values, values, right_start, cuts)
         pos, disparity = self._scratch.take("pos", n, np.int64), self._scratch.take("disparity", n, np.float64)
         m = merge_band_matches(stream.shape[1], counts, out_pos, out_band, pos, disparity)
@@ -174,9 +188,14 @@ class MergedEventMatcher(StreamMatcher):
         # Merged straight from the events' fields: no int64 copy of the columns first (half the merge's time).
         stream = merged_stream(*_fields(left), *_fields(right), self._bank.slot_of_p,
                                scratch.take("stream", STREAM_ROWS * n, np.int64), pieces=self._threads)
-        pos, disparity = self._run_kernel(stream, thresholds, (values, left.size))
+        gains = None if self._gains is None else self._gains.gains(k, thresholds)
+        pos, disparity = self._run_kernel(stream, thresholds, (values, left.size), gains)
         self._level.add(k, 0, values[:left.size])
         self._level.add(k, 1, values[left.size:])
+        if self._gains is not None:
+            slot_of_p = self._bank.slot_of_p
+            self._gains.add(k, 0, values[:left.size], slot_of_p[(left["p"] > 0).astype(np.int64)])
+            self._gains.add(k, 1, values[left.size:], slot_of_p[(right["p"] > 0).astype(np.int64)])
         return matches_at((left, right), stream, pos, disparity)
 
     def _feed(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:

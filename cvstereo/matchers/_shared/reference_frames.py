@@ -22,6 +22,7 @@ import numpy as np
 
 from cvstereo.frames.dynamic_limits import FORGET_TICKS, RENORM
 from cvstereo.frames.dynamic_params import DynamicFrameParams
+from cvstereo.matchers._shared.frame_gains import FrameGains
 from cvstereo.matchers._shared.reference_border import border_rule_of
 from cvstereo.matchers._shared.reference_windows import gaussian_kernel
 from cvstereo.matchers._shared.signal_level import SignalLevel
@@ -170,47 +171,64 @@ class LevelByWindow:
     event read (per camera), handed to the estimator when its window is complete.
     """
 
-    def __init__(self, params, *, value_name: str = "dynamic-frame value"):
+    def __init__(self, params, *, value_name: str = "dynamic-frame value", gains_frames: int = 0,
+                 value_units: str = "own"):
         self.level = SignalLevel(params, absolute=params.threshold, unit=dynamic_unit(params), value_name=value_name)
+        #: The gains between the cameras (``value_units`` "camera" or "frame", ``gains_frames`` frames per
+        #: camera), else None.
+        self.frame_gains = None if value_units == "own" else FrameGains(
+            params, n_frames=gains_frames, unit=dynamic_unit(params), per_frame=value_units == "frame")
         self.window_us = int(params.level_window_us)
         self.current: int | None = None
         self.values: tuple[list[float], list[float]] = ([], [])
+        self.slots: tuple[list[int], list[int]] = ([], [])
         self.thresholds = None
+        self.gains = None
 
     def at(self, t: int) -> np.ndarray:
-        """The (2,) thresholds in force at time ``t``."""
+        """The (2,) thresholds in force at time ``t`` (and :attr:`gains`, the frames' gains in force, or None)."""
         k = int(t) // self.window_us
         if k != self.current:
             self.close()
             self.current = k
             self.thresholds = self.level.thresholds(k)
+            if self.frame_gains is not None:
+                self.gains = self.frame_gains.gains(k, self.thresholds)
         return self.thresholds
 
-    def seen(self, cam: int, value: float) -> None:
-        """Record the value an event of camera ``cam`` read (for the windows after this one)."""
+    def seen(self, cam: int, value: float, slot: int = 0) -> None:
+        """Record the value an event of camera ``cam`` read in frame ``slot`` (for the windows after this one)."""
         self.values[cam].append(abs(value))
+        self.slots[cam].append(slot)
 
     def close(self) -> None:
         """Hand the current window's values to the estimator."""
         if self.current is not None:
             for cam in (0, 1):
                 self.level.add(self.current, cam, np.array(self.values[cam]))
+                if self.frame_gains is not None:
+                    self.frame_gains.add(self.current, cam, np.array(self.values[cam]), np.array(self.slots[cam]))
         self.values = ([], [])
+        self.slots = ([], [])
 
 
 #: ``match_event(own, other, slot, cam, x, y, thresholds) -> disparity or None``: one event's search, on its own
 #: camera's frames and the other camera's, as they stand at its time before it updates its own; ``thresholds``
 #: (per camera) are those in force for the event's window (:class:`LevelByWindow`; the absolute ``threshold``
-#: unless ``threshold_mode="relative"``).
+#: unless ``threshold_mode="relative"``). With :func:`match_merged`'s ``value_units`` it also gets the gains in
+#: force, a (2, frames) array (:class:`~cvstereo.matchers._shared.frame_gains.FrameGains`).
 EventSearch = Callable[["DynamicFrames", "DynamicFrames", int, int, int, int, np.ndarray], "int | None"]
 
 
 def match_merged(left: np.ndarray, right: np.ndarray, params: DynamicFrameParams, match_event: EventSearch, *,
-                 resolution: tuple[int, int] = DEFAULT_RESOLUTION) -> np.ndarray:
+                 resolution: tuple[int, int] = DEFAULT_RESOLUTION, value_units: str = "own") -> np.ndarray:
     """Both cameras' events one at a time in the merged order, each searched, then added to its own frame.
 
     The frame of each camera is decayed to the event's time first; events of a dropped polarity are skipped.
-    The value each event reads at its own pixel before its update feeds the signal level (:class:`LevelByWindow`).
+    The value each event reads at its own pixel before its update feeds the signal level (:class:`LevelByWindow`),
+    and with ``value_units`` "camera" or "frame" the gains between the cameras
+    (:class:`~cvstereo.matchers._shared.frame_gains.FrameGains`), which ``match_event`` then gets as its last
+    argument.
 
     Returns
     -------
@@ -218,7 +236,8 @@ def match_merged(left: np.ndarray, right: np.ndarray, params: DynamicFrameParams
         One row per event ``match_event`` found a disparity for, in processing order (time-ordered).
     """
     frames = [DynamicFrames(params.frame_params(), resolution=resolution) for _ in range(2)]
-    level = LevelByWindow(params)
+    level = LevelByWindow(params, gains_frames=frames[0].n_frames, value_units=value_units)
+    gains = value_units != "own"
     rows = []
     for cam, _, e in merged_events(left, right):
         t, x, y, p = int(e["t"]), int(e["x"]), int(e["y"]), int(e["p"])
@@ -229,8 +248,8 @@ def match_merged(left: np.ndarray, right: np.ndarray, params: DynamicFrameParams
             continue
         own.advance(t)
         other.advance(t)
-        level.seen(cam, own.value(slot, x, y))
-        disparity = match_event(own, other, slot, cam, x, y, thresholds)
+        level.seen(cam, own.value(slot, x, y), slot)
+        disparity = match_event(own, other, slot, cam, x, y, thresholds, *((level.gains,) if gains else ()))
         if disparity is not None:
             rows.append((t, x, y, p, cam, float(disparity)))
         own.add(slot, x, y, 1.0 if p else -1.0)

@@ -91,7 +91,8 @@ class AreaSearch(NamedTuple):
     all_frames: bool  #: the SAD sums over all of a camera's frames (``sad_frames="all"``), else the event's own
     own_ratio: float
     uniqueness: float
-    #: (2,) the factor on the other camera's values in the SAD of each camera's events (``value_units``)
+    #: (2, frames) the factor on the other camera's values of each frame in the SAD of each camera's events
+    #: (``value_units``; :class:`cvstereo.matchers._shared.frame_gains.FrameGains`)
     other_gains: np.ndarray
     #: the bound of the column sums' drift per unit of mass of all the entries one lower bound sums
     #: (:func:`cvstereo.matchers._shared.frame_bounds.sum_drift`)
@@ -141,7 +142,7 @@ def _event_area_band(stream, bands, cuts, band, search, out_pos, out_disparity, 
             if tick_due(clock[c, NEXT_TICK], clock[c, TOUCHED], t, period) or pending[c] >= SUM_REBUILD:
                 advance_due_summed(stored, scale, clock, sums, mass, pending, c, t, decay, period, half)
         c1 = scale[cam]
-        c2 = scale[other] * other_gains[cam]  # the other camera's values in this one's units (value_units)
+        c2 = scale[other]
         own_event = first_row <= y < end_row  # the band's own event: its value and its search
         # Another band's event is not read: its pixel lies on rows this band does not keep (a cache miss each).
         value = stored[cam, slot, y, x] * c1 if own_event else 0.0
@@ -181,11 +182,16 @@ def _event_area_band(stream, bands, cuts, band, search, out_pos, out_disparity, 
             # signed ones around, which made LLVM gather the row): the own column sums are divided by the
             # other camera's scale instead, and so is the cut below, which changes the bound's rounding only
             # (~1e-16 relative, far inside the cut's margin). With two frames (a camera has at most two) both
-            # terms go in one pass over the bounds per column, half the passes.
-            inv2 = 1.0 / c2
+            # terms go in one pass over the bounds per column, half the passes. With ``value_units`` the other
+            # camera's values of each frame are multiplied by that frame's gain: its term is in the stored units
+            # of its own gain, and the cut is in those of the least gain, which only loosens the bound.
+            g0 = other_gains[cam, first_slot]
+            g1 = other_gains[cam, first_slot + n_planes - 1]
             for q in range(n_planes):
+                inv_q = 1.0 / (c2 * (g0 if q == 0 else g1))
                 for ii in range(size):
-                    own_col[q, ii] *= inv2
+                    own_col[q, ii] *= inv_q
+            inv2 = 1.0 / (c2 * min(g0, g1))
             ubase = np.uint64(base)
             row0 = sums[other, first_slot, y]
             row1 = sums[other, first_slot + n_planes - 1, y]
@@ -229,7 +235,7 @@ def _event_area_band(stream, bands, cuts, band, search, out_pos, out_disparity, 
             if own_ratio > 0:  # the SAD of an empty candidate patch is own_abs: a match must explain more
                 best_sad = min(best_sad, own_ratio * own_abs)
             limit = best_sad * rival
-            slack = 10.0 * drift * mass[other] * c2 + 1e-9 * own_abs + 1e-300
+            slack = 10.0 * drift * mass[other] * c2 * max(g0, g1) + 1e-9 * own_abs + 1e-300
             cut = (limit + 1e-9 * limit + slack) * inv2  # a bound above this rules the candidate out (stored units)
             n_done = 0
             e = first if bound[first] <= cut else -1  # else no candidate can match
@@ -242,9 +248,10 @@ def _event_area_band(stream, bands, cuts, band, search, out_pos, out_disparity, 
                 # candidate: partial sums never decrease, it can neither win nor tie.
                 for q in range(n_planes):
                     s = first_slot + q
+                    g = g0 if q == 0 else g1
                     for jj in range(size):
                         for ii in range(size):
-                            sad += abs(own[q, jj, ii] - stored[other, s, y - half + jj, x2 - half + ii] * c2)
+                            sad += abs(own[q, jj, ii] - stored[other, s, y - half + jj, x2 - half + ii] * c2 * g)
                         if sad > limit:
                             break
                     if sad > limit:
@@ -321,9 +328,14 @@ class EventAreaMatcher(MergedEventMatcher):
                                   row_fields=("stored", "sums"), summed_fields=("mass",),
                                   halo=self.params.block // 2)
 
-    def _search(self, thresholds) -> AreaSearch:
+    def _value_units(self) -> str:
+        return self.params.value_units
+
+    def _search(self, thresholds, gains) -> AreaSearch:
         prm, bank = self.params, self._bank
+        if gains is None:  # value_units="own": each camera's values as they are
+            gains = np.ones((2, bank.n_frames))
         drift = sum_drift(1.0, prm.block) * prm.block * prm.compared_frames  # all entries of one lower bound
         return AreaSearch(bank.kernel, *bank.decay_args, thresholds, prm.block // 2, int(prm.max_disparity),
                           prm.max_costs(thresholds), prm.sad_frames == "all", float(prm.own_ratio),
-                          float(prm.uniqueness), prm.other_gains(thresholds), drift)
+                          float(prm.uniqueness), gains, drift)

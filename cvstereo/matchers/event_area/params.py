@@ -48,6 +48,14 @@ class EventAreaParams(BorderParams, SignalLevelParams, DynamicFrameParams):
     uniqueness : float
         0 (the thesis): off. Otherwise a match is dropped when a candidate more than 1 px from the winner has a
         SAD at most ``1 + uniqueness`` times the winner's (ambiguous), as OpenCV's ``uniquenessRatio`` / 100.
+    value_units : {"own", "camera", "frame"}
+        ``own`` (the thesis): each camera's frame values as accumulated. Otherwise the other camera's values are
+        brought into the units of the event's camera before the SAD: two sensors of different contrast thresholds
+        fire different numbers of events at one edge, and their frames differ in amplitude by about the ratio of
+        the thresholds, which the SAD would count as a mismatch. ``camera``: one factor per camera, the ratio of
+        the two cameras' thresholds in force; ``frame``: one per frame (OFF and ON apart with separate frames),
+        the ratio of the thresholds each frame's own signal level implies
+        (:class:`~cvstereo.matchers._shared.frame_gains.FrameGains`).
     """
 
     aliases: ClassVar[dict] = {"max_sad": "max_cost"}
@@ -58,12 +66,15 @@ class EventAreaParams(BorderParams, SignalLevelParams, DynamicFrameParams):
             "events; with single-pixel updates the density sweep and Fan_disp8 gave (almost) nothing; adaptive "
             "sums the SAD over separate OFF and ON frames (one shared frame cancels a fan's blades; the own "
             "polarity's frame alone confuses a bar's edge with the next bar's) and drops matches that explain "
-            "little of the patch or have a rival (they made most of the density sweep's bad2 at thresholds x3); "
+            "little of the patch or have a rival (they made most of the density sweep's bad2 at thresholds x3), and "
+            "compares the other camera's frames in the event's camera's units, one gain per camera (sensors of "
+            "other contrast thresholds; bench/results/thesis-generalization.md; one gain per frame cost the "
+            "no-gaussian variant a third of its correct answers on movingPersons); "
             "the no-gaussian variant has the same scale (at 1.5 x it kept 288 "
             "estimates on movingPersons, now 1471, of which 1467 within 1 px of 13: 71 % of the thesis set's 2079)",
         params={**ADAPTIVE_THESIS, "threshold_scale": 0.5, "level_floor": 0.5, "cost_scale": 0.6,
                 "polarity": "separate", "sad_frames": "all", "own_ratio": 0.6, "uniqueness": 0.2,
-                "value_units": "event"},
+                "value_units": "camera"},
     )
 
     threshold: float = param(1.2, ge=0)
@@ -74,23 +85,13 @@ class EventAreaParams(BorderParams, SignalLevelParams, DynamicFrameParams):
     sad_frames: Literal["own", "all"] = "own"
     own_ratio: float = param(0.0, ge=0, note="0: off, the thesis")
     uniqueness: float = param(0.0, ge=0, note="0: off, the thesis")
-    value_units: Literal["own", "event"] = "own"
+    value_units: Literal["own", "camera", "frame"] = "own"
 
 
     @property
     def compared_frames(self) -> int:
         """How many frames per camera one SAD sums over (2 only for ``sad_frames="all"`` with separate frames)."""
         return 2 if self.sad_frames == "all" and self.polarity == "separate" else 1
-
-    def other_gains(self, thresholds: np.ndarray) -> np.ndarray:
-        """(2,) the factor by which the other camera's frame values are multiplied in the SAD of an event of camera
-        ``c`` (entry ``c``), given the (2,) thresholds in force: ``thresholds[c] / thresholds[1 - c]`` for
-        ``value_units="event"`` (where both are positive), else 1."""
-        gains = np.ones(2)
-        t = np.asarray(thresholds, float)
-        if self.value_units == "event" and t[0] > 0 and t[1] > 0:
-            gains[:] = t[0] / t[1], t[1] / t[0]
-        return gains
 
     def max_costs(self, thresholds: np.ndarray) -> np.ndarray:
         """The SAD bound of each camera's events, given the (2,) thresholds in force (see ``cost_scale``): per

@@ -30,14 +30,15 @@ def event_area_reference(left: np.ndarray, right: np.ndarray, params: EventAreaP
     half = prm.block // 2
 
     def search(own: DynamicFrames, other: DynamicFrames, slot: int, cam: int, x: int, y: int,
-               thresholds: np.ndarray) -> int | None:
+               thresholds: np.ndarray, gains: np.ndarray | None = None) -> int | None:
         if not (abs(own.value(slot, x, y)) >= thresholds[cam] and half <= x < width - half and
                 half <= y < height - half):
             return None
         minimum = prm.max_costs(thresholds)[cam]
-        gain = prm.other_gains(thresholds)[cam]  # the other camera's values in this camera's units
         # The frames compared: the event's own, or (sad_frames="all") all of the camera's, in slot order.
         slots = range(own.n_frames) if prm.sad_frames == "all" else (slot,)
+        # The other camera's values of each frame in this camera's units (value_units), else as they are.
+        gain = gains[cam] if gains is not None else np.ones(own.n_frames)
         if prm.own_ratio > 0:
             own_abs = 0.0
             for s in slots:
@@ -55,7 +56,7 @@ def event_area_reference(left: np.ndarray, right: np.ndarray, params: EventAreaP
             for s in slots:
                 for j in range(-half, half + 1):
                     for i in range(-half, half + 1):
-                        sad += abs(own.value(s, x + i, y + j) - other.value(s, x2 + i, y + j) * gain)
+                        sad += abs(own.value(s, x + i, y + j) - other.value(s, x2 + i, y + j) * gain[s])
             sads[d] = sad
             if sad < minimum:  # strict: ties keep the smaller disparity
                 minimum = sad
@@ -66,4 +67,4 @@ def event_area_reference(left: np.ndarray, right: np.ndarray, params: EventAreaP
                 return None
         return disparity
 
-    return match_merged(left, right, prm, search, resolution=resolution)
+    return match_merged(left, right, prm, search, resolution=resolution, value_units=prm.value_units)

@@ -41,6 +41,7 @@ import numpy as np
 
 from cvstereo.frames.accumulate import event_mask, filtered_unit, gaussian_filter, polarity_counts, polarity_frames
 from cvstereo.frames.windows import FrameMatcher, Window
+from cvstereo.matchers._shared.frame_gains import FrameGains
 from cvstereo.matchers._shared.signal_level import SignalLevel
 from cvstereo.matchers._shared.sparse_frames import SparseFrames, band_of_rows, bit_positions
 from cvstereo.matchers._shared.support import lr_consistent
@@ -65,7 +66,7 @@ def scan_sad(reference: np.ndarray, other: np.ndarray, *, threshold: float, max_
     threshold, max_disparity, block, reference_camera : keyword-only
         See :class:`FrameAreaParams`.
     gain : float, keyword-only
-        ``other`` is multiplied by it (in float64) before the SAD (:meth:`FrameAreaParams.frame_gains`).
+        ``other`` is multiplied by it (in float64) before the SAD (``value_units`` of :class:`FrameAreaParams`).
 
     Returns
     -------
@@ -219,7 +220,7 @@ def _scan_sparse(values, support, touched, above, ref_plane, oth_plane, lr_check
     with events, for the other camera's those that last wrote a pixel such a disparity names.
     ``done``, ``owner`` are (2, height, width) buffers (``done`` all False on entry and again on return),
     ``searched`` a (2, 2, height * width) one: index 0 for the reference scan, 1 for the other camera's.
-    ``gains``: the factors on the compared plane of each scan (:meth:`FrameAreaParams.frame_gains`).
+    ``gains``: the factors on the compared plane of each scan (``value_units`` of :class:`FrameAreaParams`).
     Returns x, y, p (1 where the reference value is > 0) and the disparity of the reference pixels with events
     (``touched``) that got one (and passed the check), row by row, x ascending.
     """
@@ -307,6 +308,16 @@ class FrameAreaMatcher(FrameMatcher):
         sparse = SparseFrames(2 * slot_of_p(prm.polarity)[0], resolution=self.resolution, gaussian=prm.gaussian,
                               kernel_sigma=prm.kernel_sigma, kernel_size=prm.kernel_size)
         self._sparse = sparse if sparse.exact else None  # None: dense frames (cv2's filter), e.g. other kernels
+        # The gains between the cameras (value_units), fed with the values the level sees.
+        self._gains = None if prm.value_units == "own" else FrameGains(
+            prm, n_frames=slot_of_p(prm.polarity)[0], unit=filtered_unit(prm), per_frame=prm.value_units == "frame")
+
+    def _frame_gains(self, k: int, thresholds: np.ndarray) -> np.ndarray:
+        """(2, frames): the factor on the compared frame of each slot in the reference camera's scan (row
+        ``reference_camera``) and in the left-right check's scan of the other camera (the other row); 1 without
+        ``value_units``."""
+        n_frames = slot_of_p(self.params.polarity)[0]
+        return np.ones((2, n_frames)) if self._gains is None else self._gains.gains(k, thresholds)
 
     def anchor_cameras(self) -> tuple[int, ...]:
         return (self.params.reference_camera,)
@@ -336,12 +347,14 @@ class FrameAreaMatcher(FrameMatcher):
         ref_counts, oth_counts = self._counts(window)
         has_ref = (window.right if ref_cam == 1 else window.left).size > 0
         parts = []
+        gains = self._frame_gains(k, thresholds)  # each scan compares in its own camera's units
         # Each frame of the polarity mode is scanned and matched on its own (``shared``: the one frame).
-        for (ch, ref), (_, oth) in zip(self._frames(ref_counts), self._frames(oth_counts), strict=True):
-            self._add_levels(k, ch, ref if has_ref else None, oth, ref_counts, oth_counts)
+        for slot, ((ch, ref), (_, oth)) in enumerate(zip(self._frames(ref_counts), self._frames(oth_counts),
+                                                         strict=True)):
+            self._add_levels(k, ch, slot, ref if has_ref else None, oth, ref_counts, oth_counts)
             if not has_ref:
                 continue  # no reference events: nothing above threshold, no pixel to report at
-            gain, back_gain = prm.frame_gains(thresholds)  # each scan compares in its own camera's units
+            gain, back_gain = gains[ref_cam, slot], gains[1 - ref_cam, slot]
             disp = scan_sad(ref, oth, threshold=threshold, max_disparity=prm.max_disparity, block=prm.block,
                             reference_camera=ref_cam, gain=gain)
             keep = ~np.isnan(disp)
@@ -367,25 +380,33 @@ class FrameAreaMatcher(FrameMatcher):
         try:
             ref_ev, oth_ev = (window.right, window.left) if ref_cam == 1 else (window.left, window.right)
             parts = []
+            gains = self._frame_gains(k, thresholds)
             for slot in range(n_frames):
                 ref_plane, oth_plane = ref_cam * n_frames + slot, (1 - ref_cam) * n_frames + slot
                 if ref_ev.size:
-                    self._level.add(k, ref_cam, sf.values_at_events(ref_plane, 1, ref_ev.size))
-                self._level.add(k, 1 - ref_cam, sf.values_at_events(oth_plane, 1, oth_ev.size))
+                    self._add_level(k, ref_cam, slot, sf.values_at_events(ref_plane, 1, ref_ev.size))
+                self._add_level(k, 1 - ref_cam, slot, sf.values_at_events(oth_plane, 1, oth_ev.size))
                 if not ref_ev.size:
                     continue  # no reference events: nothing above threshold, no pixel to report at
                 x, y, p, disp = _scan_sparse(
                     sf.values, sf.support, sf.touched, sf.above, ref_plane, oth_plane, bool(prm.lr_check),
                     int(prm.max_disparity), prm.block // 2, 1 if ref_cam == 1 else -1, ref_ev.size, self._done,
-                    self._owner, self._searched, prm.frame_gains(thresholds))
+                    self._owner, self._searched, (gains[ref_cam, slot], gains[1 - ref_cam, slot]))
                 parts.append(make_matches(window.t_end, x, y, p, ref_cam, disp))
         finally:
             sf.clear()
         return np.concatenate(parts) if parts else empty_matches()
 
-    def _add_levels(self, k: int, channel: int, ref, oth, ref_counts: np.ndarray, oth_counts: np.ndarray) -> None:
+    def _add_levels(self, k: int, channel: int, slot: int, ref, oth, ref_counts: np.ndarray,
+                    oth_counts: np.ndarray) -> None:
         """Feed the signal level: |frame value| at each camera's pixels with events (of the frame's polarity)."""
         ref_cam = self.params.reference_camera
         if ref is not None:
-            self._level.add(k, ref_cam, ref[event_mask(ref_counts, channel=channel)])
-        self._level.add(k, 1 - ref_cam, oth[event_mask(oth_counts, channel=channel)])
+            self._add_level(k, ref_cam, slot, ref[event_mask(ref_counts, channel=channel)])
+        self._add_level(k, 1 - ref_cam, slot, oth[event_mask(oth_counts, channel=channel)])
+
+    def _add_level(self, k: int, cam: int, slot: int, values: np.ndarray) -> None:
+        """One frame's values of one camera, to the signal level and to the frames' gains."""
+        self._level.add(k, cam, values)
+        if self._gains is not None:
+            self._gains.add_frame(k, cam, slot, values)

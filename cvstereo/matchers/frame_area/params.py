@@ -40,13 +40,14 @@ class FrameAreaParams(BorderParams, SignalLevelParams, WindowFrameParams):
         False (the thesis): every scanned winner stands. True: the other camera's frame is scanned too, as the
         reference, and a pixel keeps its disparity d only where the other scan's disparity at the pixel it
         names (``x + d`` in the left frame, ``x - d`` in the right) lies within 1 px of d (left-right check).
-    value_units : {"own", "reference"}
-        ``own`` (the thesis): each camera's frame as accumulated. ``reference``: the other camera's frame is
-        brought into the reference camera's units before the SAD, multiplied by the ratio of the reference
-        camera's threshold in force to the other's (:meth:`frame_gains`; the left-right check's scan the other
-        way by the inverse ratio). With relative thresholds that is the ratio of the cameras' signal levels: two
-        sensors of different contrast thresholds fire different numbers of events at one edge, and the SAD
-        would count the difference in amplitude. With absolute thresholds (equal for both cameras) it is 1.
+    value_units : {"own", "camera", "frame"}
+        ``own`` (the thesis): each camera's frame as accumulated. Otherwise the other camera's frame is brought
+        into the scanning camera's units before the SAD (the reference camera's; the left-right check's scan the
+        other way by the inverse): two sensors of different contrast thresholds fire different numbers of events
+        at one edge, and the SAD would count the difference in amplitude. ``camera``: one factor, the ratio of
+        the two cameras' thresholds in force; ``frame``: one per frame (OFF and ON apart with separate frames),
+        the ratio of the thresholds each frame's own signal level implies
+        (:class:`~cvstereo.matchers._shared.frame_gains.FrameGains`).
     """
 
     adaptive: ClassVar[AdaptiveDefaults] = AdaptiveDefaults(
@@ -54,11 +55,13 @@ class FrameAreaParams(BorderParams, SignalLevelParams, WindowFrameParams):
         why="filtered frames give the SAD smooth blocks; unfiltered ones covered a third as much of the density "
             "sweep (0.09 vs 0.42 at x1) and were half as often right on Fan_disp8; adaptive matches OFF and ON "
             "frames apart (a fan's blades cancel in one frame) and "
-            "keeps disparities the left-right check confirms; the no-gaussian variant has the same scale (the level "
+            "keeps disparities the left-right check confirms; it compares the other camera's frame in the reference "
+            "camera's units, one gain per frame (sensors of other contrast thresholds, which differ by polarity; "
+            "bench/results/thesis-generalization.md); the no-gaussian variant has the same scale (the level "
             "is that of its own unfiltered values; at 1.6 x it kept 556 estimates on movingPersons against the thesis "
             "set's 4613, now 3720, of which 3670 within 1 px of 13: 111 % of the thesis set's 3320)",
         params={**ADAPTIVE_THESIS, "threshold_scale": 0.6, "polarity": "separate", "lr_check": True,
-                "value_units": "reference"},
+                "value_units": "frame"},
     )
 
     threshold: float = param(2.0, gt=0, note="the thesis uses 2, or 4 without the Gaussian")
@@ -67,13 +70,4 @@ class FrameAreaParams(BorderParams, SignalLevelParams, WindowFrameParams):
     reference_camera: Literal[0, 1] = param(1, note="0: left, 1: right")
     polarity: Polarity = "shared"
     lr_check: bool = False
-    value_units: Literal["own", "reference"] = "own"
-
-    def frame_gains(self, thresholds) -> tuple[float, float]:
-        """The factors on the compared frame in the reference camera's scan and in the left-right check's scan of
-        the other camera, given the (2,) thresholds in force (``value_units``): ``(t_ref / t_other, t_other /
-        t_ref)`` for ``"reference"`` where both are positive, else ``(1.0, 1.0)``."""
-        t_ref, t_oth = float(thresholds[self.reference_camera]), float(thresholds[1 - self.reference_camera])
-        if self.value_units == "reference" and t_ref > 0 and t_oth > 0:
-            return t_ref / t_oth, t_oth / t_ref
-        return 1.0, 1.0
+    value_units: Literal["own", "camera", "frame"] = "own"

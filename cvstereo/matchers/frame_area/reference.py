@@ -10,6 +10,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from cvstereo.matchers._shared.frame_gains import FrameGains
 from cvstereo.matchers._shared.reference_border import border_rule_of
 from cvstereo.matchers._shared.reference_checks import lr_consistent
 from cvstereo.matchers._shared.reference_windows import (
@@ -127,14 +128,19 @@ def frame_area_reference(left: np.ndarray, right: np.ndarray, params: FrameAreaP
     prm = params if params is not None else FrameAreaParams()
     level = SignalLevel(prm, absolute=prm.threshold, unit=filtered_unit(prm),
                         value_name="filtered value" if prm.gaussian else "frame value")
+    frame_gains = None if prm.value_units == "own" else FrameGains(
+        prm, n_frames=len(frame_signs(prm.polarity)), unit=filtered_unit(prm), per_frame=prm.value_units == "frame")
     parts = []
     for t_end, ev_l, ev_r in window_events(left, right, prm.window_us, every=True):
         k = (t_end - prm.window_us) // prm.level_window_us
         thresholds = level.thresholds(k)
         threshold = thresholds[prm.reference_camera]
-        gain, back_gain = prm.frame_gains(thresholds)  # each scan compares in its own camera's units
+        # Each scan compares in its own camera's units (value_units): gains[camera, frame].
+        gains = np.ones((2, len(frame_signs(prm.polarity)))) if frame_gains is None else \
+            frame_gains.gains(k, thresholds)
         ref_ev, oth_ev = (ev_r, ev_l) if prm.reference_camera == 1 else (ev_l, ev_r)
-        for signs in frame_signs(prm.polarity):  # each frame of the polarity mode on its own
+        for slot, signs in enumerate(frame_signs(prm.polarity)):  # each frame of the polarity mode on its own
+            gain, back_gain = gains[prm.reference_camera, slot], gains[1 - prm.reference_camera, slot]
             # This frame's events (p = 1 ON, 0 OFF), and their signed frame.
             sel_ref, sel_oth = (ev[np.isin(ev["p"], [int(s > 0) for s in signs])] for ev in (ref_ev, oth_ev))
             ref, oth = (signed_frame(ev, resolution=resolution, signs=signs) for ev in (sel_ref, sel_oth))
@@ -142,8 +148,11 @@ def frame_area_reference(left: np.ndarray, right: np.ndarray, params: FrameAreaP
                 ref, oth = (gaussian_filter(f, sigma=prm.kernel_sigma, kernel_size=prm.kernel_size)
                             for f in (ref, oth))
             # The signal level sees each camera's values at its pixels with events (of the frame's polarity).
-            level.add(k, prm.reference_camera, values_at_events(ref, sel_ref))
-            level.add(k, 1 - prm.reference_camera, values_at_events(oth, sel_oth))
+            for cam, frame, sel in ((prm.reference_camera, ref, sel_ref), (1 - prm.reference_camera, oth, sel_oth)):
+                seen = values_at_events(frame, sel)
+                level.add(k, cam, seen)
+                if frame_gains is not None:
+                    frame_gains.add_frame(k, cam, slot, seen)
             if not (ev_l.size and ev_r.size):
                 continue
             volume = sad_volume(ref, np.asarray(oth, np.float64) * gain, max_disparity=prm.max_disparity,

@@ -1,0 +1,63 @@
+"""The frames' gains between the cameras (value_units of the area matchers): per frame, causal, with a fallback."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cvstereo.matchers._shared.frame_gains import FrameGains, threshold_gains
+from cvstereo.matchers._shared.signal_level import SignalLevelParams
+
+
+def test_gains_are_the_ratio_of_each_frames_levels_once_warm():
+    params = SignalLevelParams(level_warmup=10, level_quantile=0.5, threshold_scale=1.0)
+    gains = FrameGains(params, n_frames=2, unit=0.1, per_frame=True)
+    thresholds = np.array([2.0, 1.0])
+    # Nothing seen: the thresholds' ratio for every frame.
+    np.testing.assert_allclose(gains.gains(0, thresholds), [[2.0, 2.0], [0.5, 0.5]])
+    rng = np.random.default_rng(0)
+    left_off, left_on = rng.uniform(0, 2, 200), rng.uniform(0, 8, 200)      # medians ~1 and ~4
+    right_off, right_on = rng.uniform(0, 6, 200), rng.uniform(0, 2, 200)    # medians ~3 and ~1
+    gains.add(0, 0, np.r_[left_off, left_on], np.r_[np.zeros(200, int), np.ones(200, int)])
+    gains.add(0, 1, np.r_[right_on, right_off], np.r_[np.ones(200, int), np.zeros(200, int)])
+    # Window 0 is still open for window 0 itself (causal): the fallback; from window 1 on, the frames' own levels.
+    np.testing.assert_allclose(gains.gains(0, thresholds), [[2.0, 2.0], [0.5, 0.5]])
+    got = gains.gains(1, thresholds)
+    off = np.median(left_off) / np.median(right_off)
+    on = np.median(left_on) / np.median(right_on)
+    np.testing.assert_allclose(got, [[off, on], [1 / off, 1 / on]])
+    assert got[0, 0] < 1 < got[0, 1]  # the two polarities' ratios on opposite sides of 1
+
+
+def test_a_frame_still_warming_up_keeps_the_fallback_and_nan_values_are_left_out():
+    gains = FrameGains(SignalLevelParams(level_warmup=10, level_quantile=0.5, threshold_scale=1.0), n_frames=2,
+                       unit=0.1, per_frame=True)
+    gains.add(0, 0, np.r_[np.full(20, 1.0), np.full(5, 3.0), np.nan], np.r_[np.zeros(20, int), np.ones(6, int)])
+    gains.add(0, 1, np.r_[np.full(20, 4.0), np.full(5, 3.0)], np.r_[np.zeros(20, int), np.ones(5, int)])
+    np.testing.assert_allclose(gains.gains(1, [3.0, 1.0]), [[0.25, 3.0], [4.0, 1 / 3]])
+
+
+def test_threshold_gains():
+    np.testing.assert_allclose(threshold_gains([0.5, 2.0]), [0.25, 4.0])
+    np.testing.assert_array_equal(threshold_gains([0.0, 2.0]), [1.0, 1.0])
+
+
+def test_levels_below_the_floor_count_as_the_floor():
+    # The right camera's ON frame holds only decayed values far below one isolated event's: its threshold would be
+    # the floor (level_floor * unit = 1), so the ON gain is 3 / 1, not 3 / 1e-5.
+    params = SignalLevelParams(level_warmup=10, level_quantile=0.5, level_floor=1.0, threshold_scale=1.0)
+    gains = FrameGains(params, n_frames=2, unit=1.0, per_frame=True)
+    gains.add(0, 0, np.r_[np.full(20, 2.0), np.full(20, 3.0)], np.r_[np.zeros(20, int), np.ones(20, int)])
+    gains.add(0, 1, np.r_[np.full(20, 4.0), np.full(20, 1e-5)], np.r_[np.zeros(20, int), np.ones(20, int)])
+    np.testing.assert_allclose(gains.gains(1, [2.0, 1.0]), [[0.5, 3.0], [2.0, 1 / 3]])
+    # With a threshold scale the floor binds from level_floor * unit / scale on: both at the floor give 1.
+    gains = FrameGains(SignalLevelParams(level_warmup=10, level_quantile=0.5, level_floor=1.0, threshold_scale=0.25),
+                       n_frames=1, unit=1.0, per_frame=True)
+    gains.add(0, 0, np.full(20, 2.0), np.zeros(20, int))
+    gains.add(0, 1, np.full(20, 3.0), np.zeros(20, int))
+    np.testing.assert_allclose(gains.gains(1, [2.0, 1.0]), [[1.0], [1.0]])
+
+
+def test_one_gain_per_camera_is_the_thresholds_ratio_whatever_the_frames_hold():
+    gains = FrameGains(SignalLevelParams(level_warmup=1), n_frames=2, unit=1.0, per_frame=False)
+    gains.add(0, 0, np.full(20, 9.0), np.zeros(20, int))
+    np.testing.assert_allclose(gains.gains(1, [0.5, 2.0]), [[0.25, 0.25], [4.0, 4.0]])
