@@ -218,12 +218,12 @@ def test_value_units_event_compares_sensors_of_different_thresholds():
     left, right = _mismatched_sensors()
     assert _adaptive_params().value_units == "camera"  # the adaptive set's choice
     results = {}
-    for units in ("own", "camera", "frame"):
+    for units in ("own", "camera", "polarity"):
         matches = feed_cut(EventAreaMatcher(_adaptive_params(value_units=units)), left, right, range(0, 40_000, 3_000))
         results[units] = matches[matches["t"] >= 10_000]  # after the levels' warm-up
     # In each camera's own units a patch of the busy camera never resembles one of the quiet camera: (almost)
     # nothing matches, and nothing at the true shift. In the event's units both cameras' events find it.
-    for units in ("camera", "frame"):
+    for units in ("camera", "polarity"):
         assert results["own"].size < 0.01 * results[units].size
         for cam in (0, 1):
             mine = results[units][results[units]["camera"] == cam]
@@ -232,7 +232,7 @@ def test_value_units_event_compares_sensors_of_different_thresholds():
     assert not np.any(results["own"]["disparity"] == 6)
 
 
-@pytest.mark.parametrize("units", ["own", "camera", "frame"])
+@pytest.mark.parametrize("units", ["own", "camera", "polarity"])
 def test_value_units_fast_equals_reference_on_mismatched_sensors(units):
     from cvstereo.matchers._shared.border import border_rule_for
 

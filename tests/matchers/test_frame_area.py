@@ -168,7 +168,7 @@ def test_invalid_parameters_say_what_to_do():
         FrameAreaMatcher.from_variant("median")
 
 
-@pytest.mark.parametrize("units", ["own", "camera", "frame"])
+@pytest.mark.parametrize("units", ["own", "camera", "polarity"])
 def test_value_units_reference_compares_sensors_of_different_thresholds(units):
     # The same edges, 6 px apart; the left camera fires four times fewer events per edge than the right (a higher
     # contrast threshold), so its frames are about four times weaker. Relative thresholds, short windows.
@@ -180,7 +180,7 @@ def test_value_units_reference_compares_sensors_of_different_thresholds(units):
     left, _ = moving_edges(shift=6, events_per_pixel=2, seed=1)
     _, right = moving_edges(shift=6, events_per_pixel=8, seed=2)
     _, values = resolve("frame-area", None, "adaptive")
-    assert values["value_units"] == "frame"  # the adaptive set's choice
+    assert values["value_units"] == "polarity"  # the adaptive set's choice
     params = FrameAreaMatcher.make_params("gaussian", **{**values, "window_us": 4_000, "level_window_us": 4_000,
                                                          "level_warmup": 20, "value_units": units})
     got = feed_cut(FrameAreaMatcher(params), left, right, range(0, 40_000, 3_000))

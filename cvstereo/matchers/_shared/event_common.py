@@ -114,8 +114,8 @@ class MergedEventMatcher(StreamMatcher):
         #: The gains between the cameras (:class:`cvstereo.matchers._shared.frame_gains.FrameGains`) where the
         #: matcher compares in one camera's units (:meth:`_value_units`); None: each camera's values as they are.
         units = self._value_units()
-        self._gains = None if units == "own" else FrameGains(self.params, n_frames=self._bank.n_frames,
-                                                             unit=dynamic_unit(self.params), per_frame=units == "frame")
+        self._gains = None if units == "own" else FrameGains(
+            self.params, n_frames=self._bank.n_frames, unit=dynamic_unit(self.params), per_frame=units == "polarity")
 
     #: The kernel, serial and parallel (:func:`cvstereo.matchers._shared.row_bands.compile_twice` of a loop over the
     #: row bands): ``kernel(stream, bands, cuts, search, out_pos, out_disparity, counts, values, right_start)``,
@@ -124,7 +124,7 @@ class MergedEventMatcher(StreamMatcher):
 
     def _value_units(self) -> str:
         """``"own"`` (the default): the kernel compares each camera's values as they are; ``"camera"`` or
-        ``"frame"``: the other camera's values multiplied by one gain per camera or per frame (``value_units``)."""
+        ``"polarity"``: the other camera's values multiplied by one gain per camera or per frame (``value_units``)."""
         return "own"
 
     @abc.abstractmethod

@@ -1,5 +1,6 @@
 """The gains between the two cameras' frame values: what the area matchers' ``value_units`` multiplies the other
-camera's values by before a SAD, one per camera (``"camera"``) or one per frame (``"frame"``).
+camera's values by before a SAD, one per camera (``"camera"``) or one per frame (``"polarity"``: OFF and ON apart
+with separate frames).
 
 Two sensors of different contrast thresholds fire different numbers of events at one edge, so their frame values
 differ in amplitude by about the ratio of their thresholds, and a SAD counts that difference as a mismatch. The ON

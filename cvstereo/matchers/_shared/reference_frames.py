@@ -174,10 +174,10 @@ class LevelByWindow:
     def __init__(self, params, *, value_name: str = "dynamic-frame value", gains_frames: int = 0,
                  value_units: str = "own"):
         self.level = SignalLevel(params, absolute=params.threshold, unit=dynamic_unit(params), value_name=value_name)
-        #: The gains between the cameras (``value_units`` "camera" or "frame", ``gains_frames`` frames per
+        #: The gains between the cameras (``value_units`` "camera" or "polarity", ``gains_frames`` frames per
         #: camera), else None.
         self.frame_gains = None if value_units == "own" else FrameGains(
-            params, n_frames=gains_frames, unit=dynamic_unit(params), per_frame=value_units == "frame")
+            params, n_frames=gains_frames, unit=dynamic_unit(params), per_frame=value_units == "polarity")
         self.window_us = int(params.level_window_us)
         self.current: int | None = None
         self.values: tuple[list[float], list[float]] = ([], [])
@@ -226,7 +226,7 @@ def match_merged(left: np.ndarray, right: np.ndarray, params: DynamicFrameParams
 
     The frame of each camera is decayed to the event's time first; events of a dropped polarity are skipped.
     The value each event reads at its own pixel before its update feeds the signal level (:class:`LevelByWindow`),
-    and with ``value_units`` "camera" or "frame" the gains between the cameras
+    and with ``value_units`` "camera" or "polarity" the gains between the cameras
     (:class:`~cvstereo.matchers._shared.frame_gains.FrameGains`), which ``match_event`` then gets as its last
     argument.
 

@@ -48,12 +48,12 @@ class EventAreaParams(BorderParams, SignalLevelParams, DynamicFrameParams):
     uniqueness : float
         0 (the thesis): off. Otherwise a match is dropped when a candidate more than 1 px from the winner has a
         SAD at most ``1 + uniqueness`` times the winner's (ambiguous), as OpenCV's ``uniquenessRatio`` / 100.
-    value_units : {"own", "camera", "frame"}
+    value_units : {"own", "camera", "polarity"}
         ``own`` (the thesis): each camera's frame values as accumulated. Otherwise the other camera's values are
         brought into the units of the event's camera before the SAD: two sensors of different contrast thresholds
         fire different numbers of events at one edge, and their frames differ in amplitude by about the ratio of
         the thresholds, which the SAD would count as a mismatch. ``camera``: one factor per camera, the ratio of
-        the two cameras' thresholds in force; ``frame``: one per frame (OFF and ON apart with separate frames),
+        the two cameras' thresholds in force; ``polarity``: one per frame (OFF and ON apart with separate frames),
         the ratio of the thresholds each frame's own signal level implies
         (:class:`~cvstereo.matchers._shared.frame_gains.FrameGains`).
     """
@@ -85,7 +85,7 @@ class EventAreaParams(BorderParams, SignalLevelParams, DynamicFrameParams):
     sad_frames: Literal["own", "all"] = "own"
     own_ratio: float = param(0.0, ge=0, note="0: off, the thesis")
     uniqueness: float = param(0.0, ge=0, note="0: off, the thesis")
-    value_units: Literal["own", "camera", "frame"] = "own"
+    value_units: Literal["own", "camera", "polarity"] = "own"
 
 
     @property

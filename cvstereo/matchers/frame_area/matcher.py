@@ -310,7 +310,7 @@ class FrameAreaMatcher(FrameMatcher):
         self._sparse = sparse if sparse.exact else None  # None: dense frames (cv2's filter), e.g. other kernels
         # The gains between the cameras (value_units), fed with the values the level sees.
         self._gains = None if prm.value_units == "own" else FrameGains(
-            prm, n_frames=slot_of_p(prm.polarity)[0], unit=filtered_unit(prm), per_frame=prm.value_units == "frame")
+            prm, n_frames=slot_of_p(prm.polarity)[0], unit=filtered_unit(prm), per_frame=prm.value_units == "polarity")
 
     def _frame_gains(self, k: int, thresholds: np.ndarray) -> np.ndarray:
         """(2, frames): the factor on the compared frame of each slot in the reference camera's scan (row

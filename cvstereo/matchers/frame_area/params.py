@@ -40,12 +40,12 @@ class FrameAreaParams(BorderParams, SignalLevelParams, WindowFrameParams):
         False (the thesis): every scanned winner stands. True: the other camera's frame is scanned too, as the
         reference, and a pixel keeps its disparity d only where the other scan's disparity at the pixel it
         names (``x + d`` in the left frame, ``x - d`` in the right) lies within 1 px of d (left-right check).
-    value_units : {"own", "camera", "frame"}
+    value_units : {"own", "camera", "polarity"}
         ``own`` (the thesis): each camera's frame as accumulated. Otherwise the other camera's frame is brought
         into the scanning camera's units before the SAD (the reference camera's; the left-right check's scan the
         other way by the inverse): two sensors of different contrast thresholds fire different numbers of events
         at one edge, and the SAD would count the difference in amplitude. ``camera``: one factor, the ratio of
-        the two cameras' thresholds in force; ``frame``: one per frame (OFF and ON apart with separate frames),
+        the two cameras' thresholds in force; ``polarity``: one per frame (OFF and ON apart with separate frames),
         the ratio of the thresholds each frame's own signal level implies
         (:class:`~cvstereo.matchers._shared.frame_gains.FrameGains`).
     """
@@ -61,7 +61,7 @@ class FrameAreaParams(BorderParams, SignalLevelParams, WindowFrameParams):
             "is that of its own unfiltered values; at 1.6 x it kept 556 estimates on movingPersons against the thesis "
             "set's 4613, now 3720, of which 3670 within 1 px of 13: 111 % of the thesis set's 3320)",
         params={**ADAPTIVE_THESIS, "threshold_scale": 0.6, "polarity": "separate", "lr_check": True,
-                "value_units": "frame"},
+                "value_units": "polarity"},
     )
 
     threshold: float = param(2.0, gt=0, note="the thesis uses 2, or 4 without the Gaussian")
@@ -70,4 +70,4 @@ class FrameAreaParams(BorderParams, SignalLevelParams, WindowFrameParams):
     reference_camera: Literal[0, 1] = param(1, note="0: left, 1: right")
     polarity: Polarity = "shared"
     lr_check: bool = False
-    value_units: Literal["own", "camera", "frame"] = "own"
+    value_units: Literal["own", "camera", "polarity"] = "own"

@@ -129,7 +129,7 @@ def frame_area_reference(left: np.ndarray, right: np.ndarray, params: FrameAreaP
     level = SignalLevel(prm, absolute=prm.threshold, unit=filtered_unit(prm),
                         value_name="filtered value" if prm.gaussian else "frame value")
     frame_gains = None if prm.value_units == "own" else FrameGains(
-        prm, n_frames=len(frame_signs(prm.polarity)), unit=filtered_unit(prm), per_frame=prm.value_units == "frame")
+        prm, n_frames=len(frame_signs(prm.polarity)), unit=filtered_unit(prm), per_frame=prm.value_units == "polarity")
     parts = []
     for t_end, ev_l, ev_r in window_events(left, right, prm.window_us, every=True):
         k = (t_end - prm.window_us) // prm.level_window_us
