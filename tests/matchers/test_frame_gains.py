@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from cvstereo.matchers._shared.frame_gains import FrameGains, threshold_gains
 from cvstereo.matchers._shared.signal_level import SignalLevelParams
@@ -10,7 +11,7 @@ from cvstereo.matchers._shared.signal_level import SignalLevelParams
 
 def test_gains_are_the_ratio_of_each_frames_levels_once_warm():
     params = SignalLevelParams(level_warmup=10, level_quantile=0.5, threshold_scale=1.0)
-    gains = FrameGains(params, n_frames=2, unit=0.1, per_frame=True)
+    gains = FrameGains(params, n_frames=2, unit=0.1, units="polarity")
     thresholds = np.array([2.0, 1.0])
     # Nothing seen: the thresholds' ratio for every frame.
     np.testing.assert_allclose(gains.gains(0, thresholds), [[2.0, 2.0], [0.5, 0.5]])
@@ -30,7 +31,7 @@ def test_gains_are_the_ratio_of_each_frames_levels_once_warm():
 
 def test_a_frame_still_warming_up_keeps_the_fallback_and_nan_values_are_left_out():
     gains = FrameGains(SignalLevelParams(level_warmup=10, level_quantile=0.5, threshold_scale=1.0), n_frames=2,
-                       unit=0.1, per_frame=True)
+                       unit=0.1, units="polarity")
     gains.add(0, 0, np.r_[np.full(20, 1.0), np.full(5, 3.0), np.nan], np.r_[np.zeros(20, int), np.ones(6, int)])
     gains.add(0, 1, np.r_[np.full(20, 4.0), np.full(5, 3.0)], np.r_[np.zeros(20, int), np.ones(5, int)])
     np.testing.assert_allclose(gains.gains(1, [3.0, 1.0]), [[0.25, 3.0], [4.0, 1 / 3]])
@@ -45,19 +46,27 @@ def test_levels_below_the_floor_count_as_the_floor():
     # The right camera's ON frame holds only decayed values far below one isolated event's: its threshold would be
     # the floor (level_floor * unit = 1), so the ON gain is 3 / 1, not 3 / 1e-5.
     params = SignalLevelParams(level_warmup=10, level_quantile=0.5, level_floor=1.0, threshold_scale=1.0)
-    gains = FrameGains(params, n_frames=2, unit=1.0, per_frame=True)
+    gains = FrameGains(params, n_frames=2, unit=1.0, units="polarity")
     gains.add(0, 0, np.r_[np.full(20, 2.0), np.full(20, 3.0)], np.r_[np.zeros(20, int), np.ones(20, int)])
     gains.add(0, 1, np.r_[np.full(20, 4.0), np.full(20, 1e-5)], np.r_[np.zeros(20, int), np.ones(20, int)])
     np.testing.assert_allclose(gains.gains(1, [2.0, 1.0]), [[0.5, 3.0], [2.0, 1 / 3]])
     # With a threshold scale the floor binds from level_floor * unit / scale on: both at the floor give 1.
     gains = FrameGains(SignalLevelParams(level_warmup=10, level_quantile=0.5, level_floor=1.0, threshold_scale=0.25),
-                       n_frames=1, unit=1.0, per_frame=True)
+                       n_frames=1, unit=1.0, units="polarity")
     gains.add(0, 0, np.full(20, 2.0), np.zeros(20, int))
     gains.add(0, 1, np.full(20, 3.0), np.zeros(20, int))
     np.testing.assert_allclose(gains.gains(1, [2.0, 1.0]), [[1.0], [1.0]])
 
 
 def test_one_gain_per_camera_is_the_thresholds_ratio_whatever_the_frames_hold():
-    gains = FrameGains(SignalLevelParams(level_warmup=1), n_frames=2, unit=1.0, per_frame=False)
+    gains = FrameGains(SignalLevelParams(level_warmup=1), n_frames=2, unit=1.0, units="camera")
     gains.add(0, 0, np.full(20, 9.0), np.zeros(20, int))
     np.testing.assert_allclose(gains.gains(1, [0.5, 2.0]), [[0.25, 0.25], [4.0, 4.0]])
+
+
+def test_own_units_are_all_one_and_unknown_units_are_refused():
+    gains = FrameGains(SignalLevelParams(), n_frames=2, unit=1.0, units="own")
+    assert not gains.estimates
+    np.testing.assert_array_equal(gains.gains(3, [0.5, 2.0]), np.ones((2, 2)))
+    with pytest.raises(ValueError, match="own, camera, polarity"):
+        FrameGains(SignalLevelParams(), n_frames=1, unit=1.0, units="frame")

@@ -111,11 +111,10 @@ class MergedEventMatcher(StreamMatcher):
                                   value_name="dynamic-frame value")
         self._scratch = Scratch()
         self._last_search = (None, None)  # (thresholds' and gains' bytes, the kernel's parameters for them)
-        #: The gains between the cameras (:class:`cvstereo.matchers._shared.frame_gains.FrameGains`) where the
-        #: matcher compares in one camera's units (:meth:`_value_units`); None: each camera's values as they are.
-        units = self._value_units()
-        self._gains = None if units == "own" else FrameGains(
-            self.params, n_frames=self._bank.n_frames, unit=dynamic_unit(self.params), per_frame=units == "polarity")
+        #: The gains between the cameras (:class:`cvstereo.matchers._shared.frame_gains.FrameGains`) in the units
+        #: the matcher compares in (:meth:`_value_units`; all 1 for ``"own"``).
+        self._gains = FrameGains(self.params, n_frames=self._bank.n_frames, unit=dynamic_unit(self.params),
+                                 units=self._value_units())
 
     #: The kernel, serial and parallel (:func:`cvstereo.matchers._shared.row_bands.compile_twice` of a loop over the
     #: row bands): ``kernel(stream, bands, cuts, search, out_pos, out_disparity, counts, values, right_start)``,
@@ -128,22 +127,21 @@ class MergedEventMatcher(StreamMatcher):
         return "own"
 
     @abc.abstractmethod
-    def _search(self, thresholds: np.ndarray, gains: np.ndarray | None) -> tuple:
+    def _search(self, thresholds: np.ndarray, gains: np.ndarray) -> tuple:
         """The kernel's parameters (a NamedTuple) for a level window with each camera's ``thresholds`` and the
-        frames' ``gains`` (:meth:`FrameGains.gains <cvstereo.matchers._shared.frame_gains.FrameGains.gains>`; None
-        where the parameters ask for none)."""
+        frames' ``gains`` (:meth:`FrameGains.gains <cvstereo.matchers._shared.frame_gains.FrameGains.gains>`)."""
 
-    def _search_for(self, thresholds: np.ndarray, gains: np.ndarray | None = None) -> tuple:
+    def _search_for(self, thresholds: np.ndarray, gains: np.ndarray) -> tuple:
         """:meth:`_search`, built once per thresholds and gains in force: they change once per level window, while a
         live stream's small packets each run the kernel (building them again cost as much as a small packet's
         kernel)."""
-        key = thresholds.tobytes() + (b"" if gains is None else gains.tobytes())
+        key = thresholds.tobytes() + gains.tobytes()
         if self._last_search[0] != key:
-            self._last_search = (key, self._search(thresholds.copy(), None if gains is None else gains.copy()))
+            self._last_search = (key, self._search(thresholds.copy(), gains.copy()))
         return self._last_search[1]
 
     def _run_kernel(self, stream: np.ndarray, thresholds: np.ndarray, out_values: tuple[np.ndarray, int],
-                    gains: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                    gains: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Run the merged events (``stream``: :func:`cvstereo.matchers._shared.merge_order.merged_stream`) through the
         kernel with the thresholds of each camera, in one row band per thread
         (:mod:`cvstereo.matchers._shared.row_bands`: the same matches however many); write each event's |D| before
@@ -188,11 +186,10 @@ class MergedEventMatcher(StreamMatcher):
         # Merged straight from the events' fields: no int64 copy of the columns first (half the merge's time).
         stream = merged_stream(*_fields(left), *_fields(right), self._bank.slot_of_p,
                                scratch.take("stream", STREAM_ROWS * n, np.int64), pieces=self._threads)
-        gains = None if self._gains is None else self._gains.gains(k, thresholds)
-        pos, disparity = self._run_kernel(stream, thresholds, (values, left.size), gains)
+        pos, disparity = self._run_kernel(stream, thresholds, (values, left.size), self._gains.gains(k, thresholds))
         self._level.add(k, 0, values[:left.size])
         self._level.add(k, 1, values[left.size:])
-        if self._gains is not None:
+        if self._gains.estimates:  # each event's frame, only where the gains need the values
             slot_of_p = self._bank.slot_of_p
             self._gains.add(k, 0, values[:left.size], slot_of_p[(left["p"] > 0).astype(np.int64)])
             self._gains.add(k, 1, values[left.size:], slot_of_p[(right["p"] > 0).astype(np.int64)])

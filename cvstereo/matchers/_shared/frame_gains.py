@@ -1,6 +1,6 @@
 """The gains between the two cameras' frame values: what the area matchers' ``value_units`` multiplies the other
-camera's values by before a SAD, one per camera (``"camera"``) or one per frame (``"polarity"``: OFF and ON apart
-with separate frames).
+camera's values by before a SAD: 1 (``"own"``), one per camera (``"camera"``) or one per frame (``"polarity"``: OFF
+and ON apart with separate frames).
 
 Two sensors of different contrast thresholds fire different numbers of events at one edge, so their frame values
 differ in amplitude by about the ratio of their thresholds, and a SAD counts that difference as a mismatch. The ON
@@ -19,7 +19,7 @@ frame are known (the warm-up), its gain is the ratio of the thresholds in force.
 
 >>> import numpy as np
 >>> from cvstereo.matchers._shared.signal_level import SignalLevelParams
->>> gains = FrameGains(SignalLevelParams(level_warmup=2, threshold_scale=0.5), n_frames=2, unit=0.1, per_frame=True)
+>>> gains = FrameGains(SignalLevelParams(level_warmup=2, threshold_scale=0.5), n_frames=2, unit=0.1, units="polarity")
 >>> gains.add(0, 0, np.array([1.0, 1.0]), np.array([0, 0]))     # window 0: left OFF values ...
 >>> gains.add(0, 0, np.array([4.0, 4.0]), np.array([1, 1]))     # ... left ON values
 >>> gains.add(0, 1, np.array([2.0, 2.0, 2.0, 2.0]), np.array([0, 0, 1, 1]))
@@ -33,7 +33,10 @@ import numpy as np
 
 from cvstereo.matchers._shared.signal_level import SignalLevel
 
-__all__ = ["FrameGains", "threshold_gains"]
+__all__ = ["VALUE_UNITS", "FrameGains", "threshold_gains"]
+
+#: The ``value_units`` of the area matchers: no gain, one per camera, one per frame.
+VALUE_UNITS = ("own", "camera", "polarity")
 
 
 def threshold_gains(thresholds) -> np.ndarray:
@@ -56,17 +59,26 @@ class FrameGains:
         Frames per camera (2 for separate OFF and ON frames).
     unit : float
         The value of one isolated event (the matcher's; the floor is ``level_floor * unit``).
-    per_frame : bool
-        One gain per frame from the frames' own levels; False: one per camera, the thresholds' ratio (nothing is
-        estimated here).
+    units : {"own", "camera", "polarity"}
+        ``own``: every gain 1; ``camera``: one per camera, the thresholds' ratio; ``polarity``: one per frame from
+        the frames' own levels. Only ``polarity`` estimates anything (:attr:`estimates`).
     """
 
-    def __init__(self, params, *, n_frames: int, unit: float, per_frame: bool):
+    def __init__(self, params, *, n_frames: int, unit: float, units: str = "own"):
+        if units not in VALUE_UNITS:
+            raise ValueError(f"FrameGains: units must be one of {', '.join(VALUE_UNITS)}, got {units!r}.")
         self.n_frames = int(n_frames)
+        self.units = units
         self.scale = float(params.threshold_scale)
         self.floor = float(params.level_floor) * float(unit)
         # One "camera" of the estimator per (camera, frame); the absolute threshold and unit are unused.
-        self._level = SignalLevel(params, absolute=0.0, unit=0.0, n_cameras=2 * self.n_frames) if per_frame else None
+        self._level = SignalLevel(params, absolute=0.0, unit=0.0, n_cameras=2 * self.n_frames) \
+            if units == "polarity" else None
+
+    @property
+    def estimates(self) -> bool:
+        """Whether the gains come from the frames' own levels (``polarity``): only then do they need values."""
+        return self._level is not None
 
     def add(self, k: int, cam: int, values: np.ndarray, slots: np.ndarray) -> None:
         """Add values of camera ``cam`` seen in window ``k``, each in frame ``slots[i]`` (NaN values are left out)."""
@@ -88,7 +100,9 @@ class FrameGains:
         """(2, n_frames) float64 for window ``k``: entry ``[c, s]`` multiplies the other camera's values of frame
         ``s`` in the SAD of camera ``c``: the threshold camera ``c``'s level of frame ``s`` implies over the other
         camera's, where both levels are known (past the warm-up); else the ratio of the ``thresholds`` in force
-        (:func:`threshold_gains`), which is every frame's gain with one gain per camera."""
+        (:func:`threshold_gains`), which is every frame's gain with one gain per camera; all 1 for ``own``."""
+        if self.units == "own":
+            return np.ones((2, self.n_frames))
         out = np.repeat(threshold_gains(thresholds)[:, None], self.n_frames, axis=1)
         if self._level is None:
             return out

@@ -171,13 +171,11 @@ class LevelByWindow:
     event read (per camera), handed to the estimator when its window is complete.
     """
 
-    def __init__(self, params, *, value_name: str = "dynamic-frame value", gains_frames: int = 0,
+    def __init__(self, params, *, value_name: str = "dynamic-frame value", n_frames: int = 1,
                  value_units: str = "own"):
         self.level = SignalLevel(params, absolute=params.threshold, unit=dynamic_unit(params), value_name=value_name)
-        #: The gains between the cameras (``value_units`` "camera" or "polarity", ``gains_frames`` frames per
-        #: camera), else None.
-        self.frame_gains = None if value_units == "own" else FrameGains(
-            params, n_frames=gains_frames, unit=dynamic_unit(params), per_frame=value_units == "polarity")
+        #: The gains between the cameras in ``value_units`` (``n_frames`` frames per camera).
+        self.frame_gains = FrameGains(params, n_frames=n_frames, unit=dynamic_unit(params), units=value_units)
         self.window_us = int(params.level_window_us)
         self.current: int | None = None
         self.values: tuple[list[float], list[float]] = ([], [])
@@ -186,14 +184,13 @@ class LevelByWindow:
         self.gains = None
 
     def at(self, t: int) -> np.ndarray:
-        """The (2,) thresholds in force at time ``t`` (and :attr:`gains`, the frames' gains in force, or None)."""
+        """The (2,) thresholds in force at time ``t`` (and :attr:`gains`, the frames' gains in force)."""
         k = int(t) // self.window_us
         if k != self.current:
             self.close()
             self.current = k
             self.thresholds = self.level.thresholds(k)
-            if self.frame_gains is not None:
-                self.gains = self.frame_gains.gains(k, self.thresholds)
+            self.gains = self.frame_gains.gains(k, self.thresholds)
         return self.thresholds
 
     def seen(self, cam: int, value: float, slot: int = 0) -> None:
@@ -206,8 +203,7 @@ class LevelByWindow:
         if self.current is not None:
             for cam in (0, 1):
                 self.level.add(self.current, cam, np.array(self.values[cam]))
-                if self.frame_gains is not None:
-                    self.frame_gains.add(self.current, cam, np.array(self.values[cam]), np.array(self.slots[cam]))
+                self.frame_gains.add(self.current, cam, np.array(self.values[cam]), np.array(self.slots[cam]))
         self.values = ([], [])
         self.slots = ([], [])
 
@@ -221,14 +217,14 @@ EventSearch = Callable[["DynamicFrames", "DynamicFrames", int, int, int, int, np
 
 
 def match_merged(left: np.ndarray, right: np.ndarray, params: DynamicFrameParams, match_event: EventSearch, *,
-                 resolution: tuple[int, int] = DEFAULT_RESOLUTION, value_units: str = "own") -> np.ndarray:
+                 resolution: tuple[int, int] = DEFAULT_RESOLUTION, value_units: str | None = None) -> np.ndarray:
     """Both cameras' events one at a time in the merged order, each searched, then added to its own frame.
 
     The frame of each camera is decayed to the event's time first; events of a dropped polarity are skipped.
     The value each event reads at its own pixel before its update feeds the signal level (:class:`LevelByWindow`),
-    and with ``value_units`` "camera" or "polarity" the gains between the cameras
-    (:class:`~cvstereo.matchers._shared.frame_gains.FrameGains`), which ``match_event`` then gets as its last
-    argument.
+    and with ``value_units`` (one of :data:`~cvstereo.matchers._shared.frame_gains.VALUE_UNITS`; None: a search
+    that takes no gains) the gains between the cameras (:class:`~cvstereo.matchers._shared.frame_gains.FrameGains`),
+    which ``match_event`` then gets as its last argument.
 
     Returns
     -------
@@ -236,8 +232,8 @@ def match_merged(left: np.ndarray, right: np.ndarray, params: DynamicFrameParams
         One row per event ``match_event`` found a disparity for, in processing order (time-ordered).
     """
     frames = [DynamicFrames(params.frame_params(), resolution=resolution) for _ in range(2)]
-    level = LevelByWindow(params, gains_frames=frames[0].n_frames, value_units=value_units)
-    gains = value_units != "own"
+    level = LevelByWindow(params, n_frames=frames[0].n_frames, value_units=value_units or "own")
+    gains = value_units is not None
     rows = []
     for cam, _, e in merged_events(left, right):
         t, x, y, p = int(e["t"]), int(e["x"]), int(e["y"]), int(e["p"])

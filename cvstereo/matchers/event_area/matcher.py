@@ -333,8 +333,6 @@ class EventAreaMatcher(MergedEventMatcher):
 
     def _search(self, thresholds, gains) -> AreaSearch:
         prm, bank = self.params, self._bank
-        if gains is None:  # value_units="own": each camera's values as they are
-            gains = np.ones((2, bank.n_frames))
         drift = sum_drift(1.0, prm.block) * prm.block * prm.compared_frames  # all entries of one lower bound
         return AreaSearch(bank.kernel, *bank.decay_args, thresholds, prm.block // 2, int(prm.max_disparity),
                           prm.max_costs(thresholds), prm.sad_frames == "all", float(prm.own_ratio),

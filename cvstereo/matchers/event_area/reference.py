@@ -30,15 +30,14 @@ def event_area_reference(left: np.ndarray, right: np.ndarray, params: EventAreaP
     half = prm.block // 2
 
     def search(own: DynamicFrames, other: DynamicFrames, slot: int, cam: int, x: int, y: int,
-               thresholds: np.ndarray, gains: np.ndarray | None = None) -> int | None:
+               thresholds: np.ndarray, gains: np.ndarray) -> int | None:
         if not (abs(own.value(slot, x, y)) >= thresholds[cam] and half <= x < width - half and
                 half <= y < height - half):
             return None
         minimum = prm.max_costs(thresholds)[cam]
         # The frames compared: the event's own, or (sad_frames="all") all of the camera's, in slot order.
         slots = range(own.n_frames) if prm.sad_frames == "all" else (slot,)
-        # The other camera's values of each frame in this camera's units (value_units), else as they are.
-        gain = gains[cam] if gains is not None else np.ones(own.n_frames)
+        gain = gains[cam]  # the other camera's values of each frame in this camera's units (value_units)
         if prm.own_ratio > 0:
             own_abs = 0.0
             for s in slots:

@@ -175,7 +175,7 @@ class EventVectorMatcher(MergedEventMatcher):
         self._bands = BandedState(BoundedFrames(self._bank.stored, self._bank.scale, self._bank.clock, self._bound),
                                   row_fields=("stored", "bound"), halo=0)
 
-    def _search(self, thresholds, gains=None) -> VectorSearch:
+    def _search(self, thresholds, gains) -> VectorSearch:
         prm, bank = self.params, self._bank
         return VectorSearch(bank.kernel, *bank.decay_args, thresholds, bool(prm.require_candidate_threshold),
                             int(prm.max_disparity), float(prm.max_cost), bool(prm.run_ends), float(prm.cost_ratio),

@@ -308,16 +308,11 @@ class FrameAreaMatcher(FrameMatcher):
         sparse = SparseFrames(2 * slot_of_p(prm.polarity)[0], resolution=self.resolution, gaussian=prm.gaussian,
                               kernel_sigma=prm.kernel_sigma, kernel_size=prm.kernel_size)
         self._sparse = sparse if sparse.exact else None  # None: dense frames (cv2's filter), e.g. other kernels
-        # The gains between the cameras (value_units), fed with the values the level sees.
-        self._gains = None if prm.value_units == "own" else FrameGains(
-            prm, n_frames=slot_of_p(prm.polarity)[0], unit=filtered_unit(prm), per_frame=prm.value_units == "polarity")
-
-    def _frame_gains(self, k: int, thresholds: np.ndarray) -> np.ndarray:
-        """(2, frames): the factor on the compared frame of each slot in the reference camera's scan (row
-        ``reference_camera``) and in the left-right check's scan of the other camera (the other row); 1 without
-        ``value_units``."""
-        n_frames = slot_of_p(self.params.polarity)[0]
-        return np.ones((2, n_frames)) if self._gains is None else self._gains.gains(k, thresholds)
+        # The gains between the cameras (value_units), fed with the values the level sees. Row ``reference_camera``
+        # of its gains is the factor on the compared frame of each slot in the reference camera's scan, the other
+        # row that in the left-right check's scan of the other camera.
+        self._gains = FrameGains(prm, n_frames=slot_of_p(prm.polarity)[0], unit=filtered_unit(prm),
+                                 units=prm.value_units)
 
     def anchor_cameras(self) -> tuple[int, ...]:
         return (self.params.reference_camera,)
@@ -347,7 +342,7 @@ class FrameAreaMatcher(FrameMatcher):
         ref_counts, oth_counts = self._counts(window)
         has_ref = (window.right if ref_cam == 1 else window.left).size > 0
         parts = []
-        gains = self._frame_gains(k, thresholds)  # each scan compares in its own camera's units
+        gains = self._gains.gains(k, thresholds)  # each scan compares in its own camera's units
         # Each frame of the polarity mode is scanned and matched on its own (``shared``: the one frame).
         for slot, ((ch, ref), (_, oth)) in enumerate(zip(self._frames(ref_counts), self._frames(oth_counts),
                                                          strict=True)):
@@ -380,7 +375,7 @@ class FrameAreaMatcher(FrameMatcher):
         try:
             ref_ev, oth_ev = (window.right, window.left) if ref_cam == 1 else (window.left, window.right)
             parts = []
-            gains = self._frame_gains(k, thresholds)
+            gains = self._gains.gains(k, thresholds)
             for slot in range(n_frames):
                 ref_plane, oth_plane = ref_cam * n_frames + slot, (1 - ref_cam) * n_frames + slot
                 if ref_ev.size:
@@ -408,5 +403,4 @@ class FrameAreaMatcher(FrameMatcher):
     def _add_level(self, k: int, cam: int, slot: int, values: np.ndarray) -> None:
         """One frame's values of one camera, to the signal level and to the frames' gains."""
         self._level.add(k, cam, values)
-        if self._gains is not None:
-            self._gains.add_frame(k, cam, slot, values)
+        self._gains.add_frame(k, cam, slot, values)
