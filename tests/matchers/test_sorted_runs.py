@@ -51,6 +51,41 @@ def test_runs_sorted_late_give_the_same_quantiles(rng):
             assert runs.quantile(0.9) == float(np.quantile(np.concatenate(live), 0.9)), step
 
 
+@pytest.mark.parametrize("kind", ["continuous", "float32-like"])
+def test_many_short_runs_and_every_quantile(rng, kind):
+    """Up to 250 runs of 0-5 values (ties across runs, empty runs): every rank's pair of neighbours is right."""
+    runs, live = SortedRuns(), []
+    for _ in range(int(rng.integers(1, 250))):
+        v = _values(rng, int(rng.integers(0, 6)), kind)
+        runs.append(v)
+        live.append(v)
+    allv = np.concatenate(live)
+    if allv.size == 0:
+        return
+    for q in np.linspace(0.0, 1.0, 41):
+        assert runs.quantile(q) == float(np.quantile(allv, q)), q
+
+
+def test_the_quantile_of_some_runs_is_that_of_their_values(rng):
+    """``every``/``first``: the runs of one part, as a history of several parts per step keeps them."""
+    runs, live = SortedRuns(), []
+    for _ in range(3 * int(rng.integers(1, 40))):
+        v = _values(rng, int(rng.integers(0, 1500)), "continuous")
+        runs.append(v)
+        live.append(v)
+    for q in (0.0, 0.5, 0.9, 1.0):
+        got = runs.part_quantiles(q, 3, 1)
+        for first in range(3):
+            part = np.concatenate(live[first::3])
+            assert got[first] == float(np.quantile(part, q)) if part.size else np.isnan(got[first])
+    sizes = [sum(v.size for v in live[first::3]) for first in range(3)]
+    got = runs.part_quantiles(0.9, 3, sorted(sizes)[1])  # the smallest part is too small
+    assert [np.isnan(g) for g in got] == [n < sorted(sizes)[1] for n in sizes]
+    assert runs.first_size(3) == sum(v.size for v in live[:3])
+    runs.popleft(3)
+    assert runs.size == sum(v.size for v in live[3:])
+
+
 def test_small_cases_by_hand():
     runs = SortedRuns()
     runs.append(np.array([5.0, 1.0, 3.0]))  # any order: the run is sorted on arrival

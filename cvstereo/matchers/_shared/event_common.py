@@ -107,14 +107,14 @@ class MergedEventMatcher(StreamMatcher):
         super().__init__(params, resolution=resolution)
         self._bank = FrameBank(2, self.params.frame_params(), resolution=self.resolution)
         self._held = (empty_events(), empty_events())
-        self._level = SignalLevel(self.params, absolute=self.params.threshold, unit=dynamic_unit(self.params),
-                                  value_name="dynamic-frame value")
         self._scratch = Scratch()
         self._last_search = (None, None)  # (thresholds' and gains' bytes, the kernel's parameters for them)
         #: The gains between the cameras (:class:`cvstereo.matchers._shared.frame_gains.FrameGains`) in the units
         #: the matcher compares in (:meth:`_value_units`; all 1 for ``"own"``).
         self._gains = FrameGains(self.params, n_frames=self._bank.n_frames, unit=dynamic_unit(self.params),
                                  units=self._value_units())
+        self._level = SignalLevel(self.params, absolute=self.params.threshold, unit=dynamic_unit(self.params),
+                                  value_name="dynamic-frame value", n_parts=self._gains.parts)
 
     #: The kernel, serial and parallel (:func:`cvstereo.matchers._shared.row_bands.compile_twice` of a loop over the
     #: row bands): ``kernel(stream, bands, cuts, search, out_pos, out_disparity, counts, values, right_start)``,
@@ -186,13 +186,15 @@ class MergedEventMatcher(StreamMatcher):
         # Merged straight from the events' fields: no int64 copy of the columns first (half the merge's time).
         stream = merged_stream(*_fields(left), *_fields(right), self._bank.slot_of_p,
                                scratch.take("stream", STREAM_ROWS * n, np.int64), pieces=self._threads)
-        pos, disparity = self._run_kernel(stream, thresholds, (values, left.size), self._gains.gains(k, thresholds))
-        self._level.add(k, 0, values[:left.size])
-        self._level.add(k, 1, values[left.size:])
-        if self._gains.estimates:  # each event's frame, only where the gains need the values
+        gains = self._gains.gains(k, thresholds, self._level)
+        pos, disparity = self._run_kernel(stream, thresholds, (values, left.size), gains)
+        if self._gains.estimates:  # each event's frame, only where the gains need the level split by frame
             slot_of_p = self._bank.slot_of_p
-            self._gains.add(k, 0, values[:left.size], slot_of_p[(left["p"] > 0).astype(np.int64)])
-            self._gains.add(k, 1, values[left.size:], slot_of_p[(right["p"] > 0).astype(np.int64)])
+            self._gains.add(self._level, k, 0, values[:left.size], slot_of_p[(left["p"] > 0).astype(np.int64)])
+            self._gains.add(self._level, k, 1, values[left.size:], slot_of_p[(right["p"] > 0).astype(np.int64)])
+        else:
+            self._level.add(k, 0, values[:left.size])
+            self._level.add(k, 1, values[left.size:])
         return matches_at((left, right), stream, pos, disparity)
 
     def _feed(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:

@@ -7,31 +7,32 @@ differ in amplitude by about the ratio of their thresholds, and a SAD counts tha
 and the OFF threshold of a sensor are set apart (two biases), so the ratio differs by polarity, and may even lie on
 opposite sides of 1 (the left camera's ON events thinner than the right's, its OFF events denser). With one gain per
 camera it is the ratio of the two cameras' thresholds in force (:func:`threshold_gains`: they follow each camera's
-signal level over all its frames). With one per frame, :class:`FrameGains` estimates each camera's signal level per
-frame (an OFF and an ON frame with ``polarity="separate"``, one frame
-otherwise) with the same causal estimator as the thresholds (:class:`~cvstereo.matchers._shared.signal_level.
-SignalLevel`: a high quantile of the values the events read at their own pixels over the last second, from windows
-before the current one), and the gain of a frame as the ratio of the thresholds the two cameras' levels of that
+signal level over all its frames). With one per frame, the matcher's own signal level
+(:class:`~cvstereo.matchers._shared.signal_level.SignalLevel`: a high quantile of the values the events read at
+their own pixels over the last second, from windows before the current one) keeps each camera's values split by
+frame (an OFF and an ON part with ``polarity="separate"``; :attr:`FrameGains.parts`), and each part has a level of
+its own from the same windows; the gain of a frame is the ratio of the thresholds the two cameras' levels of that
 frame imply: ``max(threshold_scale * level, level_floor * unit)`` each, as the thresholds themselves are made. The
 floor matters: a sparse recording's frames read mostly decayed values far below one isolated event's, whose ratio
 is noise (it reached thousands on movingPersons); at the floor both cameras count alike. Until both levels of a
-frame are known (the warm-up), its gain is the ratio of the thresholds in force.
+frame are known (the warm-up: ``level_warmup`` values of that frame), its gain is the ratio of the thresholds in
+force. The parts share the thresholds' history and its sorted runs, so the per-frame levels cost a few searches per
+window, not a second estimator.
 
 >>> import numpy as np
->>> from cvstereo.matchers._shared.signal_level import SignalLevelParams
->>> gains = FrameGains(SignalLevelParams(level_warmup=2, threshold_scale=0.5), n_frames=2, unit=0.1, units="polarity")
->>> gains.add(0, 0, np.array([1.0, 1.0]), np.array([0, 0]))     # window 0: left OFF values ...
->>> gains.add(0, 0, np.array([4.0, 4.0]), np.array([1, 1]))     # ... left ON values
->>> gains.add(0, 1, np.array([2.0, 2.0, 2.0, 2.0]), np.array([0, 0, 1, 1]))
->>> gains.gains(1, np.array([1.0, 1.0])).tolist()             # [camera][frame]: left OFF 0.5 x the right's, ON 2 x
+>>> from cvstereo.matchers._shared.signal_level import SignalLevel, SignalLevelParams
+>>> params = SignalLevelParams(level_warmup=2, threshold_scale=0.5)
+>>> gains = FrameGains(params, n_frames=2, unit=0.1, units="polarity")
+>>> level = SignalLevel(params, absolute=1.0, unit=0.1, n_parts=gains.parts)
+>>> gains.add(level, 0, 0, np.array([1.0, 1.0, 4.0, 4.0]), np.array([0, 0, 1, 1]))  # window 0, left: OFF, ON
+>>> gains.add(level, 0, 1, np.array([2.0, 2.0, 2.0, 2.0]), np.array([0, 0, 1, 1]))
+>>> gains.gains(1, level.thresholds(1), level).tolist()  # [camera][frame]: left OFF 0.5 x the right's, ON 2 x
 [[0.5, 2.0], [2.0, 0.5]]
 """
 
 from __future__ import annotations
 
 import numpy as np
-
-from cvstereo.matchers._shared.signal_level import SignalLevel
 
 __all__ = ["VALUE_UNITS", "FrameGains", "threshold_gains"]
 
@@ -49,19 +50,20 @@ def threshold_gains(thresholds) -> np.ndarray:
 
 
 class FrameGains:
-    """Each camera's signal level per frame, online and causal, and the gains between the cameras they imply.
+    """The gains between the cameras in ``value_units``, from the thresholds in force and the frames' own levels.
 
     Parameters
     ----------
     params : SignalLevelParams (or a matcher's parameters that extend it)
-        The level's windows, quantile and warm-up (the thresholds' own).
+        The thresholds' scale and floor.
     n_frames : int
         Frames per camera (2 for separate OFF and ON frames).
     unit : float
         The value of one isolated event (the matcher's; the floor is ``level_floor * unit``).
     units : {"own", "camera", "polarity"}
         ``own``: every gain 1; ``camera``: one per camera, the thresholds' ratio; ``polarity``: one per frame from
-        the frames' own levels. Only ``polarity`` estimates anything (:attr:`estimates`).
+        the frames' own levels. Only ``polarity`` estimates anything (:attr:`estimates`): the matcher's signal level
+        then keeps :attr:`parts` parts.
     """
 
     def __init__(self, params, *, n_frames: int, unit: float, units: str = "own"):
@@ -71,42 +73,43 @@ class FrameGains:
         self.units = units
         self.scale = float(params.threshold_scale)
         self.floor = float(params.level_floor) * float(unit)
-        # One "camera" of the estimator per (camera, frame); the absolute threshold and unit are unused.
-        self._level = SignalLevel(params, absolute=0.0, unit=0.0, n_cameras=2 * self.n_frames) \
-            if units == "polarity" else None
 
     @property
     def estimates(self) -> bool:
-        """Whether the gains come from the frames' own levels (``polarity``): only then do they need values."""
-        return self._level is not None
+        """Whether the gains come from the frames' own levels (``polarity``)."""
+        return self.units == "polarity"
 
-    def add(self, k: int, cam: int, values: np.ndarray, slots: np.ndarray) -> None:
-        """Add values of camera ``cam`` seen in window ``k``, each in frame ``slots[i]`` (NaN values are left out)."""
-        if self._level is None:
-            return
-        values = np.asarray(values)
-        if self.n_frames == 1:
-            self.add_frame(k, cam, 0, values)
+    @property
+    def parts(self) -> int:
+        """The parts the matcher's :class:`~cvstereo.matchers._shared.signal_level.SignalLevel` keeps of each
+        camera's values (``n_parts``): one per frame where the gains estimate, else 1."""
+        return self.n_frames if self.estimates else 1
+
+    def part_of(self, slot: int) -> int:
+        """The part of the signal level that the values of frame ``slot`` go to."""
+        return slot if self.estimates else 0
+
+    def add(self, level, k: int, cam: int, values: np.ndarray, slots: np.ndarray) -> None:
+        """Add values of camera ``cam`` seen in window ``k``, each of frame ``slots[i]``, to the signal level
+        ``level`` (split by frame where the gains estimate; NaN values are left out)."""
+        if level.n_parts == 1:
+            level.add(k, cam, values)
             return
         for slot in range(self.n_frames):
-            self.add_frame(k, cam, slot, values[slots == slot])
+            level.add(k, cam, values[slots == slot], part=slot)
 
-    def add_frame(self, k: int, cam: int, slot: int, values: np.ndarray) -> None:
-        """Add values of frame ``slot`` of camera ``cam`` seen in window ``k`` (NaN values are left out)."""
-        if self._level is not None:
-            self._level.add(k, cam * self.n_frames + slot, values)
-
-    def gains(self, k: int, thresholds) -> np.ndarray:
+    def gains(self, k: int, thresholds, level=None) -> np.ndarray:
         """(2, n_frames) float64 for window ``k``: entry ``[c, s]`` multiplies the other camera's values of frame
         ``s`` in the SAD of camera ``c``: the threshold camera ``c``'s level of frame ``s`` implies over the other
-        camera's, where both levels are known (past the warm-up); else the ratio of the ``thresholds`` in force
+        camera's, where both are known (``level``'s :meth:`~cvstereo.matchers._shared.signal_level.SignalLevel.
+        part_levels`, read only where the gains estimate); else the ratio of the ``thresholds`` in force
         (:func:`threshold_gains`), which is every frame's gain with one gain per camera; all 1 for ``own``."""
         if self.units == "own":
             return np.ones((2, self.n_frames))
         out = np.repeat(threshold_gains(thresholds)[:, None], self.n_frames, axis=1)
-        if self._level is None:
+        if not self.estimates:
             return out
-        levels = self._level.levels(k).reshape(2, self.n_frames)
+        levels = level.part_levels(k)
         for s in range(self.n_frames):
             if np.isfinite(levels[0, s]) and np.isfinite(levels[1, s]):
                 a, b = (max(self.scale * float(lv), self.floor) for lv in levels[:, s])

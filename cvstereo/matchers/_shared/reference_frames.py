@@ -173,9 +173,10 @@ class LevelByWindow:
 
     def __init__(self, params, *, value_name: str = "dynamic-frame value", n_frames: int = 1,
                  value_units: str = "own"):
-        self.level = SignalLevel(params, absolute=params.threshold, unit=dynamic_unit(params), value_name=value_name)
         #: The gains between the cameras in ``value_units`` (``n_frames`` frames per camera).
         self.frame_gains = FrameGains(params, n_frames=n_frames, unit=dynamic_unit(params), units=value_units)
+        self.level = SignalLevel(params, absolute=params.threshold, unit=dynamic_unit(params), value_name=value_name,
+                                 n_parts=self.frame_gains.parts)
         self.window_us = int(params.level_window_us)
         self.current: int | None = None
         self.values: tuple[list[float], list[float]] = ([], [])
@@ -190,7 +191,7 @@ class LevelByWindow:
             self.close()
             self.current = k
             self.thresholds = self.level.thresholds(k)
-            self.gains = self.frame_gains.gains(k, self.thresholds)
+            self.gains = self.frame_gains.gains(k, self.thresholds, self.level)
         return self.thresholds
 
     def seen(self, cam: int, value: float, slot: int = 0) -> None:
@@ -202,8 +203,8 @@ class LevelByWindow:
         """Hand the current window's values to the estimator."""
         if self.current is not None:
             for cam in (0, 1):
-                self.level.add(self.current, cam, np.array(self.values[cam]))
-                self.frame_gains.add(self.current, cam, np.array(self.values[cam]), np.array(self.slots[cam]))
+                self.frame_gains.add(self.level, self.current, cam, np.array(self.values[cam]),
+                                     np.array(self.slots[cam], np.int64))
         self.values = ([], [])
         self.slots = ([], [])
 

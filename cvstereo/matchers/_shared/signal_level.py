@@ -64,6 +64,7 @@ MAX_HISTORY_FACTOR = 10
 
 #: Report the threshold in force once every this many windows of values (1 s of 40 ms windows).
 _TRACE_EVERY = 25
+_NONE = np.empty(0, np.float64)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -121,19 +122,25 @@ class SignalLevel:
     value_name : str
         What the values are, for messages ("filtered value", "dynamic-frame value").
     n_cameras : int
+    n_parts : int
+        Parts of each camera's values (the frames of a matcher with separate OFF and ON frames), each with a level
+        of its own (:meth:`part_levels`) from the same windows as the camera's; 1: no parts.
     """
 
-    def __init__(self, params, *, absolute: float, unit: float, value_name: str = "value", n_cameras: int = 2):
+    def __init__(self, params, *, absolute: float, unit: float, value_name: str = "value", n_cameras: int = 2,
+                 n_parts: int = 1):
         self.params = level_params(params)
+        self.n_parts = int(n_parts)
         self.absolute = float(absolute)
         self.unit = float(unit)
         self.value_name = value_name
         self.n_cameras = n_cameras
-        # Each camera's history: one sorted run of values per window, oldest first (quantiles without a
+        # Each camera's history: one sorted run of values per window and part, oldest first (quantiles without a
         # partition of the whole history per window: see cvstereo.matchers._shared.sorted_runs).
         self._history = [SortedRuns() for _ in range(n_cameras)]
-        self._open: dict[int, list[list[np.ndarray]]] = {}  # window -> per camera chunks of values
+        self._open: dict[int, list[list[list[np.ndarray]]]] = {}  # window -> per camera, per part chunks of values
         self._levels: dict[int, np.ndarray] = {}  # window -> level in force (NaN: warming up)
+        self._part_levels: dict[int, np.ndarray] = {}  # window -> (cameras, parts) levels in force, n_parts > 1
         self._seen = 0
         self._with_candidates = 0
         self._best_ratio = -1.0
@@ -152,7 +159,16 @@ class SignalLevel:
         if k not in self._levels:
             self._close_before(k)
             self._levels[k] = self._current_levels()
+            if self.n_parts > 1:
+                self._part_levels[k] = self._current_part_levels()
         return self._levels[k]
+
+    def part_levels(self, k: int) -> np.ndarray:
+        """(cameras, parts) float64: the level of each part of each camera's values in force for window ``k``:
+        the quantile of that part's values in the camera's history (the windows of :meth:`levels`); NaN while the
+        part holds fewer than ``level_warmup`` values. With one part, :meth:`levels` as a column."""
+        levels = self.levels(k)
+        return self._part_levels[int(k)] if self.n_parts > 1 else levels[:, None]
 
     def relative(self, k: int, *, absolute: float, scale: float, floor: float = 0.0) -> np.ndarray:
         """``max(scale * level, floor)`` per camera for window ``k``; ``absolute`` in absolute mode or warm-up."""
@@ -165,8 +181,9 @@ class SignalLevel:
         p = self.params
         return self.relative(k, absolute=self.absolute, scale=p.threshold_scale, floor=p.level_floor * self.unit)
 
-    def add(self, k: int, cam: int, values: np.ndarray) -> None:
-        """Add values of camera ``cam`` seen in window ``k`` (|value| is taken; NaN values are left out)."""
+    def add(self, k: int, cam: int, values: np.ndarray, part: int = 0) -> None:
+        """Add values of camera ``cam`` (of its part ``part``) seen in window ``k`` (|value| is taken; NaN values
+        are left out)."""
         k = int(k)
         v = np.abs(np.asarray(values, dtype=np.float64))
         v = v[~np.isnan(v)]
@@ -174,13 +191,16 @@ class SignalLevel:
             return
         if self._levels and k < max(self._levels):
             raise ValueError(f"SignalLevel: values of window {k} come after window {max(self._levels)} was used.")
-        self._open.setdefault(k, [[] for _ in range(self.n_cameras)])[cam].append(v)
+        window = self._open.get(k)
+        if window is None:
+            window = self._open[k] = [[[] for _ in range(self.n_parts)] for _ in range(self.n_cameras)]
+        window[cam][part].append(v)
 
     def _close_before(self, k: int) -> None:
         """Move the complete windows < k into the history (in window order), with their diagnostics."""
         p = self.params
         for j in sorted(w for w in self._open if w < k):
-            chunks = self._open.pop(j)
+            window = self._open.pop(j)
             # The history holds exactly the windows < j now: the level that was (or would have been) in force.
             lv = self._levels.pop(j, None)
             if lv is None:
@@ -189,12 +209,13 @@ class SignalLevel:
             thr = _scaled(lv, self.absolute, p.threshold_scale, p.level_floor * self.unit) if p.relative else \
                 np.full(self.n_cameras, self.absolute)
             reached = False
-            for cam, parts in enumerate(chunks):
-                if not parts:
+            for cam, by_part in enumerate(window):
+                if not any(by_part):
                     continue
-                v = parts[0] if len(parts) == 1 else np.concatenate(parts)  # add() copied them: no need to again
-                self._remember(cam, v)
-                top = float(v.max())
+                # add() copied the chunks: no need to again
+                runs = [np.concatenate(c) if len(c) > 1 else c[0] if c else _NONE for c in by_part]
+                self._remember(cam, runs)
+                top = max(float(v.max()) for v in runs if v.size)
                 reached |= bool(top >= thr[cam])
                 ratio = top / thr[cam] if thr[cam] > 0 else math.inf
                 if ratio > self._best_ratio:
@@ -207,16 +228,20 @@ class SignalLevel:
             self._with_candidates += reached
         for j in [w for w in self._levels if w < k]:
             del self._levels[j]
+        for j in [w for w in self._part_levels if w < k]:
+            del self._part_levels[j]
 
-    def _remember(self, cam: int, values: np.ndarray) -> None:
-        """Append a window's values; forget the oldest windows beyond ``level_windows`` that are not needed to
-        hold ``level_warmup`` values (and any beyond ``MAX_HISTORY_FACTOR * level_windows``)."""
+    def _remember(self, cam: int, runs: list[np.ndarray]) -> None:
+        """Append a window's values (one run per part); forget the oldest windows beyond ``level_windows`` that are
+        not needed to hold ``level_warmup`` values (and any beyond ``MAX_HISTORY_FACTOR * level_windows``)."""
         p = self.params
         hist = self._history[cam]
-        hist.append(values)
-        while len(hist) > p.level_windows and (hist.size - hist.first_size() >= p.level_warmup
-                                               or len(hist) > MAX_HISTORY_FACTOR * p.level_windows):
-            hist.popleft()
+        for run in runs:
+            hist.append(run)
+        g = self.n_parts
+        while len(hist) > g * p.level_windows and (hist.size - hist.first_size(g) >= p.level_warmup
+                                                   or len(hist) > g * MAX_HISTORY_FACTOR * p.level_windows):
+            hist.popleft(g)
 
     def _current_levels(self) -> np.ndarray:
         p = self.params
@@ -224,6 +249,14 @@ class SignalLevel:
         for cam, hist in enumerate(self._history):
             if hist.size >= p.level_warmup:
                 out[cam] = hist.quantile(p.level_quantile)  # = np.quantile of the history's values
+        return out
+
+    def _current_part_levels(self) -> np.ndarray:
+        p = self.params
+        out = np.full((self.n_cameras, self.n_parts), np.nan)
+        for cam, hist in enumerate(self._history):
+            if hist.size >= p.level_warmup:
+                out[cam] = hist.part_quantiles(p.level_quantile, self.n_parts, p.level_warmup)
         return out
 
     def _warm_levels(self) -> np.ndarray:

@@ -298,7 +298,12 @@ class FrameAreaMatcher(FrameMatcher):
     def __init__(self, params=None, *, resolution=(128, 128)):
         super().__init__(params, resolution=resolution)
         prm = self.params
-        self._level = SignalLevel(prm, absolute=prm.threshold, unit=filtered_unit(prm),
+        # The gains between the cameras (value_units): row ``reference_camera`` of its gains is the factor on the
+        # compared frame of each slot in the reference camera's scan, the other row that in the left-right check's
+        # scan of the other camera. Per frame, they read the level's parts.
+        self._gains = FrameGains(prm, n_frames=slot_of_p(prm.polarity)[0], unit=filtered_unit(prm),
+                                 units=prm.value_units)
+        self._level = SignalLevel(prm, absolute=prm.threshold, unit=filtered_unit(prm), n_parts=self._gains.parts,
                                   value_name="filtered value" if prm.gaussian else "frame value")
         h, w = self.resolution[1], self.resolution[0]
         # Buffers of the sparse scan, reused, per direction (the reference camera's scan, the other camera's for
@@ -308,11 +313,6 @@ class FrameAreaMatcher(FrameMatcher):
         sparse = SparseFrames(2 * slot_of_p(prm.polarity)[0], resolution=self.resolution, gaussian=prm.gaussian,
                               kernel_sigma=prm.kernel_sigma, kernel_size=prm.kernel_size)
         self._sparse = sparse if sparse.exact else None  # None: dense frames (cv2's filter), e.g. other kernels
-        # The gains between the cameras (value_units), fed with the values the level sees. Row ``reference_camera``
-        # of its gains is the factor on the compared frame of each slot in the reference camera's scan, the other
-        # row that in the left-right check's scan of the other camera.
-        self._gains = FrameGains(prm, n_frames=slot_of_p(prm.polarity)[0], unit=filtered_unit(prm),
-                                 units=prm.value_units)
 
     def anchor_cameras(self) -> tuple[int, ...]:
         return (self.params.reference_camera,)
@@ -342,7 +342,7 @@ class FrameAreaMatcher(FrameMatcher):
         ref_counts, oth_counts = self._counts(window)
         has_ref = (window.right if ref_cam == 1 else window.left).size > 0
         parts = []
-        gains = self._gains.gains(k, thresholds)  # each scan compares in its own camera's units
+        gains = self._gains.gains(k, thresholds, self._level)  # each scan in its own camera's units
         # Each frame of the polarity mode is scanned and matched on its own (``shared``: the one frame).
         for slot, ((ch, ref), (_, oth)) in enumerate(zip(self._frames(ref_counts), self._frames(oth_counts),
                                                          strict=True)):
@@ -375,7 +375,7 @@ class FrameAreaMatcher(FrameMatcher):
         try:
             ref_ev, oth_ev = (window.right, window.left) if ref_cam == 1 else (window.left, window.right)
             parts = []
-            gains = self._gains.gains(k, thresholds)
+            gains = self._gains.gains(k, thresholds, self._level)
             for slot in range(n_frames):
                 ref_plane, oth_plane = ref_cam * n_frames + slot, (1 - ref_cam) * n_frames + slot
                 if ref_ev.size:
@@ -401,6 +401,5 @@ class FrameAreaMatcher(FrameMatcher):
         self._add_level(k, 1 - ref_cam, slot, oth[event_mask(oth_counts, channel=channel)])
 
     def _add_level(self, k: int, cam: int, slot: int, values: np.ndarray) -> None:
-        """One frame's values of one camera, to the signal level and to the frames' gains."""
-        self._level.add(k, cam, values)
-        self._gains.add_frame(k, cam, slot, values)
+        """One frame's values of one camera, to the signal level (to its part of the frame, for the gains)."""
+        self._level.add(k, cam, values, part=self._gains.part_of(slot))

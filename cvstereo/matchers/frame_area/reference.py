@@ -126,16 +126,16 @@ def frame_area_reference(left: np.ndarray, right: np.ndarray, params: FrameAreaP
     cvstereo.matchers._shared.reference : the arguments, the same for every reference function.
     """
     prm = params if params is not None else FrameAreaParams()
-    level = SignalLevel(prm, absolute=prm.threshold, unit=filtered_unit(prm),
-                        value_name="filtered value" if prm.gaussian else "frame value")
     frame_gains = FrameGains(prm, n_frames=len(frame_signs(prm.polarity)), unit=filtered_unit(prm),
                              units=prm.value_units)
+    level = SignalLevel(prm, absolute=prm.threshold, unit=filtered_unit(prm), n_parts=frame_gains.parts,
+                        value_name="filtered value" if prm.gaussian else "frame value")
     parts = []
     for t_end, ev_l, ev_r in window_events(left, right, prm.window_us, every=True):
         k = (t_end - prm.window_us) // prm.level_window_us
         thresholds = level.thresholds(k)
         threshold = thresholds[prm.reference_camera]
-        gains = frame_gains.gains(k, thresholds)  # each scan in its own camera's units (value_units): [camera, frame]
+        gains = frame_gains.gains(k, thresholds, level)  # each scan in its own camera's units: [camera, frame]
         ref_ev, oth_ev = (ev_r, ev_l) if prm.reference_camera == 1 else (ev_l, ev_r)
         for slot, signs in enumerate(frame_signs(prm.polarity)):  # each frame of the polarity mode on its own
             gain, back_gain = gains[prm.reference_camera, slot], gains[1 - prm.reference_camera, slot]
@@ -147,9 +147,7 @@ def frame_area_reference(left: np.ndarray, right: np.ndarray, params: FrameAreaP
                             for f in (ref, oth))
             # The signal level sees each camera's values at its pixels with events (of the frame's polarity).
             for cam, frame, sel in ((prm.reference_camera, ref, sel_ref), (1 - prm.reference_camera, oth, sel_oth)):
-                seen = values_at_events(frame, sel)
-                level.add(k, cam, seen)
-                frame_gains.add_frame(k, cam, slot, seen)
+                level.add(k, cam, values_at_events(frame, sel), part=frame_gains.part_of(slot))
             if not (ev_l.size and ev_r.size):
                 continue
             volume = sad_volume(ref, np.asarray(oth, np.float64) * gain, max_disparity=prm.max_disparity,
