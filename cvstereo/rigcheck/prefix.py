@@ -9,14 +9,18 @@ whole of a short one). What it found is applied to the whole stream:
 
 - the cameras are exchanged when the check says so with confidence :attr:`PrefixRigCheck.swap_min_confidence`
   or more (a swap in error ruins every match, one not made is obvious from the negative disparities);
-- the row offset when its confidence reaches :attr:`PrefixRigCheck.row_min_confidence`;
+- the row offset when its confidence reaches :attr:`PrefixRigCheck.row_min_confidence`; below it, the rows by
+  matching (:mod:`cvstereo.rigcheck.rows_by_matching`: the offset, of -8 to 8, at which a matcher answers most on
+  the prefix's first 80 ms, or 100,000 events per camera where they take longer) when their profile's prominence
+  reaches :attr:`PrefixRigCheck.matching_min_prominence`, else none;
 - the time offset only when :meth:`RigReport.time_offset_applicable
   <cvstereo.rigcheck.report.RigReport.time_offset_applicable>`: confidence 0.6 or more and not ambiguous (a
   periodic scene, a fan, peaks once per period and is never confident).
 
 A prefix too short or too sparse for the check (fewer than ``min_events`` events in a camera) leaves the stream
 as recorded, and says why. :meth:`PrefixRigCheck.describe` is the matches-file meta entry ``rigcheck`` of
-docs/formats.md: the report's fields, ``applied``, ``scope`` (``"prefix"``), ``prefix_us`` and
+docs/formats.md: the report's fields, ``applied``, ``scope`` (``"prefix"``), ``prefix_us``,
+``rows_by_matching`` (when they were tried: offset, prominence, answers per offset, the span matched) and
 ``seconds`` (the check's own cost, left out of the run's ``elapsed_s``).
 
 >>> import numpy as np
@@ -42,8 +46,8 @@ from cvstereo.model.events import StereoPacket
 from cvstereo.model.recording import Recording
 from cvstereo.rigcheck.params import RigCheckParams
 
-__all__ = ["LIGHT_PARAMS", "PREFIX_EVENTS", "PREFIX_MAX_US", "PREFIX_MIN_US", "ROW_MIN_CONFIDENCE",
-           "SWAP_MIN_CONFIDENCE", "PrefixRigCheck", "swapped_packet"]
+__all__ = ["LIGHT_PARAMS", "MATCHING_MIN_PROMINENCE", "PREFIX_EVENTS", "PREFIX_MAX_US", "PREFIX_MIN_US",
+           "ROW_MIN_CONFIDENCE", "SWAP_MIN_CONFIDENCE", "PrefixRigCheck", "swapped_packet"]
 
 #: The prefix lasts at least this long, us, and until each camera has :data:`PREFIX_EVENTS` events ...
 PREFIX_MIN_US = 500_000
@@ -62,6 +66,10 @@ SWAP_MIN_CONFIDENCE = 0.8
 #: Confidence a row offset needs before it is applied (:meth:`RigReport.match_kwargs`' and so ``--auto``'s): the
 #: wrong rows of too few events came below 0.2; NSTlogo's, one row off its best on 2,600 events, at 0.26.
 ROW_MIN_CONFIDENCE = 0.3
+#: Prominence the rows by matching need (1 - median / most answers over the offsets): chosen on suite v2's tuning
+#: half, where the profiles of the scenes that cannot tell the rows (thin structures, fine repeating texture at
+#: 640x480) stayed within 0.01-0.05 of flat and those that can rose 0.05-0.6 above it.
+MATCHING_MIN_PROMINENCE = 0.05
 
 
 def swapped_packet(packet: StereoPacket) -> StereoPacket:
@@ -91,6 +99,9 @@ class PrefixRigCheck:
         The check's options (``time_apply_confidence`` decides the time offset); default :data:`LIGHT_PARAMS`.
     swap_min_confidence, row_min_confidence : float
         Confidence the swap and the row offset need before they are applied.
+    matching_min_prominence : float
+        Prominence the rows by matching need, tried where the row offset's confidence is below
+        ``row_min_confidence`` (None: not tried).
     """
 
     resolution: tuple[int, int]
@@ -100,7 +111,9 @@ class PrefixRigCheck:
     params: RigCheckParams = LIGHT_PARAMS
     swap_min_confidence: float = SWAP_MIN_CONFIDENCE
     row_min_confidence: float = ROW_MIN_CONFIDENCE
+    matching_min_prominence: float | None = MATCHING_MIN_PROMINENCE
     report: object = field(default=None, init=False)
+    by_matching: object = field(default=None, init=False)  # the RowsByMatching, where they were tried
     skipped: str | None = field(default=None, init=False)
     applied: dict = field(default_factory=lambda: {"swap": False, "row_offset": 0, "time_offset_us": 0},
                           init=False)
@@ -149,8 +162,12 @@ class PrefixRigCheck:
         ``seconds``, ``skipped`` (why it did not run, or None) and ``dropped_events`` (of the correction)."""
         out = {} if self.report is None else self.report.to_dict()
         dropped = 0 if self.corrected is None else self.corrected.dropped_rows + self.corrected.dropped_times
+        found = self.by_matching
+        by_matching = None if found is None else {
+            "offset": found.offset, "prominence": round(found.prominence, 4), "span_us": found.span_us,
+            "counts": {str(k): v for k, v in found.counts.items()}}
         out.update(scope="prefix", prefix_us=int(self.prefix_us), seconds=self.seconds, skipped=self.skipped,
-                   applied=dict(self.applied), dropped_events=dropped)
+                   applied=dict(self.applied), dropped_events=dropped, rows_by_matching=by_matching)
         return out
 
     def _check(self, held: list[StereoPacket]) -> None:
@@ -170,10 +187,20 @@ class PrefixRigCheck:
             swap = bool(report.swap and report.swap_confidence >= self.swap_min_confidence)
             # The report's offsets refer to the cameras after its swap: negated, they are the given order's.
             sign = 1 if swap == report.swap else -1
-            rows = round(report.row_offset) if report.row_offset_confidence >= self.row_min_confidence else 0
+            rows = sign * round(report.row_offset) if report.row_offset_confidence >= self.row_min_confidence else 0
+            if report.row_offset_confidence < self.row_min_confidence and self.matching_min_prominence is not None:
+                rows = self._rows_by_matching(*((right, left) if swap else (left, right)))
             dt = round(report.time_offset_us) if report.time_offset_applicable() else 0
-            self.applied = {"swap": swap, "row_offset": sign * int(rows), "time_offset_us": sign * int(dt)}
+            self.applied = {"swap": swap, "row_offset": int(rows), "time_offset_us": sign * int(dt)}
         self.seconds = time.perf_counter() - start
+
+    def _rows_by_matching(self, left: np.ndarray, right: np.ndarray) -> int:
+        """The rows by matching (in the cameras' order used) where they stand out, else 0."""
+        from cvstereo.rigcheck.rows_by_matching import rows_by_matching
+
+        reach = min(self.params.max_row_offset, self.resolution[1] - 1)
+        self.by_matching = found = rows_by_matching(left, right, resolution=self.resolution, reach=reach)
+        return found.offset if found.prominence >= self.matching_min_prominence else 0
 
 
 def _chained(held: list[StereoPacket], rest: Iterator[StereoPacket]) -> Iterator[StereoPacket]:

@@ -1,0 +1,68 @@
+"""Rows by matching (cvstereo.rigcheck.rows_by_matching) and their use by the default prefix check."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cvstereo.model.events import make_events
+from cvstereo.rigcheck.prefix import MATCHING_MIN_PROMINENCE
+from cvstereo.rigcheck.rows_by_matching import matching_span, rows_by_matching, rows_from_counts
+from cvstereo.run import match
+from tests.rigcheck.test_rigcheck import textured_patches, with_rig_errors
+
+
+@pytest.fixture(scope="module")
+def patches():
+    return textured_patches(seconds=0.6)
+
+
+def test_rows_from_counts_by_hand():
+    # Peak at -1 (700) between 650 and 480: the parabola's vertex at -1 + 0.5 * (650 - 480) / (650 - 1400 + 480).
+    found = rows_from_counts({-2: 650, -1: 700, 0: 480, 1: 70, 2: 30})
+    assert found.offset == -1                               # vertex at -1.31
+    assert found.prominence == pytest.approx(1 - 480 / 700)  # median 480
+    found = rows_from_counts({-3: 10, -2: 40, -1: 61, 0: 60, 1: 12})
+    assert found.offset == -1                               # vertex at -0.55: rounds to -1
+    assert rows_from_counts({-1: 0, 0: 0, 1: 0}) == (0, 0.0, {-1: 0, 0: 0, 1: 0}, 0)
+    assert rows_from_counts({-4: 5, -2: 9, 0: 7, 2: 1}).offset == -2     # no neighbour both sides: the best itself
+    flat = rows_from_counts({r: 1000 + (r == 3) for r in range(-8, 9)})
+    assert flat.prominence < MATCHING_MIN_PROMINENCE        # a flat profile does not tell the rows
+
+
+def test_matching_span_by_hand():
+    left = make_events(np.arange(0, 1_000_000, 1000), np.zeros(1000, int), np.zeros(1000, int), np.ones(1000, int))
+    right = make_events(np.arange(500, 1_000_000, 2000), np.zeros(500, int), np.zeros(500, int), np.ones(500, int))
+    # Dense enough: 100 events each within 80 ms? left's 100th at 99 ms, right's at 198.5 ms -> 198,501.
+    assert matching_span(left, right, min_us=80_000, max_us=10_000_000, events=100) == 198_501
+    assert matching_span(left, right, min_us=250_000, max_us=10_000_000, events=100) == 250_000
+    assert matching_span(left, right, min_us=80_000, max_us=150_000, events=100) == 150_000
+    assert matching_span(left, right, min_us=80_000, max_us=10_000_000, events=10**6) == 999_001  # the last event
+
+
+@pytest.mark.parametrize("rows", [0, 2, -3])
+def test_rows_by_matching_finds_a_known_row_shift(patches, rows):
+    rec = with_rig_errors(patches, rows=rows)
+    found = rows_by_matching(rec.left, rec.right, resolution=rec.resolution, reach=6)
+    assert found.offset == -rows
+    assert found.prominence >= MATCHING_MIN_PROMINENCE
+    assert max(found.counts.values()) == found.counts[-rows]
+    # The even offsets, then the two beside the best of them.
+    best_even = max((r for r in found.counts if r % 2 == 0), key=found.counts.get)
+    assert set(found.counts) == set(range(-6, 7, 2)) | {best_even - 1, best_even + 1}
+
+
+@pytest.mark.shared_data
+@pytest.mark.parametrize("rows", [0, 2])
+def test_prefix_check_takes_the_rows_by_matching_where_the_overlay_is_unsure(tum_dir, rows):
+    """NSTlogo (2,600 events of a logo sliding sideways): the overlay's row confidence stays below the gate; the
+    matching finds the rows moved by ``rows`` and the prefix check applies them."""
+    from cvstereo.io import read_recording
+
+    rec = with_rig_errors(read_recording(tum_dir / "NSTlogo_disp12-8-3.dat"), rows=rows)
+    check = match(rec, method="frame-area").meta["rigcheck"]
+    assert check["row_offset_confidence"] < 0.3
+    assert check["rows_by_matching"]["offset"] == -rows
+    assert check["applied"]["row_offset"] == -rows
+    skipped = match(rec, method="frame-area", rig_check=False)
+    assert rows == 0 or len(skipped.matches) < 0.5 * len(match(rec, method="frame-area").matches)
