@@ -23,8 +23,8 @@ LOG = logging.getLogger("cvstereo")
 #: kernel's cache into ``__pycache__`` beside its module, and matcher-only kernels live beside their matcher.
 #: (test_numba_cache checks this list against the source.)
 KERNEL_FOLDERS = ("frames", "matchers", "matchers/_shared", "matchers/event_area", "matchers/event_time",
-                  "matchers/event_vector", "matchers/frame", "matchers/frame_area", "matchers/fused", "sensors",
-                  "simulate")
+                  "matchers/event_vector", "matchers/frame", "matchers/frame_area", "matchers/fused", "rigcheck",
+                  "sensors", "simulate")
 
 
 def can_write(folder: str | os.PathLike) -> bool:

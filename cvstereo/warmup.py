@@ -3,8 +3,8 @@
 :mod:`cvstereo._compile_watch` makes a matcher's kernels ready when it is built (once per process and compiled
 path); on a new machine that still compiles them. :func:`warm_up` (``cvstereo warm-up``, run by ``make`` after
 installing) builds each available method's default matcher under both parameter sets now, on one thread and on
-two (the serial and the parallel kernels: docs/guide/threads.md), so that numba's cache holds every kernel and
-later processes only load them.
+two (the serial and the parallel kernels: docs/guide/threads.md), and the default rig check's kernel, so that
+numba's cache holds every kernel and later processes only load them.
 """
 
 from __future__ import annotations
@@ -47,4 +47,13 @@ def warm_up(methods: Iterable[str] | None = None, param_sets: Iterable[str] = PA
                 create_matcher(method, param_set=param_set, threads=threads)
             if on_method is not None:
                 on_method(method, param_set, compile_seconds() - before)
+    _warm_rig_check()
     return compile_seconds() - start
+
+
+def _warm_rig_check() -> None:
+    """The default rig check's own kernel (its noise count), which every ``match()`` runs."""
+    from cvstereo.model.events import make_events
+    from cvstereo.rigcheck.stats import isolated_events
+
+    isolated_events(make_events([0, 5], [1, 2], [1, 1], [1, 0]), window_us=10, resolution=(4, 4))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from cvstereo.rigcheck.peaks import clip01
@@ -54,25 +55,41 @@ def burst_ratio(left, right, *, window_us, min_events):
 def isolated_events(ev, *, window_us, resolution):
     """Number of events with no event at any of the 8 neighbouring pixels within ``window_us`` either side.
 
-    Events are sorted by (pixel, t); for each neighbour offset, a binary search finds the neighbour pixel's
-    events nearest in time. The own pixel does not count: a hot pixel firing alone is noise too.
+    The own pixel does not count: a hot pixel firing alone is noise too. Two sweeps over the time-ordered events
+    with a grid of each pixel's nearest event time: forward, the latest event before (in the array); backward, the
+    earliest after; the nearest neighbour event either side is within one of the two. Linear in the events.
     """
     width, height = resolution
-    pix = ev["y"].astype(np.int64) * width + ev["x"]
-    t = ev["t"] - int(ev["t"][0])
-    span = int(t[-1]) + 2 * window_us + 2
-    key = np.sort(pix * span + t)
-    # Queries in key order are (nearly) sorted too, which keeps the binary searches cache-friendly.
-    pix, t = key // span, key % span
-    x, y = pix % width, pix // width
-    has = np.zeros(ev.size, bool)
-    for dy in (-1, 0, 1):
-        for dx in (-1, 0, 1):
-            if dx == 0 and dy == 0:
-                continue
-            inside = (x + dx >= 0) & (x + dx < width) & (y + dy >= 0) & (y + dy < height)
-            q = (pix + dy * width + dx) * span + t
-            lo = np.searchsorted(key, q - window_us, side="left")
-            hi = np.searchsorted(key, q + window_us, side="right")
-            has |= inside & (hi > lo)
-    return int((~has).sum())
+    if ev.size == 0:
+        return 0
+    t = (ev["t"] - int(ev["t"][0])).astype(np.int64)
+    return int(_count_isolated(t, ev["x"].astype(np.int64), ev["y"].astype(np.int64), int(width), int(height),
+                               int(window_us)))
+
+
+@numba.njit(cache=True, nogil=True)
+def _count_isolated(t, x, y, width, height, window):  # pragma: no cover - compiled
+    """:func:`isolated_events` of time-ordered events (times from 0)."""
+    n = t.size
+    never = -(1 << 62)
+    near = np.full((height + 2, width + 2), never, np.int64)  # a one-pixel border: no bounds tests
+    has = np.zeros(n, np.bool_)
+    for i in range(n):  # forward: the latest event of each neighbour before this one
+        cx, cy = x[i] + 1, y[i] + 1
+        for dy in range(-1, 2):
+            for dx in range(-1, 2):
+                if (dx != 0 or dy != 0) and t[i] - near[cy + dy, cx + dx] <= window:
+                    has[i] = True
+        near[cy, cx] = t[i]
+    near[:, :] = -never
+    count = 0
+    for i in range(n - 1, -1, -1):  # backward: the earliest event of each neighbour after this one
+        cx, cy = x[i] + 1, y[i] + 1
+        if not has[i]:
+            for dy in range(-1, 2):
+                for dx in range(-1, 2):
+                    if (dx != 0 or dy != 0) and near[cy + dy, cx + dx] - t[i] <= window:
+                        has[i] = True
+        near[cy, cx] = t[i]
+        count += not has[i]
+    return count

@@ -373,3 +373,24 @@ def test_simulated_arms_recover_swap_rows_and_time_offset(arm_clips, name, swap,
     assert abs(report.row_offset - (-rows - vertical)) <= ROW_TOLERANCE
     assert abs(report.time_offset_us - time_us) <= TIME_TOLERANCE_US
     assert report.settings["time_offset_method"] == "shift-velocity regression"
+
+
+def _isolated_by_brute_force(ev, window_us, width, height):
+    """Every pair of events compared: no event at one of the 8 neighbouring pixels within window_us either side."""
+    t, x, y = (ev[k].astype(np.int64) for k in ("t", "x", "y"))
+    near = (np.abs(t[:, None] - t[None, :]) <= window_us) & (np.abs(x[:, None] - x[None, :]) <= 1) & \
+        (np.abs(y[:, None] - y[None, :]) <= 1) & ((x[:, None] != x[None, :]) | (y[:, None] != y[None, :]))
+    return int((~near.any(axis=1)).sum())
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_isolated_events_equal_a_brute_force_count(seed):
+    from cvstereo.rigcheck.stats import isolated_events
+
+    rng = np.random.default_rng(seed)
+    n, width, height = 600, 12, 9
+    t = np.sort(rng.integers(0, 3000, n))  # many equal times, and pixels hit more than once
+    ev = make_events(t, rng.integers(0, width, n), rng.integers(0, height, n), rng.integers(0, 2, n))
+    for window_us in (0, 7, 60):
+        assert isolated_events(ev, window_us=window_us, resolution=(width, height)) == \
+            _isolated_by_brute_force(ev, window_us, width, height)
