@@ -98,14 +98,16 @@ def _python(code: str, cache: Path) -> tuple[dict, str]:
 
 
 def test_warm_up_fills_a_cache_that_a_fresh_process_uses(tmp_path):
-    """In an empty cache, ``cvstereo warm-up`` compiles (and says so once) and leaves numba's index file of every
-    kernel it ran; a fresh process then matches another clip, under both parameter sets, compiling nothing."""
+    """In an empty cache, ``cvstereo warm-up`` compiles (and says so once per group) and leaves numba's index file of
+    every kernel it ran; a fresh process then matches another clip, under both parameter sets, compiling nothing."""
     from cvstereo.warmup import COMPILE_MESSAGE
 
     cache = tmp_path / "cache"
     warmed, err = _python(_WARM, cache)
     assert warmed["code"] == 0 and warmed["used"]
-    assert err.count("compiling") == 1 and COMPILE_MESSAGE.format(group="stereobm") in err
+    # Once per group: the method's kernels, then the default rig check's (every match() runs it).
+    assert err.count("compiling") == 2 and COMPILE_MESSAGE.format(group="stereobm") in err
+    assert COMPILE_MESSAGE.format(group="rigcheck") in err
     tag = f"py{sys.version_info.major}{sys.version_info.minor}"
     indexes = {p.name for p in cache.rglob("*.nbi")}
     for module, qualname, line in warmed["used"]:
