@@ -111,6 +111,10 @@ class Geometry:
         (``found``: the matches' ``meta["rigcheck"]``, :meth:`cvstereo.rigcheck.prefix.PrefixRigCheck.describe`)."""
         applied = found["applied"]
         label = f"the rig check of the first {found['prefix_us'] / 1e6:.3g} s"
+        by_matching = found.get("rows_by_matching")
+        if by_matching is not None:  # the overlay was unsure of the rows (docs/guide/rigcheck.md)
+            label += " (rows by matching)" if by_matching["offset"] == applied["row_offset"] else \
+                " (rows: none stood out)"
         sources = {**self.sources, **({} if found.get("skipped") else dict.fromkeys(("side", "rows", "time"),
                                                                                   "rigcheck"))}
         return replace(self, swap=bool(applied["swap"]), row_offset=int(applied["row_offset"]),

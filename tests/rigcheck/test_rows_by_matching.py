@@ -66,3 +66,16 @@ def test_prefix_check_takes_the_rows_by_matching_where_the_overlay_is_unsure(tum
     assert check["applied"]["row_offset"] == -rows
     skipped = match(rec, method="frame-area", rig_check=False)
     assert rows == 0 or len(skipped.matches) < 0.5 * len(match(rec, method="frame-area").matches)
+
+
+@pytest.mark.parametrize(("by_matching", "rows", "said"), [
+    (None, 0, "first 0.5 s"),
+    ({"offset": -2}, -2, "first 0.5 s (rows by matching)"),
+    ({"offset": 3}, 0, "first 0.5 s (rows: none stood out)")])
+def test_the_geometry_line_says_where_the_rows_came_from(by_matching, rows, said):
+    from cvstereo.geometry.source import Geometry
+
+    found = {"applied": {"swap": False, "row_offset": rows, "time_offset_us": 0}, "prefix_us": 500_000,
+             "skipped": None, "rows_by_matching": by_matching}
+    label = Geometry().with_prefix_check(found).labels["rigcheck"]
+    assert label.endswith(said)
