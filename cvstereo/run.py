@@ -180,7 +180,7 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
             and time_offset_us is None:
         from cvstereo.rigcheck.prefix import PrefixRigCheck
 
-        check = PrefixRigCheck(tuple(stream.resolution))
+        check = PrefixRigCheck(tuple(stream.resolution), threads=matcher.threads)
     if rectification is not None:
         if correction is not None:
             raise ValueError("give a calibration or row/time offsets, not both: rectification already aligns the rows.")

@@ -40,6 +40,7 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.fft
 
 from cvstereo.geometry.rigcorrect import RigCorrection
 from cvstereo.model.events import StereoPacket
@@ -102,6 +103,8 @@ class PrefixRigCheck:
     matching_min_prominence : float
         Prominence the rows by matching need, tried where the row offset's confidence is below
         ``row_min_confidence`` (None: not tried).
+    threads : int
+        Threads of the check's transforms (the match's ``threads``; the same result on any number).
     """
 
     resolution: tuple[int, int]
@@ -112,6 +115,7 @@ class PrefixRigCheck:
     swap_min_confidence: float = SWAP_MIN_CONFIDENCE
     row_min_confidence: float = ROW_MIN_CONFIDENCE
     matching_min_prominence: float | None = MATCHING_MIN_PROMINENCE
+    threads: int = 1
     report: object = field(default=None, init=False)
     by_matching: object = field(default=None, init=False)  # the RowsByMatching, where they were tried
     skipped: str | None = field(default=None, init=False)
@@ -178,8 +182,9 @@ class PrefixRigCheck:
         try:
             if left is None:
                 raise ValueError("the stream has no events")
-            self.report = report = check_rig(Recording(left, right, resolution=self.resolution), self.params,
-                                             max_seconds=None)
+            with scipy.fft.set_workers(self.threads):
+                self.report = report = check_rig(Recording(left, right, resolution=self.resolution), self.params,
+                                                 max_seconds=None)
         except ValueError as exc:
             reason = str(exc).removeprefix("check_rig: ")
             self.skipped = f"not checked on the first {self.prefix_us / 1000:g} ms: {reason}"

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+import scipy.fft as sfft
 
 from cvstereo.rigcheck.peaks import contrast, fft_len, subsample_peak, support
 from cvstereo.rigcheck.windows import window_frames
@@ -48,10 +49,10 @@ def row_offsets(left, right, *, resolution, max_row_offset, max_disparity, windo
             # c[a, b] = sum L(y + a, x + b) R(y, x): a = y_left - y_right, b = x_left - x_right. A band's 2-D
             # spectrum is rfft2's (along x, then along y) of the frame with the other rows zeroed: the
             # transform along x is the same for every band, taken once (the same numbers as rfft2 per band).
-            along_x = np.fft.rfft(fl, shape[1], axis=1)
-            bands_2d = np.fft.fft(along_x[None] * masks, shape[0], axis=1)
-            acc += bands_2d * np.conj(np.fft.rfft2(fr, shape))[None] / norm
-    c = np.fft.irfft2(acc, shape)
+            along_x = sfft.rfft(fl, shape[1], axis=1)
+            bands_2d = sfft.fft(along_x[None] * masks, shape[0], axis=1)
+            acc += bands_2d * np.conj(sfft.rfft2(fr, shape))[None] / norm
+    c = sfft.irfft2(acc, shape)
     rows = np.arange(-max_row_offset, max_row_offset + 1)
     cols = np.arange(-max_disparity, max_disparity + 1)
     surface = c[:, rows[:, None] % shape[0], cols[None, :] % shape[1]]                # (n_bands, rows, cols)

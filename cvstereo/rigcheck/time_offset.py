@@ -15,6 +15,7 @@ from typing import NamedTuple
 
 import cv2
 import numpy as np
+import scipy.fft as sfft
 
 from cvstereo.model.polarity import sign
 from cvstereo.rigcheck.params import RigCheckParams
@@ -212,7 +213,7 @@ def _row_spectra(frames, lo, hi, nfft, windows) -> RowSpectra:
     padded[:, lo:hi] = seg[nonzero]
     energy = np.zeros(frames.shape[:2], np.float32)
     energy[nonzero] = (seg[nonzero] ** 2).sum(axis=1)
-    return RowSpectra(np.fft.rfft(padded, axis=1), index, energy)
+    return RowSpectra(sfft.rfft(padded, axis=1), index, energy)
 
 
 def _cross_spectra(a: RowSpectra, frames_a, b: RowSpectra, frames_b, y0, y1):
@@ -262,7 +263,7 @@ def _fine_shift(a: RowSpectra, frames_a, b: RowSpectra, frames_b, rows, lo, hi, 
     spec = _cross_spectra(a, frames_a, b, frames_b, y0, y1)
     n = nfft * upsample
     lags = np.arange(lo * upsample, hi * upsample + 1)
-    c = (np.fft.irfft(spec, n, axis=-1) * upsample)[:, lags % n]
+    c = (sfft.irfft(spec, n, axis=-1) * upsample)[:, lags % n]
     i = c.argmax(axis=1)
     at_end = (i == 0) | (i == lags.size - 1)
     i = np.clip(i, 1, lags.size - 2)
