@@ -64,6 +64,7 @@ MAX_HISTORY_FACTOR = 10
 
 #: Report the threshold in force once every this many windows of values (1 s of 40 ms windows).
 _TRACE_EVERY = 25
+#: The run of a part that held no values in a window (each window appends one run per part).
 _NONE = np.empty(0, np.float64)
 
 
