@@ -192,9 +192,12 @@ class PrefixRigCheck:
             swap = bool(report.swap and report.swap_confidence >= self.swap_min_confidence)
             # The report's offsets refer to the cameras after its swap: negated, they are the given order's.
             sign = 1 if swap == report.swap else -1
-            rows = sign * round(report.row_offset) if report.row_offset_confidence >= self.row_min_confidence else 0
-            if report.row_offset_confidence < self.row_min_confidence and self.matching_min_prominence is not None:
+            if report.row_offset_confidence >= self.row_min_confidence:
+                rows = sign * round(report.row_offset)
+            elif self.matching_min_prominence is not None:  # the overlay is unsure: the rows by matching
                 rows = self._rows_by_matching(*((right, left) if swap else (left, right)))
+            else:
+                rows = 0
             dt = round(report.time_offset_us) if report.time_offset_applicable() else 0
             self.applied = {"swap": swap, "row_offset": int(rows), "time_offset_us": sign * int(dt)}
         self.seconds = time.perf_counter() - start

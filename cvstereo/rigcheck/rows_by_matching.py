@@ -47,10 +47,15 @@ class RowsByMatching(NamedTuple):
     """The span of the events matched, from the first event."""
 
 
+def _most_answers(counts: dict[int, int]) -> int:
+    """The offset with the most answers; of equal ones, the nearest 0."""
+    return max(counts, key=lambda r: (counts[r], -abs(r)))
+
+
 def rows_from_counts(counts: dict[int, int], span_us: int = 0) -> RowsByMatching:
     """The offset with the most answers (sub-row by a parabola through its neighbours where both were tried,
     rounded) and the prominence of the profile."""
-    best = max(counts, key=lambda r: (counts[r], -abs(r)))
+    best = _most_answers(counts)
     top = float(counts[best])
     if top <= 0:
         return RowsByMatching(0, 0.0, dict(counts), int(span_us))
@@ -110,7 +115,7 @@ def rows_by_matching(left: np.ndarray, right: np.ndarray, *, resolution, reach: 
 
     for row in range(-(reach - reach % 2), reach + 1, 2):
         count(row)
-    best = max(counts, key=lambda r: (counts[r], -abs(r)))
+    best = _most_answers(counts)
     count(best - 1)
     count(best + 1)
     return rows_from_counts(counts, end - t0)
