@@ -69,3 +69,44 @@ def test_a_wide_sensor_finds_disparities_beyond_dv_processings_48(rng):
 def test_bad_range_says_which():
     with pytest.raises(ValueError, match=r"max_disparity \+ 1 must be a positive multiple of 16.*got max_disparity 50"):
         create_matcher("dv-semidense", max_disparity=50)
+
+
+def _store(dv, events):
+    """dv-processing's own event path: an EventStore filled one event at a time."""
+    store = dv.EventStore()
+    for t, x, y, p in zip(*(events[k].tolist() for k in "txyp"), strict=True):
+        store.push_back(t, x, y, bool(p))
+    return store
+
+
+def test_edge_map_is_dv_processings_accumulator(rng):
+    # Pixels with 0 to 7 events of either polarity (the 8-bit pixel saturates after the 4th), any order, and a
+    # second window from the same accumulator (dv-processing starts every frame from 0).
+    import dv_processing as dv
+
+    from cvstereo.matchers.dv.matcher import edge_map
+
+    size = (37, 23)
+    acc = dv.EdgeMapAccumulator(size)
+    for _ in range(2):
+        n = 600
+        x, y, p = rng.integers(0, size[0], n), rng.integers(0, size[1], n), rng.integers(0, 2, n)
+        events = make_events(np.sort(rng.integers(0, W, n)), x, y, p)
+        acc.accept(_store(dv, events))
+        ours = edge_map(events, size)
+        assert ours.dtype == np.uint8 and ours.shape == (size[1], size[0])
+        np.testing.assert_array_equal(ours, acc.generateFrame().image)
+        assert set(np.unique(ours)) >= {0, 64, 128, 192, 255}
+
+
+def test_disparities_are_dv_processings_own_event_path(rng):
+    # The matcher's images through dv-processing's compute() give the disparity map that its computeDisparity()
+    # gives from the events, pixel for pixel.
+    import dv_processing as dv
+
+    left, right = _shifted_texture(rng, 9, n=12_000, windows=1)
+    own = dv.SemiDenseStereoMatcher((128, 128), (128, 128)).computeDisparity(_store(dv, left), _store(dv, right))
+    expected = np.where(own >= 0, own / 16.0, np.nan)
+    out = np.concatenate([(m := create_matcher("dv-semidense")).feed(left, right), m.flush()])
+    assert out.size > 1000
+    np.testing.assert_array_equal(out["disparity"], expected[out["y"], out["x"]].astype(np.float32))
