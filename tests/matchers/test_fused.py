@@ -59,7 +59,7 @@ PARAM_AXES = {
     "support_radius": [0, 1, 2], "path_radius": [0, 1, 3], "fill_radius": [0, 2, 12], "row_tolerance": [0, 1],
     "min_neighbours": [1, 3], "max_uncertainty": [1.0, 0.5, 0.3], "fill_confirms": [True, False],
     "isolated_max_uncertainty": [0.0, 0.1, 0.3], "occlusion_margin": [-1, 0.0, 1.0, 2.5],
-    "occlusion_support": [1, 2, 3], "border_rows": [-1, 0, 2],
+    "occlusion_support": [1, 2, 3], "border_rows": [-1, 0, 2], "segment_min_answers": [0, 8, 50],
     "max_disparity": [12, 20],
 }
 
@@ -111,7 +111,8 @@ def test_left_right_failures_rank_behind_consistent_matches():
     runs = {}
     for tol in (-1, 1):
         m = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0, lr_tolerance=tol, fill_radius=0,
-                                     occlusion_margin=-1, border_rows=-1), resolution=resolution)
+                                     occlusion_margin=-1, border_rows=-1, segment_min_answers=0),
+                         resolution=resolution)
         runs[tol] = (feed_cut(m, left, right, []), m.take_uncertainty())
     # Same winners; the check only adds 0.5 to the uncertainty of the inconsistent ones, and some fail it.
     np.testing.assert_array_equal(runs[1][0], runs[-1][0])
@@ -124,7 +125,7 @@ def test_left_right_failures_rank_behind_consistent_matches():
 def test_inconsistent_matches_take_the_median_of_consistent_neighbours():
     left, right, resolution = textured_pair(4, windows=6)
     m = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0, fill_radius=2, fill_confirms=False,
-                                 border_rows=-1), resolution=resolution)
+                                 border_rows=-1, segment_min_answers=0), resolution=resolution)
     got = feed_cut(m, left, right, [])
     u = m.take_uncertainty()
     ok = u <= 0.5
@@ -143,7 +144,7 @@ def test_a_failed_winner_that_agrees_with_its_fill_is_confirmed():
     runs = {}
     for confirm in (False, True):
         m = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0, fill_radius=2, fill_confirms=confirm,
-                                     border_rows=-1), resolution=resolution)
+                                     border_rows=-1, segment_min_answers=0), resolution=resolution)
         runs[confirm] = (feed_cut(m, left, right, []), m.take_uncertainty().astype(np.float64))
     (filled, u_filled), (confirmed, u_confirmed) = runs[False], runs[True]
     for key in ("t", "x", "y", "p"):
@@ -187,8 +188,8 @@ def test_occlusion_test_ranks_the_hidden_background_behind():
     for margin in (-1, 1.0):
         # Low penalties: the flicker's costs differ little between disparities, and the default p2 would carry
         # the background's disparity across the bar.
-        m = FusedMatcher(FusedParams(max_uncertainty=1.0, p1=0.5, p2=2.0, occlusion_margin=margin),
-                         resolution=resolution)
+        m = FusedMatcher(FusedParams(max_uncertainty=1.0, p1=0.5, p2=2.0, occlusion_margin=margin,
+                                     segment_min_answers=0), resolution=resolution)
         runs[margin] = (feed_cut(m, left, right, []), m.take_uncertainty().astype(np.float64))
     (got, u_off), (got_on, u_on) = runs[-1], runs[1.0]
     np.testing.assert_array_equal(got_on, got)  # the test changes uncertainties only, and the prior not at all
@@ -232,7 +233,7 @@ def test_occlusion_test_penalises_exactly_the_crossed_answers(support):
     runs = {}
     for margin in (-1, 2.0):
         m = FusedMatcher(FusedParams(max_uncertainty=1.0, p1=0.5, p2=2.0, subpixel=False, occlusion_margin=margin,
-                                     occlusion_support=support), resolution=resolution)
+                                     occlusion_support=support, segment_min_answers=0), resolution=resolution)
         runs[margin] = (feed_cut(m, left, right, []), m.take_uncertainty().astype(np.float64))
     (got, u_off), (got_on, u_on) = runs[-1], runs[2.0]
     np.testing.assert_array_equal(got_on, got)
@@ -254,8 +255,8 @@ def test_partner_test_penalises_exactly_the_answers_left_of_their_band(rows):
     left, right, resolution = textured_pair(5, windows=6, shift=9)
     runs = {}
     for border in (-1, rows):
-        m = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0, occlusion_margin=-1, border_rows=border),
-                         resolution=resolution)
+        m = FusedMatcher(FusedParams(max_uncertainty=1.0, temporal_weight=0.0, occlusion_margin=-1, border_rows=border,
+                                     segment_min_answers=0), resolution=resolution)
         runs[border] = (feed_cut(m, left, right, []), m.take_uncertainty().astype(np.float64))
     (got, u_off), (got_on, u_on) = runs[-1], runs[rows]
     np.testing.assert_array_equal(got_on, got)  # uncertainties only (no prior: temporal_weight 0)
@@ -353,8 +354,9 @@ def test_match_applies_the_rig_correction(rows, time_us):
     np.testing.assert_array_equal(fixed.matches, plain.matches)
     np.testing.assert_array_equal(fixed.arrays["uncertainty"], plain.arrays["uncertainty"])
     assert np.mean(np.abs(plain.matches["disparity"] - 5.0) <= 1.0) > 0.95
-    # Uncorrected, rows 3-4 apart are beyond the row tolerance of 1: a third or more of the answers are wrong.
-    raw = match(erred, method="fused", rig_check=False)
+    # Uncorrected, rows 3-4 apart are beyond the row tolerance of 1: a third or more of the answers are wrong (all
+    # of them: the segment test would rank many of the wrong ones out of the default output).
+    raw = match(erred, method="fused", rig_check=False, max_uncertainty=1.0)
     assert np.mean(np.abs(raw.matches["disparity"] - 5.0) <= 1.0) < 0.75
 
 

@@ -40,8 +40,10 @@ Design, part by part, with the reason for each (bench/results/fused.md measures 
    the ratio of that cost to the best cost more than 1 px away (0: unambiguous, 0.5: a tie; the uniqueness
    ratio of block matching as a number), plus 0.5 where the left-right check (part 8), the occlusion test
    (part 9) or the partner test (part 10) fails, so that every inconsistent, hidden or unpartnered match ranks
-   behind every consistent one. Users threshold it (``max_uncertainty``, default 0.5: the consistent matches) or
-   keep the most certain ones (:meth:`FusedMatcher.take_uncertainty` gives it per match).
+   behind every consistent one; the segment test (part 11) puts the consistent answers of small segments between
+   the two. Users threshold it (``max_uncertainty``,
+   default 0.5: the consistent matches) or keep the most certain ones (:meth:`FusedMatcher.take_uncertainty`
+   gives it per match).
 8. **Left-right consistency** (``lr_tolerance``): the right pixel the winner points to must choose the same
    disparity (within 1 px) from the same aggregated volume; occlusions and half-matched edges fail it.
    A winner that fails it takes the median of the consistent answers within ``fill_radius`` (12) px (when
@@ -79,8 +81,19 @@ Design, part by part, with the reason for each (bench/results/fused.md measures 
     quantile: the strip's own wrong answers (smaller disparities) are in the band too. Tuning half, ground plane
     at 346x260: 91 % of the answers without a partner caught, 99 % of the flagged ones without one; the default
     output's bad2 falls at a small cost in coverage.
-11. **Sub-pixel refinement** (``subpixel``): a parabola through the aggregated costs at ``d - 1, d, d + 1``.
-12. **Noise filter** (``min_neighbours``): a pixel answers only if another pixel of its 3x3 neighbourhood saw
+11. **Segment test** (``segment_min_answers``): the consistent answers left after parts 9 and 10 form segments
+    (answers within 2 px of each other whose disparities differ by at most 1 px, joined one to the next); an answer
+    whose segment has fewer than ``segment_min_answers`` (e.g. 50 at 128 px wide, scaled with the width) is ranked
+    behind the other consistent answers and before the inconsistent ones (its uncertainty ``u`` becomes
+    ``0.5 + u / 2``, an inconsistent answer's ``0.75 + (u - 0.5) / 2``), unless its match is clear enough to answer
+    alone (uncertainty below ``isolated_max_uncertainty``, as in the noise filter, part 13). A surface's edges
+    give long runs of like answers, a wrong answer's neighbours rarely agree with it: OpenCV's speckle filter
+    (which dv-processing's matcher runs) on the event answers, in the uncertainty instead of a deletion, so that
+    users who keep every answer still have them. The next window's prior is the answers before the test. Off by
+    default (``segment_min_answers=0``): 50, chosen on the generalization suite's tuning half, did not carry to its
+    evaluation half (bench/results/fused-segments.md); it is there for users who want fewer, surer answers.
+12. **Sub-pixel refinement** (``subpixel``): a parabola through the aggregated costs at ``d - 1, d, d + 1``.
+13. **Noise filter** (``min_neighbours``): a pixel answers only if another pixel of its 3x3 neighbourhood saw
     an event in the last two windows, or if its match is clear (uncertainty below
     ``isolated_max_uncertainty``, 0.1). Isolated events are mostly noise; the thesis' event matchers owe
     their low false rate to the same kind of local support. But a sparse real sensor has isolated signal too
@@ -100,7 +113,15 @@ import numpy as np
 from numba import njit
 
 from cvstereo.frames.windows import FrameMatcher, Window
-from cvstereo.matchers.fused._constants import CONSISTENT_MAX_UNCERTAINTY, LR_PENALTY, RECENT_WINDOWS
+from cvstereo.matchers.fused._constants import (
+    CONSISTENT_MAX_UNCERTAINTY,
+    LR_PENALTY,
+    RECENT_WINDOWS,
+    SEGMENT_RADIUS,
+    SEGMENT_STEP_PX,
+    SEGMENT_TIER,
+    SEGMENT_WIDTH_PX,
+)
 from cvstereo.matchers.fused._features import (
     NEVER,
     divide,
@@ -120,7 +141,14 @@ from cvstereo.model.matches import MATCH_DTYPE
 #: Planes of the kernel's per-pixel storage: path sums, costs, column paths from below (KernelScratch).
 KERNEL_PLANES = 3
 
-__all__ = ["FusedMatcher", "Scratch", "WindowState", "finish_window", "occluded", "unpartnered"]
+__all__ = ["FusedMatcher", "Scratch", "WindowState", "finish_window", "occluded", "segment_min_for", "small_segments",
+           "unpartnered"]
+
+
+def segment_min_for(params: FusedParams, width: int) -> int:
+    """The segment test's least answers at a sensor ``width`` px wide: ``segment_min_answers`` scaled from 128 px,
+    rounded (0: off)."""
+    return round(params.segment_min_answers * width / SEGMENT_WIDTH_PX)
 
 
 @njit(cache=True, nogil=True)
@@ -164,11 +192,67 @@ def occluded(x, y, disparity, uncertainty, margin, support):
 
 
 @njit(cache=True, nogil=True)
-def finish_window(t_end, x, y, pol, disparity, uncertainty, outside, max_uncertainty, margin, support, prior, prior_x,
-                  prior_y):
+def small_segments(x, y, disparity, judged, grid, min_answers):
+    """The segment test (``segment_min_answers``): which of the ``judged`` answers lie in a segment of fewer than
+    ``min_answers`` judged answers.
+
+    A segment: judged answers joined, one to the next, by lying within :data:`SEGMENT_RADIUS` px (Chebyshev) of
+    each other with disparities at most :data:`SEGMENT_STEP_PX` apart.
+
+    Parameters
+    ----------
+    x, y : (M,) int ndarrays
+        The answers' pixels (one answer per pixel).
+    disparity : (M,) float64 ndarray
+    judged : (M,) bool ndarray
+    grid : (H, W) int64 ndarray
+        All -1 (scratch; left so).
+    min_answers : int
+
+    Returns
+    -------
+    (M,) bool ndarray
+    """
+    m = x.size
+    h, w = grid.shape
+    small = np.zeros(m, np.bool_)
+    for i in range(m):
+        if judged[i]:
+            grid[y[i], x[i]] = i
+    seen = np.zeros(m, np.bool_)
+    members = np.empty(m, np.int64)
+    for i in range(m):
+        if not judged[i] or seen[i]:
+            continue
+        seen[i] = True
+        members[0] = i
+        n, k = 1, 0
+        while k < n:  # breadth first: members[k] is the next answer whose neighbours are looked at
+            j = members[k]
+            k += 1
+            for yy in range(max(y[j] - SEGMENT_RADIUS, 0), min(y[j] + SEGMENT_RADIUS + 1, h)):
+                for xx in range(max(x[j] - SEGMENT_RADIUS, 0), min(x[j] + SEGMENT_RADIUS + 1, w)):
+                    q = grid[yy, xx]
+                    if q >= 0 and not seen[q] and abs(disparity[q] - disparity[j]) <= SEGMENT_STEP_PX:
+                        seen[q] = True
+                        members[n] = q
+                        n += 1
+        if n < min_answers:
+            for k in range(n):
+                small[members[k]] = True
+    for i in range(m):
+        if judged[i]:
+            grid[y[i], x[i]] = -1
+    return small
+
+
+@njit(cache=True, nogil=True)
+def finish_window(t_end, x, y, pol, disparity, uncertainty, outside, max_uncertainty, margin, support, segment_min,
+                  clear_below, grid, prior, prior_x, prior_y):
     """What follows the kernel, in loops over its answers: the next window's prior (the answers of uncertainty at
     most ``min(max_uncertainty, PRIOR_MAX_UNCERTAINTY)`` before the occlusion test, design part 9), the occlusion
-    test (when ``margin >= 0``) and the matches kept. Numpy's dozen calls for the same (masks, fancy indexing, a
+    test (when ``margin >= 0``), the segment test (when ``segment_min > 0``, design part 11) and the matches
+    kept. Numpy's dozen calls for the same (masks, fancy indexing, a
     structured array filled column by column) were a visible share of a small window's time.
 
     Parameters
@@ -181,6 +265,13 @@ def finish_window(t_end, x, y, pol, disparity, uncertainty, outside, max_uncerta
         The answers the partner test flags (:func:`unpartnered`; all False without the test).
     max_uncertainty, margin, support
         ``max_uncertainty``, ``occlusion_margin`` and ``occlusion_support``.
+    segment_min : int
+        The segment test's least answers (:func:`segment_min_for`); where it is on, the uncertainties end in three
+        tiers (:data:`~cvstereo.matchers.fused._constants.SEGMENT_TIER`).
+    clear_below : float
+        ``isolated_max_uncertainty``: answers of lower uncertainty are not judged by their segment.
+    grid : (H, W) int64 ndarray
+        All -1: :func:`small_segments`' scratch.
     prior : (H, W) float64 ndarray
         The prior plane, updated in place: NaN at ``(prior_x, prior_y)`` (the pixels the last window set), then
         the new prior.
@@ -190,7 +281,7 @@ def finish_window(t_end, x, y, pol, disparity, uncertainty, outside, max_uncerta
     -------
     matches : (N,) ndarray of MATCH_DTYPE
     uncertainty : (N,) float64 ndarray
-        The matches' uncertainties (after the occlusion test).
+        The matches' uncertainties (after the occlusion and segment tests).
     prior_x, prior_y : int ndarrays
         The pixels that now hold a prior.
     """
@@ -216,6 +307,16 @@ def finish_window(t_end, x, y, pol, disparity, uncertainty, outside, max_uncerta
         # One penalty at most: the uncertainty stays <= 1.
         if hidden[i] or (outside[i] and uncertainty[i] <= CONSISTENT_MAX_UNCERTAINTY):
             unc[i] = uncertainty[i] + LR_PENALTY
+    if segment_min > 0:
+        # The segments of the answers still consistent after those tests; one in a small segment moves to the
+        # middle tier (SEGMENT_TIER), unless it is clear enough to answer on its own (the noise filter's rule,
+        # design part 13); the inconsistent ones to the last.
+        small = small_segments(x, y, disparity, unc <= CONSISTENT_MAX_UNCERTAINTY, grid, segment_min)
+        for i in range(m):
+            if small[i] and not unc[i] < clear_below:
+                unc[i] = CONSISTENT_MAX_UNCERTAINTY + unc[i] / 2.0
+            elif unc[i] > CONSISTENT_MAX_UNCERTAINTY:
+                unc[i] = SEGMENT_TIER + (unc[i] - CONSISTENT_MAX_UNCERTAINTY) / 2.0
     n = 0
     for i in range(m):
         n += unc[i] <= max_uncertainty
@@ -250,6 +351,7 @@ class WindowState:
         self.prior_end: int | None = None
         self._no_prior = np.full((h, w), np.nan)  # never written: the prior after a gap
         self._prior_at = (np.zeros(0, np.int64), np.zeros(0, np.int64))  # the pixels that hold one
+        self._grid = np.full((h, w), -1, np.int64)  # the segment test's scratch
 
     def prior_for(self, t_end: int, window_us: int) -> np.ndarray:
         """The previous window's disparities if it is the window just before ``t_end``, else all NaN."""
@@ -268,8 +370,10 @@ class WindowState:
         else:
             outside = np.zeros(x.size, np.bool_)
         matches, uncertainty, px, py = finish_window(t_end, *answers, outside, prm.max_uncertainty,
-                                                     prm.occlusion_margin, prm.occlusion_support, self.prior,
-                                                     *self._prior_at)
+                                                     prm.occlusion_margin, prm.occlusion_support,
+                                                     segment_min_for(prm, self._grid.shape[1]),
+                                                     prm.isolated_max_uncertainty, self._grid,
+                                                     self.prior, *self._prior_at)
         self._prior_at = (px, py)
         self.prior_end = t_end
         return matches, uncertainty

@@ -85,10 +85,23 @@ class FusedParams(metaclass=DeclaredParams):
         outside the right image (``x - D < 0``): its uncertainty gets the left-right penalty 0.5, and it is not the
         next window's prior. Bands with fewer than :data:`BORDER_MIN_ANSWERS` consistent answers are not judged.
         -1 disables.
+    segment_min_answers : int
+        Segment test: the consistent answers of a window (uncertainty at most 0.5 after the occlusion and partner
+        tests) form segments, answers within 2 px of each other (Chebyshev) whose disparities differ by at most
+        1 px joined; an answer whose segment holds fewer than this many answers at a 128 px wide sensor (scaled
+        with the width: 250 at 640 px) ranks behind the other consistent answers and before the inconsistent ones
+        (uncertainty ``0.5 + u / 2``; an inconsistent answer's becomes ``0.75 + (u - 0.5) / 2``), unless it is below
+        ``isolated_max_uncertainty`` (a clear match stands on its own, as in the noise filter). A surface's answers
+        form large segments, a wrong answer's few neighbours rarely agree with it (SGBM's speckle filter, on the
+        answers). The next window's prior is the answers before the test. 0 (the default) disables: on the
+        generalization suite's tuning half 50 ranked better at low coverage and halved the default output's bad2,
+        but on the evaluation half it lost a recording against the peers and left some 346 and 640 px scenes
+        almost without default answers (bench/results/fused-segments.md).
     max_uncertainty : float
         Matches whose uncertainty exceeds this are dropped. Uncertainty = half the ratio of the best to the
         second-best aggregated cost more than 1 px away (0..0.5), plus 0.5 where the left-right check, the
-        occlusion test or the partner test fails; the default 0.5 keeps the consistent matches, 1 keeps all.
+        occlusion test or the partner test fails (with the segment test on, in three tiers: see
+        ``segment_min_answers``); the default 0.5 keeps the consistent matches, 1 keeps all.
     """
 
     window_us: int = param(40_000, gt=0, note="the thesis uses 40000")
@@ -110,6 +123,7 @@ class FusedParams(metaclass=DeclaredParams):
     occlusion_margin: float = param(1.0, ge=0, le=16, off=-1, note="px, e.g. 1")
     occlusion_support: int = param(2, ge=1, le=8, note="e.g. 2")
     border_rows: int = param(2, ge=-1, le=16, note="-1: off; e.g. 2")
+    segment_min_answers: int = param(0, ge=0, le=10_000, note="0: off; at 128 px wide, e.g. 50")
     max_uncertainty: float = param(0.5, gt=0, le=1, note="0.5: consistent matches, 1: all")
 
     def check_rules(self):

@@ -18,6 +18,10 @@ from cvstereo.matchers.fused._constants import (
     RATIO_UNCERTAINTY,
     RECENT_WINDOWS,
     SECOND_BEST_GAP_PX,
+    SEGMENT_RADIUS,
+    SEGMENT_STEP_PX,
+    SEGMENT_TIER,
+    SEGMENT_WIDTH_PX,
     SUBPIXEL_MAX_SHIFT_PX,
     TEMPORAL_CAP_PX,
 )
@@ -132,9 +136,8 @@ def aggregate(cost: np.ndarray, active: np.ndarray, prm: FusedParams) -> np.ndar
 
 
 def choose(total, active, counts, recent, prm: FusedParams):
-    """Winner, uncertainty, noise filter, left-right check, sub-pixel, partner and occlusion tests at every left
-    event pixel:
-    the answers kept, and the answers before the occlusion test (the next window's prior)."""
+    """Winner, uncertainty, noise filter, left-right check, sub-pixel, partner, occlusion and segment tests at every
+    left event pixel: the answers kept, and the answers before the occlusion test (the next window's prior)."""
     h, w, nd = total.shape
     out = []
     for y, x in zip(*np.nonzero(counts.sum(axis=0)), strict=True):
@@ -160,7 +163,7 @@ def choose(total, active, counts, recent, prm: FusedParams):
         # Inconsistent winners rank behind every consistent one (design part 7).
         u = RATIO_UNCERTAINTY * ratio if consistent else RATIO_UNCERTAINTY * ratio + LR_PENALTY
         if isolated and not u < prm.isolated_max_uncertainty:
-            continue  # the noise filter (design part 12): an isolated pixel answers only with a clear match
+            continue  # the noise filter (design part 13): an isolated pixel answers only with a clear match
         disp = float(best)
         if prm.subpixel and 0 < best < nd - 1:
             a, b, c = float(s[best - 1]), float(s[best]), float(s[best + 1])
@@ -211,6 +214,34 @@ def choose(total, active, counts, recent, prm: FusedParams):
         hidden = prm.occlusion_margin >= 0 and crossing >= prm.occlusion_support
         if row[4] <= CONSISTENT_MAX_UNCERTAINTY and (off or hidden):
             row[4] = row[4] + LR_PENALTY
+    # Segment test (design part 11): the answers still consistent, grouped by flood fill over neighbours within
+    # SEGMENT_RADIUS px of like disparity; a group smaller than the width's least count ranks between the others and
+    # the inconsistent answers, but for its clear answers (below isolated_max_uncertainty, the noise filter's rule).
+    least = round(prm.segment_min_answers * total.shape[1] / SEGMENT_WIDTH_PX)
+    at = {(row[0], row[1]): row for row in out if row[4] <= CONSISTENT_MAX_UNCERTAINTY}
+    group_of: dict = {}
+    for start in at:
+        if start in group_of:
+            continue
+        group, todo = [start], [start]
+        group_of[start] = group
+        while todo:
+            x, y = todo.pop()
+            for dy in range(-SEGMENT_RADIUS, SEGMENT_RADIUS + 1):
+                for dx in range(-SEGMENT_RADIUS, SEGMENT_RADIUS + 1):
+                    near = (x + dx, y + dy)
+                    if near in at and near not in group_of and abs(at[near][3] - at[(x, y)][3]) <= SEGMENT_STEP_PX:
+                        group_of[near] = group
+                        group.append(near)
+                        todo.append(near)
+    small = {pixel for pixel, row in at.items()
+             if len(group_of[pixel]) < least and not row[4] < prm.isolated_max_uncertainty}
+    if least > 0:  # three tiers: consistent, consistent of a small segment, inconsistent
+        for row in out:
+            if (row[0], row[1]) in small:
+                row[4] = CONSISTENT_MAX_UNCERTAINTY + row[4] / 2.0
+            elif row[4] > CONSISTENT_MAX_UNCERTAINTY:
+                row[4] = SEGMENT_TIER + (row[4] - CONSISTENT_MAX_UNCERTAINTY) / 2.0
     return [tuple(row[:5]) for row in out if row[4] <= prm.max_uncertainty], prior
 
 
