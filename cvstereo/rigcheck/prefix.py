@@ -104,7 +104,8 @@ class PrefixRigCheck:
         Prominence the rows by matching need, tried where the row offset's confidence is below
         ``row_min_confidence`` (None: not tried).
     threads : int
-        Threads of the check's transforms (the match's ``threads``; the same result on any number).
+        Threads of the check's transforms and of the rows by matching (the match's ``threads``; the same result on
+        any number).
     """
 
     resolution: tuple[int, int]
@@ -207,7 +208,8 @@ class PrefixRigCheck:
         from cvstereo.rigcheck.rows_by_matching import rows_by_matching
 
         reach = min(self.params.max_row_offset, self.resolution[1] - 1)
-        self.by_matching = found = rows_by_matching(left, right, resolution=self.resolution, reach=reach)
+        self.by_matching = found = rows_by_matching(left, right, resolution=self.resolution, reach=reach,
+                                                    threads=self.threads)
         return found.offset if found.prominence >= self.matching_min_prominence else 0
 
 

@@ -21,6 +21,7 @@ profiles within a few percent of flat, whose peak is anywhere.
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
 import numpy as np
@@ -77,7 +78,7 @@ def matching_span(left: np.ndarray, right: np.ndarray, *, min_us: int, max_us: i
 
 
 def rows_by_matching(left: np.ndarray, right: np.ndarray, *, resolution, reach: int, min_us: int = 80_000,
-                     max_us: int = 10_000_000, events: int = 100_000) -> RowsByMatching:
+                     max_us: int = 10_000_000, events: int = 100_000, threads: int = 1) -> RowsByMatching:
     """Match ``left`` with ``right`` moved by row offsets from ``-reach`` to ``reach`` and count the answers.
 
     Every second offset first (the even ones), then the two beside the best of them: the profile over the
@@ -95,6 +96,8 @@ def rows_by_matching(left: np.ndarray, right: np.ndarray, *, resolution, reach: 
     min_us, max_us, events : int
         The span matched (:func:`matching_span`): a dense recording's first ``min_us``, a sparse one's first
         ``events`` per camera, at most ``max_us``.
+    threads : int
+        How many offsets are matched at once (one thread each; the same counts on any number).
 
     Returns
     -------
@@ -107,15 +110,19 @@ def rows_by_matching(left: np.ndarray, right: np.ndarray, *, resolution, reach: 
     left, right = (ev[:np.searchsorted(ev["t"], end)] for ev in (left, right))
     counts = {}
 
-    def count(row: int) -> None:
-        if abs(row) <= reach and row not in counts:
-            moved = RigCorrection(row, 0, resolution).correct_right(right)[0]
-            matcher = create_matcher(MATCHING_METHOD, resolution=resolution, threads=1)
-            counts[row] = int(matcher.feed(left, moved, until=end).size + matcher.flush().size)
+    def answers(row: int) -> int:
+        moved = RigCorrection(row, 0, resolution).correct_right(right)[0]
+        matcher = create_matcher(MATCHING_METHOD, resolution=resolution, threads=1)
+        return int(matcher.feed(left, moved, until=end).size + matcher.flush().size)
 
-    for row in range(-(reach - reach % 2), reach + 1, 2):
-        count(row)
+    def count(rows) -> None:
+        rows = [r for r in dict.fromkeys(rows) if abs(r) <= reach and r not in counts]
+        # Each offset's run is independent and its kernels release the GIL: on several threads the runs go side by
+        # side (the counts do not depend on it).
+        with ThreadPoolExecutor(max(1, min(threads, len(rows)))) as pool:
+            counts.update(zip(rows, pool.map(answers, rows), strict=True))
+
+    count(range(-(reach - reach % 2), reach + 1, 2))
     best = _most_answers(counts)
-    count(best - 1)
-    count(best + 1)
+    count((best - 1, best + 1))
     return rows_from_counts(counts, end - t0)

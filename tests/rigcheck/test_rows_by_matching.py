@@ -40,16 +40,18 @@ def test_matching_span_by_hand():
     assert matching_span(left, right, min_us=80_000, max_us=10_000_000, events=10**6) == 999_001  # the last event
 
 
-@pytest.mark.parametrize("rows", [0, 2, -3])
-def test_rows_by_matching_finds_a_known_row_shift(patches, rows):
+@pytest.mark.parametrize(("rows", "threads"), [(0, 1), (2, 1), (-3, 1), (-3, 3)])
+def test_rows_by_matching_finds_a_known_row_shift(patches, rows, threads):
     rec = with_rig_errors(patches, rows=rows)
-    found = rows_by_matching(rec.left, rec.right, resolution=rec.resolution, reach=6)
+    found = rows_by_matching(rec.left, rec.right, resolution=rec.resolution, reach=6, threads=threads)
     assert found.offset == -rows
     assert found.prominence >= MATCHING_MIN_PROMINENCE
     assert max(found.counts.values()) == found.counts[-rows]
     # The even offsets, then the two beside the best of them.
     best_even = max((r for r in found.counts if r % 2 == 0), key=found.counts.get)
     assert set(found.counts) == set(range(-6, 7, 2)) | {best_even - 1, best_even + 1}
+    if threads > 1:  # the offsets matched side by side: the same counts as one after another
+        assert found == rows_by_matching(rec.left, rec.right, resolution=rec.resolution, reach=6, threads=1)
 
 
 @pytest.mark.shared_data
