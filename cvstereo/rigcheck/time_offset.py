@@ -203,13 +203,15 @@ def _row_spectra(frames, lo, hi, nfft, windows) -> RowSpectra:
 
     Only the rows holding a nonzero value are transformed and kept: in a short window most rows hold no event
     within a blur's reach (on the fan four in five), and the transforms and the products of spectra are most
-    of the regression's time.
+    of the regression's time. In single precision, as the frames are: the sums of the cross-spectra are double
+    (:func:`_cross_spectra`), and the check's figures agree with double-precision transforms to the third
+    decimal (51 prefixes and files).
     """
     seg = frames[:, :, lo:hi]
     nonzero = seg.any(axis=2) & windows[:, None]
     index = np.full(frames.shape[:2], -1, np.int64)
     index[nonzero] = np.arange(int(nonzero.sum()))
-    padded = np.zeros((int(nonzero.sum()), nfft))
+    padded = np.zeros((int(nonzero.sum()), nfft), np.float32)
     padded[:, lo:hi] = seg[nonzero]
     energy = np.zeros(frames.shape[:2], np.float32)
     energy[nonzero] = (seg[nonzero] ** 2).sum(axis=1)
