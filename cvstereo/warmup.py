@@ -52,8 +52,14 @@ def warm_up(methods: Iterable[str] | None = None, param_sets: Iterable[str] = PA
 
 
 def _warm_rig_check() -> None:
-    """The default rig check's own kernel (its noise count), which every ``match()`` runs."""
+    """The default rig check's own kernels (its noise count, its time offset's sums of cross-spectra), which every
+    ``match()`` runs."""
+    import numpy as np
+
     from cvstereo.model.events import make_events
     from cvstereo.rigcheck.stats import isolated_events
+    from cvstereo.rigcheck.time_offset import RowSpectra, cross_spectra
 
     isolated_events(make_events([0, 5], [1, 2], [1, 1], [1, 0]), window_us=10, resolution=(4, 4))
+    spectra = RowSpectra(np.ones((1, 3), np.complex64), np.zeros((1, 1), np.int64), np.ones((1, 1), np.float32))
+    cross_spectra(spectra, np.zeros(1, np.int64), spectra, np.zeros(1, np.int64), 0, 1)

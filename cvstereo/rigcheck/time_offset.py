@@ -14,6 +14,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import cv2
+import numba
 import numpy as np
 import scipy.fft as sfft
 
@@ -21,7 +22,7 @@ from cvstereo.model.polarity import sign
 from cvstereo.rigcheck.params import RigCheckParams
 from cvstereo.rigcheck.peaks import contrast, fft_len, half_width, smooth_lags, subsample_peak, support
 
-__all__ = ["PAIRS", "REGRESSION", "RowSpectra", "SlopeFit", "TimeOffset", "equal_peaks",
+__all__ = ["PAIRS", "REGRESSION", "RowSpectra", "SlopeFit", "TimeOffset", "cross_spectra", "equal_peaks",
            "time_offset", "time_offset_pairs", "time_offset_regression"]
 
 # The defaults of the pixel-coincidence options, for callers of time_offset_pairs without a RigCheckParams.
@@ -204,7 +205,7 @@ def _row_spectra(frames, lo, hi, nfft, windows) -> RowSpectra:
     Only the rows holding a nonzero value are transformed and kept: in a short window most rows hold no event
     within a blur's reach (on the fan four in five), and the transforms and the products of spectra are most
     of the regression's time. In single precision, as the frames are: the sums of the cross-spectra are double
-    (:func:`_cross_spectra`), and the check's figures agree with double-precision transforms to the third
+    (:func:`cross_spectra`), and the check's figures agree with double-precision transforms to the third
     decimal (51 prefixes and files).
     """
     seg = frames[:, :, lo:hi]
@@ -218,33 +219,43 @@ def _row_spectra(frames, lo, hi, nfft, windows) -> RowSpectra:
     return RowSpectra(sfft.rfft(padded, axis=1), index, energy)
 
 
-def _cross_spectra(a: RowSpectra, frames_a, b: RowSpectra, frames_b, y0, y1):
+def cross_spectra(a: RowSpectra, frames_a, b: RowSpectra, frames_b, y0, y1):
     """Per pair j, the sum over the rows y0 .. y1 - 1 of spectrum(a, frame frames_a[j], y) times the conjugate
-    of spectrum(b, frame frames_b[j], y); rows that are zero in either frame add nothing and are left out.
-
-    Row by row, over every pair at once: the products of one row are a few hundred kilobytes that stay in the
-    cache, where the products of all rows gathered first would be tens of megabytes at 640x480 (memory, not
-    arithmetic, was the cost).
-    """
-    ia, ib = a.index[frames_a, y0:y1], b.index[frames_b, y0:y1]
-    both = (ia >= 0) & (ib >= 0)
+    of spectrum(b, frame frames_b[j], y); rows that are zero in either frame add nothing and are left out."""
     out = np.zeros((frames_a.size, a.spectra.shape[1]), np.complex128)
-    for k in np.flatnonzero(both.any(axis=0)):
-        pairs = np.flatnonzero(both[:, k])
-        out[pairs] += a.spectra[ia[pairs, k]] * np.conj(b.spectra[ib[pairs, k]])
+    _add_cross(a.spectra, np.ascontiguousarray(a.index[frames_a, y0:y1]), b.spectra,
+               np.ascontiguousarray(b.index[frames_b, y0:y1]), out)
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _add_cross(spec_a, rows_a, spec_b, rows_b, out):
+    """``out[j] += spec_a[rows_a[j, k]] * conj(spec_b[rows_b[j, k]])`` over k, where both rows exist (>= 0).
+
+    A pair's products are summed in the order of the rows into its own line of ``out``, which stays in the cache;
+    gathering each row's products for all pairs first (numpy's way) moved tens of megabytes at 640x480. Each
+    product in the spectra's precision, the sum in double.
+    """
+    n_pairs, n_rows = rows_a.shape
+    for j in range(n_pairs):
+        for k in range(n_rows):
+            p, q = rows_a[j, k], rows_b[j, k]
+            if p >= 0 and q >= 0:
+                for f in range(out.shape[1]):
+                    out[j, f] += np.complex128(spec_a[p, f] * np.conj(spec_b[q, f]))
 
 
 def _window_stack(ev, starts, width, height, window_us, blur_px):
     """(K, H, W) float32 signed event frames of the windows ``[starts[k], starts[k] + window_us)`` (sorted,
-    not overlapping), Gaussian-smoothed."""
-    k = np.searchsorted(starts, ev["t"], side="right") - 1
-    ok = (k >= 0) & (ev["t"] < starts[np.maximum(k, 0)] + window_us)
+    not overlapping) of the time-ordered events ``ev``, Gaussian-smoothed."""
+    # Each window's events by bisection of the time-ordered events (two searches per window, not one per event).
+    lo, hi = np.searchsorted(ev["t"], starts), np.searchsorted(ev["t"], starts + window_us)
     n = starts.size
-    flat = (k[ok] * height + ev["y"][ok].astype(np.int64)) * width + ev["x"][ok]
-    f = np.bincount(flat, weights=sign(ev["p"][ok]), minlength=n * height * width)
-    f = f.astype(np.float32).reshape(n, height, width)
+    f = np.empty((n, height, width), np.float32)
     for i in range(n):
+        e = ev[lo[i]:hi[i]]
+        counts = np.bincount(e["y"].astype(np.int64) * width + e["x"], weights=sign(e["p"]), minlength=height * width)
+        f[i] = counts.reshape(height, width)
         # Smoothing makes the correlation peak broad enough to interpolate without locking to whole pixels.
         f[i] = cv2.GaussianBlur(f[i], (0, 0), blur_px, borderType=cv2.BORDER_CONSTANT)
     return f
@@ -262,7 +273,7 @@ def _fine_shift(a: RowSpectra, frames_a, b: RowSpectra, frames_b, rows, lo, hi, 
     slope.
     """
     y0, y1 = (int(r) for r in rows)
-    spec = _cross_spectra(a, frames_a, b, frames_b, y0, y1)
+    spec = cross_spectra(a, frames_a, b, frames_b, y0, y1)
     n = nfft * upsample
     lags = np.arange(lo * upsample, hi * upsample + 1)
     c = (sfft.irfft(spec, n, axis=-1) * upsample)[:, lags % n]

@@ -26,9 +26,9 @@ class WindowFrames(NamedTuple):
 
 def signed_frame(ev, width, height):
     """(height, width) float32 sum of event signs (ON +1, OFF -1) per pixel."""
-    f = np.zeros(height * width, np.float32)
-    np.add.at(f, ev["y"].astype(np.int64) * width + ev["x"], sign(ev["p"]))
-    return f.reshape(height, width)
+    # bincount rather than np.add.at (several times faster); the sums are whole numbers, exact either way.
+    f = np.bincount(ev["y"].astype(np.int64) * width + ev["x"], weights=sign(ev["p"]), minlength=height * width)
+    return f.astype(np.float32).reshape(height, width)
 
 
 def window_frames(left, right, *, resolution, window_us, max_windows, min_events, blur_px) -> Iterator[WindowFrames]:
