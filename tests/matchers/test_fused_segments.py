@@ -7,7 +7,8 @@ import pytest
 from _event_scenes import feed_cut
 from test_fused import textured_pair
 
-from cvstereo.matchers.fused.matcher import FusedMatcher, segment_min_for, small_segments
+from cvstereo.matchers.fused._segments import segment_min_for, small_segments
+from cvstereo.matchers.fused.matcher import FusedMatcher
 from cvstereo.matchers.fused.params import FusedParams
 
 
