@@ -41,9 +41,8 @@ Design, part by part, with the reason for each (bench/results/fused.md measures 
    ratio of block matching as a number), plus 0.5 where the left-right check (part 8), the occlusion test
    (part 9) or the partner test (part 10) fails, so that every inconsistent, hidden or unpartnered match ranks
    behind every consistent one; the segment test (part 11) puts the consistent answers of small segments between
-   the two. Users threshold it (``max_uncertainty``,
-   default 0.5: the consistent matches) or keep the most certain ones (:meth:`FusedMatcher.take_uncertainty`
-   gives it per match).
+   the two. Users threshold it (``max_uncertainty``, default 0.5: the consistent matches) or keep the most
+   certain ones (:meth:`FusedMatcher.take_uncertainty` gives it per match).
 8. **Left-right consistency** (``lr_tolerance``): the right pixel the winner points to must choose the same
    disparity (within 1 px) from the same aggregated volume; occlusions and half-matched edges fail it.
    A winner that fails it takes the median of the consistent answers within ``fill_radius`` (12) px (when
@@ -134,8 +133,7 @@ from cvstereo.model.matches import MATCH_DTYPE
 #: Planes of the kernel's per-pixel storage: path sums, costs, column paths from below (KernelScratch).
 KERNEL_PLANES = 3
 
-__all__ = ["FusedMatcher", "Scratch", "WindowState", "finish_window", "occluded", "segment_min_for", "small_segments",
-           "unpartnered"]
+__all__ = ["FusedMatcher", "Scratch", "WindowState", "finish_window", "occluded", "unpartnered"]
 
 
 @njit(cache=True, nogil=True)
@@ -184,8 +182,8 @@ def finish_window(t_end, x, y, pol, disparity, uncertainty, outside, max_uncerta
     """What follows the kernel, in loops over its answers: the next window's prior (the answers of uncertainty at
     most ``min(max_uncertainty, PRIOR_MAX_UNCERTAINTY)`` before the occlusion test, design part 9), the occlusion
     test (when ``margin >= 0``), the segment test (when ``segment_min > 0``, design part 11) and the matches
-    kept. Numpy's dozen calls for the same (masks, fancy indexing, a
-    structured array filled column by column) were a visible share of a small window's time.
+    kept. Numpy's dozen calls for the same (masks, fancy indexing, a structured array filled column by column)
+    were a visible share of a small window's time.
 
     Parameters
     ----------
