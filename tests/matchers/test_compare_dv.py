@@ -84,6 +84,7 @@ def test_edge_map_is_dv_processings_accumulator(rng):
     # second window from the same accumulator (dv-processing starts every frame from 0).
     import dv_processing as dv
 
+    from cvstereo.frames.accumulate import polarity_counts
     from cvstereo.matchers.dv.matcher import edge_map
 
     size = (37, 23)
@@ -93,7 +94,7 @@ def test_edge_map_is_dv_processings_accumulator(rng):
         x, y, p = rng.integers(0, size[0], n), rng.integers(0, size[1], n), rng.integers(0, 2, n)
         events = make_events(np.sort(rng.integers(0, W, n)), x, y, p)
         acc.accept(_store(dv, events))
-        ours = edge_map(events, size)
+        ours = edge_map(polarity_counts(events, resolution=size))
         assert ours.dtype == np.uint8 and ours.shape == (size[1], size[0])
         np.testing.assert_array_equal(ours, acc.generateFrame().image)
         assert set(np.unique(ours)) >= {0, 64, 128, 192, 255}

@@ -15,11 +15,12 @@ OpenCV's SGBM configured as dv-processing's (:data:`~cvstereo.matchers.dv.params
 at 48 disparities that configuration gives dv-processing's own disparity on 99.4 % of the pixels (six windows of two
 generalization recordings), and the 128 px sensor keeps dv-processing's own matcher (bit for bit the published figures).
 
-Edge maps. dv-processing's Python API takes events one call per event (``EventStore.push_back``), which cost three
-times the matching at 640x480 (2.3 M events per 0.4 s). :func:`edge_map` builds the same 8-bit image as its
+Edge maps. dv-processing's Python API takes events one call per event (``EventStore.push_back``), which at large
+sensors cost more than the matching itself. :func:`edge_map` builds the same 8-bit image as its
 ``EdgeMapAccumulator`` with the matcher's defaults (each event adds 64, polarity ignored, saturating at 255, from 0
-in every frame) in one pass over the window, and the pair goes to dv-processing's own ``compute`` of images (or to
-the wider SGBM): the same disparity maps, bit for bit (tests compare them with dv-processing's event path).
+in every frame) from the window's polarity counts (the OpenCV baselines' own), and the pair goes to dv-processing's
+own ``compute`` of images (or to the wider SGBM): the same disparity maps, bit for bit (tests compare them with
+dv-processing's event path).
 """
 
 from __future__ import annotations
@@ -42,23 +43,21 @@ __all__ = ["EDGE_STEP", "DvSemiDenseMatcher", "DvSemiDenseParams", "edge_map"]
 EDGE_STEP = 64
 
 
-def edge_map(events: np.ndarray, resolution: tuple[int, int]) -> np.ndarray:
-    """dv-processing's edge map of a window's events (its ``EdgeMapAccumulator`` with its stereo matcher's defaults).
+def edge_map(counts: np.ndarray) -> np.ndarray:
+    """dv-processing's edge map of a window (its ``EdgeMapAccumulator`` with its stereo matcher's defaults).
 
     Parameters
     ----------
-    events : ndarray of EVENT_DTYPE
-        One camera's events of the window (any order; polarity is ignored).
-    resolution : (width, height)
+    counts : (2, height, width) int ndarray
+        One camera's OFF and ON counts of the window (:func:`cvstereo.frames.accumulate.polarity_counts`; polarity
+        is ignored).
 
     Returns
     -------
     (height, width) uint8 ndarray
         ``min(255, 64 * n)`` at a pixel that saw ``n`` events.
     """
-    width, height = resolution
-    counts = np.bincount(events["y"].astype(np.int64) * width + events["x"], minlength=width * height)
-    return np.minimum(counts * EDGE_STEP, 255).astype(np.uint8).reshape(height, width)
+    return np.minimum(counts.sum(axis=0) * EDGE_STEP, 255).astype(np.uint8)
 
 
 class DvSemiDenseMatcher(FrameMatcher):
@@ -99,8 +98,9 @@ class DvSemiDenseMatcher(FrameMatcher):
     def match_window(self, window: Window) -> np.ndarray:
         if not (window.left.size and window.right.size):
             return empty_matches()
-        images = [edge_map(events, self.resolution) for events in (window.left, window.right)]
-        raw = (self._matcher if self._matcher is not None else self._sgbm).compute(*images)
+        # The counts the OpenCV baselines take too: the left camera's also give the anchors.
+        counts = [polarity_counts(ev, resolution=self.resolution) for ev in (window.left, window.right)]
+        raw = (self._matcher if self._matcher is not None else self._sgbm).compute(*map(edge_map, counts))
         # Like OpenCV's SGBM it marks "no disparity" with (min_disparity - 1) * 16 = -16.
         disp = np.where(raw >= 0, raw.astype(np.float32) / DISP_SCALE, np.float32(np.nan))
-        return matches_at_left_events(window.t_end, polarity_counts(window.left, resolution=self.resolution), disp)
+        return matches_at_left_events(window.t_end, counts[0], disp)
