@@ -93,10 +93,9 @@ class FusedParams(metaclass=DeclaredParams):
         (uncertainty ``0.5 + u / 2``; an inconsistent answer's becomes ``0.75 + (u - 0.5) / 2``), unless it is below
         ``isolated_max_uncertainty`` (a clear match stands on its own, as in the noise filter). A surface's answers
         form large segments, a wrong answer's few neighbours rarely agree with it (SGBM's speckle filter, on the
-        answers). The next window's prior is the answers before the test. 0 (the default) disables: on the
-        generalization suite's tuning half 50 ranked better at low coverage and halved the default output's bad2,
-        but on the evaluation half it lost a recording against the peers and left some 346 and 640 px scenes
-        almost without default answers (bench/results/fused-segments.md).
+        answers). The next window's prior is the answers before the test. 0 (the default) disables: 50, chosen on
+        the generalization suite's tuning half, did not carry to its evaluation half (fewer wins against the peers,
+        some large scenes almost without default answers; bench/results/fused-segments.md).
     max_uncertainty : float
         Matches whose uncertainty exceeds this are dropped. Uncertainty = half the ratio of the best to the
         second-best aggregated cost more than 1 px away (0..0.5), plus 0.5 where the left-right check, the
