@@ -3,9 +3,9 @@
 Per window, on the features of :mod:`cvstereo.matchers.fused._features`: :func:`match_features` (cost and
 semi-global aggregation, :mod:`cvstereo.matchers.fused._sgm`; winner, left-right check, sub-pixel, uncertainty and
 fill, :mod:`cvstereo.matchers.fused._answers`), built twice (:mod:`cvstereo.matchers.fused._parallel`): serial,
-with the fused passes, and parallel, with the split ones (rows, column blocks and filled answers in chunks). Every
-floating-point expression is evaluated in the same order as in :mod:`cvstereo.matchers.fused.reference`, so that
-both give bit-identical matches (tests/test_fused.py).
+the two direction passes one after the other, and parallel, both at once (two threads) or the split passes (rows,
+column blocks and filled answers in chunks). Every floating-point expression is evaluated in the same order as in
+:mod:`cvstereo.matchers.fused.reference`, so that all give bit-identical matches (tests/test_fused.py).
 
 Why the kernels are shaped as they are (the figures that led here are in bench/results/docstring-figures.md).
 Typical windows: 2arms-50cm, 128x128, 64 disparities, about 6000 active pixels; a 346x260 recording at a million
@@ -13,11 +13,14 @@ events a second, about 26000 active pixels and 171 disparities.
 
 * Memory traffic, not arithmetic, set the pace when the cost and the four paths were stored as (active pixels x
   disparities) arrays of several MB. Now a window keeps two such arrays, in float32 (half the bytes, twice the
-  vector lanes): the cost and the sum of its paths. Each pass (:func:`~cvstereo.matchers.fused._sgm._row_pass`)
-  keeps its row path in a vector and its column path in two sensor rows; the forward pass computes the cost, stores
-  it and writes left + above, the backward pass reads the cost back and adds right and below. Cost, paths and sums
-  are float32 in the reference too, in the same order. Keeping the paths out of memory pays most where the arrays
-  outgrow the caches (the 346x260 windows); storing the cost saves computing it again in the backward pass.
+  vector lanes): the sums of each pass direction. Each pass (:func:`~cvstereo.matchers.fused._sgm._row_pass`)
+  keeps its row path in a vector, its column path in two sensor rows and the costs of its next pixels in a ring;
+  the forward pass writes left + above, the backward pass right + below, in ascending order of memory (mirrored:
+  a descending stream of stores was slower by half), and adds the two where it answers the row. Cost, paths and
+  sums are float32 in the reference too, in the same order. Keeping the paths out of memory pays most where the
+  arrays outgrow the caches (the 346x260 and 640x480 windows); so does computing the costs in each pass rather than
+  storing them once and reading them back (at 640x480 the backward pass took longer reading them than the forward
+  pass computing them).
 * Each pixel's semi-global step is one plain loop over the disparities, which the compiler vectorises: it steps the
   row and the column path, adds them to the sums and takes their minima (a reduction the compiler vectorises too,
   :func:`~cvstereo.matchers.fused._sgm._least`: numba's ``min`` kept it scalar, one instruction per value, in a
@@ -30,7 +33,7 @@ events a second, about 26000 active pixels and 171 disparities.
   :func:`~cvstereo.matchers.fused._sgm._step` takes scalars only.
 * The left-right check needs the right pixels' winners of a row, each one disparity of many different left pixels:
   they are found in one sweep over the row's sums (contiguous, branch-free, mirrored like the cost) as soon as the
-  backward pass has finished the row, while its sums are in the cache, instead of a scattered walk per anchor.
+  second pass has finished the row, while its sums are in the cache, instead of a scattered walk per anchor.
 * The cost reads the right camera's row backwards (disparity 0, 1, ... is column x, x - 1, ...): a mirrored copy of
   the right features makes those loops contiguous and branch-free, so they vectorise. Its index is unsigned: numba
   wraps negative indices around, and testing a signed one kept the loop scalar.
@@ -48,11 +51,10 @@ import numpy as np
 from numba import prange
 
 from cvstereo.matchers.fused._answers import consistent_rows, fill_answers, row_answers
-from cvstereo.matchers.fused._parallel import COLUMN_BLOCK, chunk_count, serial_and_parallel
-from cvstereo.matchers.fused._sgm import _column_run, _row_pass
+from cvstereo.matchers.fused._parallel import COLUMN_BLOCK, chunk_count, serial_and_parallel, take_turn
+from cvstereo.matchers.fused._sgm import COST_RUN, DIRECTIONS, SPLIT, _column_run, _row_pass
 
-__all__ = ["KernelParams", "KernelScratch", "kernel_params", "match_features",
-           "match_features_parallel"]
+__all__ = ["KernelParams", "KernelScratch", "kernel_params", "match_features", "match_features_parallel", "way_for"]
 
 class KernelParams(NamedTuple):
     """The :class:`~cvstereo.matchers.fused.params.FusedParams` fields the kernel reads, typed for numba (one
@@ -84,12 +86,13 @@ class KernelScratch(NamedTuple):
     """Scratch of :func:`match_features`, kept between windows by the caller (fresh pages cost more than the
     arithmetic).
 
-    ``work``: (3, n, max_d + 1) float32 for at least the n active pixels: the sum of their paths, their cost and
-    (split passes) their column path from below. ``cols``, ``vecs``: (2 W + 1, max_d + 3) and (3, max_d + 3)
-    float32, the column path's current and previous sensor row (row ``cur * W + x``) and the row path's current and
-    previous vector, each with a last row of zeros, and a first and last column of inf, that are never written
-    (:func:`~cvstereo.matchers.fused._sgm._row_pass`). ``right_rev``: (H, 2, W + max_d + 1) float32 zeros;
-    ``index``: (H, W) int64.
+    ``work``: (3, n, max_d + 1) float32 for at least the n active pixels: the sum of their paths (the forward pass's
+    share first), then with the direction passes the backward pass's share (mirrored) and, with the split passes,
+    their cost and their column path from below. ``cols``, ``vecs``: (2, 2 W + 1, max_d + 3) and (2, 3, max_d + 3)
+    float32, one of each per pass direction: the column path's current and previous sensor row (row ``cur * W + x``)
+    and the row path's current and previous vector, each with a last row of zeros, and a first and last column of
+    inf, that are never written (:func:`~cvstereo.matchers.fused._sgm._row_pass`). ``right_rev``:
+    (H, 2, W + max_d + 1) float32 zeros; ``index``: (H, W) int64.
     """
 
     work: np.ndarray
@@ -99,7 +102,20 @@ class KernelScratch(NamedTuple):
     index: np.ndarray
 
 
-def _match_features(fl, fr, counts, active, recent, prior, prm, scratch, split, chunks):
+def way_for(threads: int, paths: int) -> int:
+    """The way through the semi-global passes (:mod:`cvstereo.matchers.fused._sgm`) for a match on ``threads``
+    threads with ``paths`` paths: the two direction passes (one after the other on one thread, at once on two), and
+    the split passes (rows and column blocks in as many chunks as asked) on more, or without paths.
+
+    The split passes keep any number of cores busy, but move each (pixels x disparities) plane through memory
+    about twice as often as the direction passes, whose fused order keeps each pixel's costs and paths in the cache.
+    """
+    if threads == 1 or (threads == 2 and paths > 0):
+        return DIRECTIONS
+    return SPLIT
+
+
+def _match_features(fl, fr, counts, active, recent, prior, prm, scratch, way, chunks):
     """Match one window's normalised features; return the answers at the left camera's event pixels.
 
     Parameters
@@ -116,9 +132,10 @@ def _match_features(fl, fr, counts, active, recent, prior, prm, scratch, split, 
         Disparity of the previous window per pixel, NaN where none (temporal coherence).
     prm : KernelParams
     scratch : KernelScratch
-    split : bool
-        The split passes (rows and column blocks in parallel chunks in the parallel build) rather than the fused
-        ones; both give the same answers (:mod:`cvstereo.matchers.fused._sgm`).
+    way : int
+        The way through the passes (:func:`way_for`): :data:`~cvstereo.matchers.fused._sgm.DIRECTIONS` (the serial
+        build: one after the other) or ``SPLIT`` (rows and column blocks in parallel chunks); both give the same
+        answers (:mod:`cvstereo.matchers.fused._sgm`).
     chunks : int
         How many chunks the parallel loops split their rows, column blocks and answers into (at least 1; the
         answers do not depend on it).
@@ -172,35 +189,45 @@ def _match_features(fl, fr, counts, active, recent, prior, prm, scratch, split, 
                 for xx in range(w):
                     right_rev[yy, c, w - 1 - xx] = fr[c, yy, xx]
     total, costs, below = scratch.work[0, :n], scratch.work[1, :n], scratch.work[2, :n]
-    cols, vecs = scratch.cols, scratch.vecs
-    cols_min = np.empty((2, w), np.float32)
     ints = np.empty((3, n_anchor), np.int64)  # x, y, polarity per output slot
     reals = np.empty((2, n_anchor))  # disparity, uncertainty
     flags = np.zeros((2, n_anchor), np.bool_)  # left-right consistent, answered
-    if not split:
-        right_v = np.empty(w, np.float32)  # the right pixels' least total and its disparity (-1: none), mirrored
-        right_d = np.empty(w, np.int32)
-        # Forward pass (top to bottom, left to right): total = row path from the left (+ column path from above).
-        cur = 0
-        for yy in range(h):
-            if row_start[yy] < row_start[yy + 1]:
-                _row_pass(fl, right_rev, prior, index, ax, yy, row_start[yy], row_start[yy + 1], 1, prm, False, total,
-                          costs, below, vecs, cols, cols_min, cur)
+    if way == DIRECTIONS:
+        # The forward pass (top to bottom, left to right: left + above, into total) and the backward pass (bottom to
+        # top, right to left: right + below, into below, mirrored), each with path vectors and costs of its own: at
+        # once on two threads, one after the other on one. A row's answers come from the pass that finishes it
+        # second, while its own sums of the row are in the cache: with one thread, the backward pass, row by row.
+        passes = 2 if prm.paths > 0 else 1
+        turns = np.zeros(h, np.int64)
+        for task in prange(passes):
+            step = 1 - 2 * task
+            own_vecs, own_cols = scratch.vecs[task], scratch.cols[task]
+            own_min = np.empty((2, w), np.float32)
+            ring = np.empty((COST_RUN, nd), np.float32)
+            right_v = np.empty(w, np.float32)  # the right pixels' least total and its disparity (-1: none), mirrored
+            right_d = np.empty(w, np.int32)
+            cur = 0
+            for i in range(h):
+                yy = i if step > 0 else h - 1 - i
+                k0, k1 = row_start[yy], row_start[yy + 1]
+                if k0 == k1:
+                    continue
+                if step > 0:
+                    _row_pass(fl, right_rev, prior, index, ax, yy, k0, k1, 1, prm, DIRECTIONS, total, ring, costs,
+                              own_vecs, own_cols, own_min, cur)
+                else:
+                    _row_pass(fl, right_rev, prior, index, ax, yy, k1 - 1, k0 - 1, -1, prm, DIRECTIONS, below, ring,
+                              costs, own_vecs, own_cols, own_min, cur)
                 cur = 1 - cur
-        # Backward pass (bottom to top, right to left): the row path from the right and the column path from below
-        # are added; then the row's answers, while its sums are in the cache.
-        for yy in range(h - 1, -1, -1):
-            k0, k1 = row_start[yy], row_start[yy + 1]
-            if k0 == k1:
-                continue
-            if prm.paths > 0:
-                _row_pass(fl, right_rev, prior, index, ax, yy, k1 - 1, k0 - 1, -1, prm, False, total, costs, below,
-                          vecs, cols, cols_min, cur)
-                cur = 1 - cur
-            if slot_start[yy] < slot_start[yy + 1]:
-                row_answers(yy, k0, k1, slot_start[yy], counts, recent, total, ax, prm, right_v, right_d, ints, reals,
-                            flags)
+                if take_turn(turns, yy) == passes - 1 and slot_start[yy] < slot_start[yy + 1]:
+                    if passes == 2:
+                        for k in range(k0, k1):
+                            for d in range(nd):
+                                total[k, d] = total[k, d] + below[n - 1 - k, d]
+                    row_answers(yy, k0, k1, slot_start[yy], counts, recent, total, ax, prm, right_v, right_d, ints,
+                                reals, flags)
     else:
+        cols, cols_min = scratch.cols[0], np.empty((2, w), np.float32)
         if prm.paths == 4:
             # Column paths, chunks of adjacent column blocks in parallel: down (costs, and total = above), then up
             # (below). Adjacent blocks, so that a chunk's pixels of a row are one run of the (active pixels x nd)
@@ -229,11 +256,11 @@ def _match_features(fl, fr, counts, active, recent, prior, prm, scratch, split, 
                 k0, k1 = row_start[yy], row_start[yy + 1]
                 if k0 == k1:
                     continue
-                _row_pass(fl, right_rev, prior, index, ax, yy, k0, k1, 1, prm, True, total, costs, below, own, cols,
-                          cols_min, 0)
+                _row_pass(fl, right_rev, prior, index, ax, yy, k0, k1, 1, prm, SPLIT, total, costs, below, own,
+                          cols, cols_min, 0)
                 if prm.paths > 0:
-                    _row_pass(fl, right_rev, prior, index, ax, yy, k1 - 1, k0 - 1, -1, prm, True, total, costs, below,
-                              own, cols, cols_min, 0)
+                    _row_pass(fl, right_rev, prior, index, ax, yy, k1 - 1, k0 - 1, -1, prm, SPLIT, total, costs,
+                              below, own, cols, cols_min, 0)
                 if slot_start[yy] < slot_start[yy + 1]:
                     row_answers(yy, k0, k1, slot_start[yy], counts, recent, total, ax, prm, right_v, right_d, ints,
                                 reals, flags)
@@ -242,11 +269,11 @@ def _match_features(fl, fr, counts, active, recent, prior, prm, scratch, split, 
     disparity, uncertainty, ok = reals[0][has], reals[1][has], flags[0][has]
     if prm.fill_radius > 0:
         cons = consistent_rows(x, y, ok, h)
-        n_fill = chunk_count(x.size, chunks) if split else 1
+        n_fill = chunk_count(x.size, chunks)
         for ch in prange(n_fill):
             fill_answers(ch, n_fill, x, y, ok, disparity, uncertainty, cons, prm, h, nd)
     return x, y, pol, disparity, uncertainty
 
 
-#: The serial build (one thread, the fused passes) and the parallel one (``split`` True), of one source.
+#: The serial build (one thread: the direction passes in turn) and the parallel one, of one source.
 match_features, match_features_parallel = serial_and_parallel(_match_features)

@@ -13,8 +13,11 @@ from __future__ import annotations
 import types
 
 from numba import njit
+from numba import types as nb_types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
-__all__ = ["CHUNKS_PER_THREAD", "COLUMN_BLOCK", "chunk_count", "chunks_for", "serial_and_parallel"]
+__all__ = ["CHUNKS_PER_THREAD", "COLUMN_BLOCK", "chunk_count", "chunks_for", "serial_and_parallel", "take_turn"]
 
 #: Columns per block where columns are split into blocks (the fused matcher's column paths, a range of blocks a
 #: chunk, and active-pixel mask, a block a task).
@@ -40,12 +43,35 @@ def serial_and_parallel(fn):
 
 
 def chunks_for(threads: int) -> int:
-    """How many chunks to split the work of ``threads`` threads into (:data:`CHUNKS_PER_THREAD` per thread); given
-    to the kernels by the caller, since numba cannot cache a kernel that asks for its thread count."""
-    return CHUNKS_PER_THREAD * threads
+    """How many chunks to split the work of ``threads`` threads into (:data:`CHUNKS_PER_THREAD` per thread, and one
+    on one thread, where the serial builds run the chunks one after the other); given to the kernels by the caller,
+    since numba cannot cache a kernel that asks for its thread count."""
+    return 1 if threads == 1 else CHUNKS_PER_THREAD * threads
 
 
 @njit(cache=True, nogil=True)
 def chunk_count(n, chunks):
     """How many of ``chunks`` chunks ``n`` rows (or blocks) are split into: at most ``n``, at least 1."""
     return max(1, min(n, chunks))
+
+
+@intrinsic
+def take_turn(typingctx, counters, i):
+    """``counters[i] += 1`` as one atomic step (sequentially consistent) of an int64 array; returns the count
+    before it.
+
+    Two threads that each finish a share of the same piece of work (the two directions of a row) each take a turn;
+    the one that sees the other's turn taken (``1``) does what needs both shares, and sees their writes: the
+    atomic step orders every write before it, in either thread, before every read after it.
+    """
+    if not (isinstance(counters, nb_types.Array) and counters.dtype == nb_types.int64 and counters.ndim == 1):
+        return None
+    sig = nb_types.int64(counters, nb_types.intp)
+
+    def codegen(context, builder, signature, args):
+        array_type = signature.args[0]
+        array = context.make_array(array_type)(context, builder, args[0])
+        at = cgutils.get_item_pointer(context, builder, array_type, array, [args[1]])
+        return builder.atomic_rmw("add", at, context.get_constant(nb_types.int64, 1), "seq_cst")
+
+    return sig, codegen

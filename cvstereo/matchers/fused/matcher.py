@@ -122,7 +122,13 @@ from cvstereo.matchers.fused._features import (
 )
 from cvstereo.matchers.fused._features import surface_features as surface_features_serial
 from cvstereo.matchers.fused._features import window_masks as window_masks_serial
-from cvstereo.matchers.fused._kernels import KernelScratch, kernel_params, match_features, match_features_parallel
+from cvstereo.matchers.fused._kernels import (
+    KernelScratch,
+    kernel_params,
+    match_features,
+    match_features_parallel,
+    way_for,
+)
 from cvstereo.matchers.fused._parallel import chunks_for
 from cvstereo.matchers.fused._partner import unpartnered, unpartnered_parallel
 from cvstereo.matchers.fused._segments import segment_min_for, small_segments
@@ -329,10 +335,11 @@ class Scratch:
         self.counts = np.empty((2, h, w), np.int64)
         self.active = np.empty((h, w), np.bool_)
         self.recent = np.empty((h, w), np.bool_)
-        # Path vectors: disparity d at column d + 1, between columns of inf (KernelScratch).
-        cols, vecs = (np.zeros((rows, n_disparities + 2), np.float32) for rows in (2 * w + 1, 3))
+        # Path vectors, one set per pass direction: disparity d at column d + 1, between columns of inf
+        # (KernelScratch).
+        cols, vecs = (np.zeros((2, rows, n_disparities + 2), np.float32) for rows in (2 * w + 1, 3))
         for path in (cols, vecs):
-            path[:, 0] = path[:, -1] = np.inf
+            path[:, :, 0] = path[:, :, -1] = np.inf
         self.kernel = KernelScratch(np.empty((KERNEL_PLANES, 0, n_disparities), np.float32), cols, vecs,
                                     np.zeros((h, 2, w + n_disparities), np.float32), np.empty((h, w), np.int64))
 
@@ -408,7 +415,7 @@ class FusedMatcher(FrameMatcher):
         kernel = match_features_parallel if threads > 1 else match_features
         answers = kernel(buf.features[0], buf.features[1], buf.counts, buf.active, buf.recent,
                          state.prior_for(window.t_end, prm.window_us), self._kernel_params, buf.kernel_for(n_active),
-                         threads > 1, chunks_for(threads))
+                         way_for(threads, prm.sgm_paths), chunks_for(threads))
         matches, uncertainty = state.settle(window.t_end, answers, prm, threads)
         self._uncertainty.append(uncertainty)
         return matches

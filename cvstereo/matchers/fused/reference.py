@@ -129,10 +129,9 @@ def aggregate(cost: np.ndarray, active: np.ndarray, prm: FusedParams) -> np.ndar
         paths[(dy, dx)] = out
     if prm.sgm_paths == 2:
         return paths[(0, 1)] + paths[(0, -1)]
-    # ((left + above) + right) + below: the kernel's order (its forward pass sums the first two).
-    total = paths[(0, 1)] + paths[(1, 0)]
-    total = total + paths[(0, -1)]
-    return total + paths[(-1, 0)]
+    # (left + above) + (right + below): the kernel's order (its forward pass sums the first two, its backward pass
+    # the others).
+    return (paths[(0, 1)] + paths[(1, 0)]) + (paths[(0, -1)] + paths[(-1, 0)])
 
 
 def choose(total, active, counts, recent, prm: FusedParams):
