@@ -138,24 +138,25 @@ def _surface_features(t, x, y, p, last, t_end, tau, radius, ts, rows, out):
             last[pi, yi, xi] = t[i]
     _, h, w = last.shape
     surf = out if radius == 0 else ts
-    # Rows in parallel (in the parallel build): each row's values depend on nothing another row's pass writes.
-    for c in range(2):
-        for yy in prange(h):
+    # Rows in parallel (in the parallel build), both polarities in one loop, so that a window pays two launches of
+    # the threads rather than six: a row's surface and its sums along the row depend on nothing another row writes.
+    for yy in prange(h):
+        for c in range(2):
             for xx in range(w):
                 age = t_end - last[c, yy, xx]
                 v = 1.0 - float(age) / float(tau)
                 surf[c, yy, xx] = v if age < tau else 0.0  # both sides computed: the loop vectorises
+            if radius > 0:
+                # Separable: sums along the row first, then of those along the column (the reference's order),
+                # each gathered with its terms in ascending order as the reference adds them: contiguous loops
+                # that vectorise.
+                _gather_add(ts[c, yy], rows[c, yy], radius)
     if radius == 0:
         return
-    # Separable: sums along the row first, then of those along the column (the reference's order), each
-    # gathered with its terms in ascending order as the reference adds them: contiguous loops that vectorise.
-    for c in range(2):
-        for yy in prange(h):
-            _gather_add(ts[c, yy], rows[c, yy], radius)
-    for c in range(2):
-        for yy in prange(h):
+    for yy in prange(h):
+        y_lo = max(yy - radius, 0)
+        for c in range(2):
             acc = out[c, yy]
-            y_lo = max(yy - radius, 0)
             _copy_to(acc, rows[c, y_lo])  # the first term (see _gather_add)
             for y2 in range(y_lo + 1, min(yy + radius + 1, h)):
                 _add_to(acc, rows[c, y2])

@@ -136,7 +136,8 @@ from cvstereo.matchers.fused.params import PRIOR_MAX_UNCERTAINTY, FusedParams
 from cvstereo.matchers.fused.signal import level_of
 from cvstereo.model.matches import MATCH_DTYPE
 
-#: Planes of the kernel's per-pixel storage: path sums, costs, column paths from below (KernelScratch).
+#: Planes of the kernel's per-pixel storage: path sums, costs (split passes), the backward pass's sums or the column
+#: paths from below (KernelScratch).
 KERNEL_PLANES = 3
 
 __all__ = ["FusedMatcher", "Scratch", "WindowState", "finish_window", "occluded", "unpartnered"]
