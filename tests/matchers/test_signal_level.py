@@ -69,6 +69,29 @@ def test_values_in_chunks_give_the_thresholds_of_the_values_at_once(rng):
     np.testing.assert_array_equal(whole.thresholds(6), chunked.thresholds(6))
 
 
+def test_levels_side_by_side_are_the_levels_one_after_the_other(rng):
+    # Both cameras' histories, parts (OFF and ON) and a camera still warming up: every level and part level equal to
+    # the one-thread order's, and to numpy's quantile of the values.
+    made = [SignalLevel(SignalLevelParams(**REL, level_warmup=400, level_windows=3), absolute=1.2, unit=0.1,
+                        n_parts=2) for _ in range(2)]
+    made[1].side_by_side = True
+    seen = [[], []]
+    for k in range(8):
+        levels = [(lv.levels(k), lv.part_levels(k)) for lv in made]
+        np.testing.assert_array_equal(levels[0][0], levels[1][0])
+        np.testing.assert_array_equal(levels[0][1], levels[1][1])
+        history = [np.concatenate(v[-6:]) if v else np.empty(0) for v in seen]  # 3 windows of 2 parts
+        for cam in range(2):
+            expected = np.quantile(history[cam], 0.9) if history[cam].size >= 400 else np.nan
+            np.testing.assert_array_equal(levels[1][0][cam], expected)
+        for cam, n in ((0, 300), (1, 40 * k)):  # camera 1 warms up from window 4 on
+            for part in range(2):
+                v = rng.exponential(1.0 + part, n)
+                seen[cam].append(v)
+                for lv in made:
+                    lv.add(k, cam, v, part)
+
+
 def test_invalid_level_parameters_say_what_to_do():
     with pytest.raises(ValueError, match="'threshold_mode' must be one of absolute, relative, got 'auto'"):
         SignalLevelParams(threshold_mode="auto")

@@ -182,6 +182,7 @@ class MergedEventMatcher(StreamMatcher):
         scratch = self._scratch
         values = scratch.take("values", n, np.float64)  # the left camera's events, then the right camera's
         values.fill(np.nan)  # where the kernel writes nothing (a dropped polarity)
+        self._level.side_by_side = self._threads > 1  # the cameras' levels at once, on a matcher's threads
         thresholds = self._level.thresholds(k)
         # Merged straight from the events' fields: no int64 copy of the columns first (half the merge's time).
         stream = merged_stream(*_fields(left), *_fields(right), self._bank.slot_of_p,

@@ -47,6 +47,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import threading
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Literal
 
@@ -66,6 +68,18 @@ MAX_HISTORY_FACTOR = 10
 _TRACE_EVERY = 25
 #: The run of a part that held no values in a window (each window appends one run per part).
 _NONE = np.empty(0, np.float64)
+
+#: The thread that computes the second camera's level beside the first (:attr:`SignalLevel.side_by_side`), made at
+#: its first use and shared by every estimator of the process.
+_SECOND: list[ThreadPoolExecutor] = []
+_SECOND_MADE = threading.Lock()
+
+
+def _second_thread() -> ThreadPoolExecutor:
+    with _SECOND_MADE:
+        if not _SECOND:
+            _SECOND.append(ThreadPoolExecutor(max_workers=1, thread_name_prefix="cvstereo-level"))
+        return _SECOND[0]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -148,6 +162,10 @@ class SignalLevel:
         self._best = (math.nan, math.nan)  # (value, threshold in force) of the best ratio
         self._trace: list[tuple[int, list[float]]] = []
         self._warm = (False,) * n_cameras  # which cameras had a level at the last trace entry
+        #: Compute the cameras' levels side by side, the second on a thread of its own (the sorts and selections
+        #: of :mod:`~cvstereo.matchers._shared.sorted_runs` release the GIL): the same levels, for a matcher on
+        #: several threads, where they are a serial part of every window.
+        self.side_by_side = False
 
     # -- the level ---------------------------------------------------------------------------------------
 
@@ -159,9 +177,14 @@ class SignalLevel:
         k = int(k)
         if k not in self._levels:
             self._close_before(k)
-            self._levels[k] = self._current_levels()
+            if self.side_by_side and self.n_cameras == 2:
+                second = _second_thread().submit(self._camera_levels, 1)
+                per_camera = [self._camera_levels(0), second.result()]
+            else:
+                per_camera = [self._camera_levels(cam) for cam in range(self.n_cameras)]
+            self._levels[k] = np.array([level for level, _ in per_camera])
             if self.n_parts > 1:
-                self._part_levels[k] = self._current_part_levels()
+                self._part_levels[k] = np.stack([parts for _, parts in per_camera])
         return self._levels[k]
 
     def part_levels(self, k: int) -> np.ndarray:
@@ -244,21 +267,21 @@ class SignalLevel:
                                                    or len(hist) > g * MAX_HISTORY_FACTOR * p.level_windows):
             hist.popleft(g)
 
-    def _current_levels(self) -> np.ndarray:
+    def _camera_levels(self, cam: int) -> tuple[float, np.ndarray | None]:
+        """Camera ``cam``'s level (NaN while warming up) and, with several parts, its parts' levels: the quantiles of
+        its history (= ``np.quantile`` of the history's values)."""
         p = self.params
-        out = np.full(self.n_cameras, np.nan)
-        for cam, hist in enumerate(self._history):
-            if hist.size >= p.level_warmup:
-                out[cam] = hist.quantile(p.level_quantile)  # = np.quantile of the history's values
-        return out
+        hist = self._history[cam]
+        warm = hist.size >= p.level_warmup
+        level = hist.quantile(p.level_quantile) if warm else math.nan
+        if self.n_parts == 1:
+            return level, None
+        parts = hist.part_quantiles(p.level_quantile, self.n_parts, p.level_warmup) if warm else \
+            np.full(self.n_parts, np.nan)
+        return level, parts
 
-    def _current_part_levels(self) -> np.ndarray:
-        p = self.params
-        out = np.full((self.n_cameras, self.n_parts), np.nan)
-        for cam, hist in enumerate(self._history):
-            if hist.size >= p.level_warmup:
-                out[cam] = hist.part_quantiles(p.level_quantile, self.n_parts, p.level_warmup)
-        return out
+    def _current_levels(self) -> np.ndarray:
+        return np.array([self._camera_levels(cam)[0] for cam in range(self.n_cameras)])
 
     def _warm_levels(self) -> np.ndarray:
         """What :meth:`_current_levels` would give, as far as NaN goes (warming up), with 0 for the levels."""
