@@ -27,11 +27,12 @@ import os
 import sys
 import threading
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 
 import numba
 
 __all__ = ["MAX_THREADS", "NOT_A_PARAMETER", "THREADS_ENV", "available_cores", "check_threads", "default_threads",
-           "pool_size", "threading_layer", "using_threads"]
+           "pool_size", "side_thread", "threading_layer", "using_threads"]
 
 #: The environment variable that sets the default of ``threads`` (read once, at the first use).
 THREADS_ENV = "CVSTEREO_THREADS"
@@ -53,6 +54,22 @@ _TBB_LIBRARY = "libtbb.so.12"
 
 #: Held by a parallel run where numba has only the ``workqueue`` layer (see the module's text).
 _WORKQUEUE_TURNS = threading.RLock()
+
+#: The side thread (:func:`side_thread`), made at its first use.
+_SIDE: list[ThreadPoolExecutor] = []
+_SIDE_MADE = threading.Lock()
+
+
+def side_thread() -> ThreadPoolExecutor:
+    """One Python thread beside the caller, for a matcher on several threads to run a second, independent piece of
+    a serial step at the same time as the first (each camera's half, in kernels that release the GIL).
+
+    One for the process, made at the first use; several matchers share it (their pieces take turns on it).
+    """
+    with _SIDE_MADE:
+        if not _SIDE:
+            _SIDE.append(ThreadPoolExecutor(max_workers=1, thread_name_prefix="cvstereo-side"))
+        return _SIDE[0]
 
 
 def available_cores() -> int:

@@ -47,13 +47,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import threading
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 
+from cvstereo._threads import side_thread
 from cvstereo.matchers._shared.sorted_runs import SortedRuns
 from cvstereo.matchers.constraints import DeclaredParams, param
 
@@ -68,18 +67,6 @@ MAX_HISTORY_FACTOR = 10
 _TRACE_EVERY = 25
 #: The run of a part that held no values in a window (each window appends one run per part).
 _NONE = np.empty(0, np.float64)
-
-#: The thread that computes the second camera's level beside the first (:attr:`SignalLevel.side_by_side`), made at
-#: its first use and shared by every estimator of the process.
-_SECOND: list[ThreadPoolExecutor] = []
-_SECOND_MADE = threading.Lock()
-
-
-def _second_thread() -> ThreadPoolExecutor:
-    with _SECOND_MADE:
-        if not _SECOND:
-            _SECOND.append(ThreadPoolExecutor(max_workers=1, thread_name_prefix="cvstereo-level"))
-        return _SECOND[0]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -162,9 +149,9 @@ class SignalLevel:
         self._best = (math.nan, math.nan)  # (value, threshold in force) of the best ratio
         self._trace: list[tuple[int, list[float]]] = []
         self._warm = (False,) * n_cameras  # which cameras had a level at the last trace entry
-        #: Compute the cameras' levels side by side, the second on a thread of its own (the sorts and selections
-        #: of :mod:`~cvstereo.matchers._shared.sorted_runs` release the GIL): the same levels, for a matcher on
-        #: several threads, where they are a serial part of every window.
+        #: Compute the cameras' levels side by side, the second on :func:`~cvstereo._threads.side_thread` (the
+        #: sorts and selections of :mod:`~cvstereo.matchers._shared.sorted_runs` release the GIL): the same levels,
+        #: for a matcher on several threads, where they are a serial part of every window.
         self.side_by_side = False
 
     # -- the level ---------------------------------------------------------------------------------------
@@ -178,7 +165,7 @@ class SignalLevel:
         if k not in self._levels:
             self._close_before(k)
             if self.side_by_side and self.n_cameras == 2:
-                second = _second_thread().submit(self._camera_levels, 1)
+                second = side_thread().submit(self._camera_levels, 1)
                 per_camera = [self._camera_levels(0), second.result()]
             else:
                 per_camera = [self._camera_levels(cam) for cam in range(self.n_cameras)]

@@ -116,8 +116,12 @@ def _gather_add(src, dst, radius):
         _add_to(dst[lo:hi], src[lo + dx:hi + dx])
 
 
-def _surface_features(t, x, y, p, last, t_end, tau, radius, ts, rows, out):
+@njit(cache=True, nogil=True)
+def surface_features(t, x, y, p, last, t_end, tau, radius, ts, rows, out):
     """Update a camera's last-event times with a window's events; write its support-summed time surfaces.
+
+    Serial, releasing the GIL: a matcher on several threads computes the two cameras' features at once, one on
+    each thread (:meth:`cvstereo.matchers.fused.matcher.FusedMatcher.match_window`).
 
     Parameters
     ----------
@@ -138,9 +142,8 @@ def _surface_features(t, x, y, p, last, t_end, tau, radius, ts, rows, out):
             last[pi, yi, xi] = t[i]
     _, h, w = last.shape
     surf = out if radius == 0 else ts
-    # Rows in parallel (in the parallel build), both polarities in one loop, so that a window pays two launches of
-    # the threads rather than six: a row's surface and its sums along the row depend on nothing another row writes.
-    for yy in prange(h):
+    # Row by row, both polarities: a row's surface and its sums along the row, while the row is in the cache.
+    for yy in range(h):
         for c in range(2):
             for xx in range(w):
                 age = t_end - last[c, yy, xx]
@@ -153,16 +156,13 @@ def _surface_features(t, x, y, p, last, t_end, tau, radius, ts, rows, out):
                 _gather_add(ts[c, yy], rows[c, yy], radius)
     if radius == 0:
         return
-    for yy in prange(h):
+    for yy in range(h):
         y_lo = max(yy - radius, 0)
         for c in range(2):
             acc = out[c, yy]
             _copy_to(acc, rows[c, y_lo])  # the first term (see _gather_add)
             for y2 in range(y_lo + 1, min(yy + radius + 1, h)):
                 _add_to(acc, rows[c, y2])
-
-
-surface_features, surface_features_parallel = serial_and_parallel(_surface_features)
 
 
 @njit(cache=True, nogil=True)

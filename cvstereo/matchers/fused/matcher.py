@@ -111,16 +111,16 @@ from typing import ClassVar
 import numpy as np
 from numba import njit
 
+from cvstereo._threads import side_thread
 from cvstereo.frames.windows import FrameMatcher, Window
 from cvstereo.matchers.fused._constants import CONSISTENT_MAX_UNCERTAINTY, LR_PENALTY, RECENT_WINDOWS, SEGMENT_TIER
 from cvstereo.matchers.fused._features import (
     NEVER,
     divide,
     nonzero_values,
-    surface_features_parallel,
+    surface_features,
     window_masks_parallel,
 )
-from cvstereo.matchers.fused._features import surface_features as surface_features_serial
 from cvstereo.matchers.fused._features import window_masks as window_masks_serial
 from cvstereo.matchers.fused._kernels import (
     KernelScratch,
@@ -328,11 +328,12 @@ class Scratch:
     def __init__(self, resolution: tuple[int, int], n_disparities: int):
         w, h = resolution
         self.nd = n_disparities
-        self.ts = np.empty((2, h, w))
-        self.rows = np.empty((2, h, w))
+        # One of each per camera (camera first): the two cameras' features may be computed at once.
+        self.ts = np.empty((2, 2, h, w))
+        self.rows = np.empty((2, 2, h, w))
         self.features = np.empty((2, 2, h, w))  # camera, polarity, row, column
-        self.values = np.empty(2 * h * w)
-        self.value_at = np.empty(2 * h * w, np.int32)
+        self.values = np.empty((2, 2 * h * w))
+        self.value_at = np.empty((2, 2 * h * w), np.int32)
         self.counts = np.empty((2, h, w), np.int64)
         self.active = np.empty((h, w), np.bool_)
         self.recent = np.empty((h, w), np.bool_)
@@ -397,18 +398,28 @@ class FusedMatcher(FrameMatcher):
         parts, self._uncertainty = self._uncertainty, []
         return np.concatenate(parts).astype(np.float32) if parts else np.zeros(0, np.float32)
 
+    def _camera_features(self, cam: int, events: np.ndarray, t_end: int) -> None:
+        """Camera ``cam``'s normalised features of the window ending at ``t_end`` (its ``events``), into its own
+        scratch and last-event times: the cameras' calls are independent."""
+        prm, buf = self.params, self._scratch
+        f = buf.features[cam]
+        surface_features(events["t"], events["x"], events["y"], events["p"], self._state.last[cam], t_end,
+                         prm.tau_us, prm.support_radius, buf.ts[cam], buf.rows[cam], f)
+        n = nonzero_values(f, buf.values[cam], buf.value_at[cam])
+        if n:
+            divide(f, buf.values[cam], buf.value_at[cam], n, level_of(buf.values[cam, :n]))
+
     def match_window(self, window: Window) -> np.ndarray:
         prm, state, buf = self.params, self._state, self._scratch
         threads = getattr(self, "threads", 1)
-        surface_features, window_masks = ((surface_features_parallel, window_masks_parallel) if threads > 1 else
-                                          (surface_features_serial, window_masks_serial))
-        for cam, ev in enumerate((window.left, window.right)):
-            f = buf.features[cam]
-            surface_features(ev["t"], ev["x"], ev["y"], ev["p"], state.last[cam], window.t_end, prm.tau_us,
-                             prm.support_radius, buf.ts, buf.rows, f)
-            n = nonzero_values(f, buf.values, buf.value_at)
-            if n:
-                divide(f, buf.values, buf.value_at, n, level_of(buf.values[:n]))
+        if threads > 1:  # each camera's features on a thread of its own (serial kernels that release the GIL)
+            right = side_thread().submit(self._camera_features, 1, window.right, window.t_end)
+            self._camera_features(0, window.left, window.t_end)
+            right.result()
+        else:
+            for cam, ev in enumerate((window.left, window.right)):
+                self._camera_features(cam, ev, window.t_end)
+        window_masks = window_masks_parallel if threads > 1 else window_masks_serial
         left = window.left
         n_active = window_masks(left["x"], left["y"], left["p"], state.last[0],
                                 window.t_end - RECENT_WINDOWS * prm.window_us, prm.path_radius, buf.counts,
