@@ -14,6 +14,10 @@ kernels at the same time, which a live run (reader threads and the matcher) or s
 do. The layer chosen here tolerates it: TBB (the ``tbb`` wheel, a dependency where it exists), else OpenMP; only
 where neither loads does numba fall back to ``workqueue``, and then parallel runs of this package take turns
 (a lock) rather than crash.
+
+The side thread (:func:`side_thread`): one Python thread beside the caller, on which a matcher on several threads
+runs the second camera's half of a serial step (its signal level, fused's features) while the caller runs the
+first. A forked child makes its own.
 """
 
 from __future__ import annotations
@@ -70,6 +74,18 @@ def side_thread() -> ThreadPoolExecutor:
         if not _SIDE:
             _SIDE.append(ThreadPoolExecutor(max_workers=1, thread_name_prefix="cvstereo-side"))
         return _SIDE[0]
+
+
+def _forget_side_thread() -> None:
+    """In a forked child: the parent's side thread does not exist there, and work given to its executor would
+    wait forever; the child makes its own at its first use."""
+    global _SIDE_MADE
+    _SIDE.clear()
+    _SIDE_MADE = threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_side_thread)
 
 
 def available_cores() -> int:

@@ -66,20 +66,15 @@ def test_two_python_threads_run_a_parallel_kernel_at_once():
         assert results[k] == [_expected(arrays[k])] * 100
 
 
-@pytest.mark.skipif(not hasattr(os, "fork"), reason="fork is POSIX")
-def test_a_forked_child_runs_parallel_kernels_after_the_parent_did():
-    """The parent has run a parallel kernel (its pool started); a forked child (the readers' watchdogs fork)
-    runs one too and exits cleanly within 10 s (GNU OpenMP aborts the child here)."""
-    a = np.arange(50_000, dtype=np.int64)
-    with _threads.using_threads(2):
-        assert _parallel_sum_of_squares(a) == _expected(a)
-    with warnings.catch_warnings():  # Python >= 3.12 warns of fork with threads: the point of the test
+def _in_forked_child(check, what: str) -> None:
+    """Run ``check()`` (True: passed) in a forked child that must exit within 10 s."""
+    with warnings.catch_warnings():  # Python >= 3.12 warns of fork with threads: the point of the tests
         warnings.simplefilter("ignore", DeprecationWarning)
         pid = os.fork()
-    if pid == 0:  # the child: no pytest machinery, just the kernel and the exit code
+    if pid == 0:  # the child: no pytest machinery, just the check and the exit code
+        ok = False
         try:
-            with _threads.using_threads(2):
-                ok = _parallel_sum_of_squares(a) == _expected(a)
+            ok = check()
         finally:
             os._exit(0 if ok else 3)
     for _ in range(100):
@@ -90,8 +85,31 @@ def test_a_forked_child_runs_parallel_kernels_after_the_parent_did():
     else:
         os.kill(pid, 9)
         os.waitpid(pid, 0)
-        pytest.fail("HANG: the forked child did not finish its parallel kernel within 10 s")
+        pytest.fail(f"HANG: the forked child did not finish {what} within 10 s")
     assert os.WIFEXITED(status) and os.WEXITSTATUS(status) == 0, f"child status {status}"
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="fork is POSIX")
+def test_a_forked_child_runs_parallel_kernels_after_the_parent_did():
+    """The parent has run a parallel kernel (its pool started); a forked child (the readers' watchdogs fork)
+    runs one too and exits cleanly within 10 s (GNU OpenMP aborts the child here)."""
+    a = np.arange(50_000, dtype=np.int64)
+    with _threads.using_threads(2):
+        assert _parallel_sum_of_squares(a) == _expected(a)
+
+    def check():
+        with _threads.using_threads(2):
+            return _parallel_sum_of_squares(a) == _expected(a)
+
+    _in_forked_child(check, "its parallel kernel")
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="fork is POSIX")
+def test_a_forked_child_has_a_side_thread_of_its_own():
+    """The parent's side thread ran work; in a forked child, where that thread does not exist, work given to the
+    side thread still runs (the parent's executor would wait for it forever)."""
+    assert _threads.side_thread().submit(lambda: 6 * 7).result(timeout=10) == 42
+    _in_forked_child(lambda: _threads.side_thread().submit(lambda: 6 * 7).result() == 42, "work on the side thread")
 
 
 def test_counts_set_inside_and_restored_after():
