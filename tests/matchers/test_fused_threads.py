@@ -12,6 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_fused import PARAM_AXES, textured_pair
 
+from cvstereo.matchers.fused import _kernels
 from cvstereo.matchers.fused.matcher import FusedMatcher
 from cvstereo.matchers.fused.params import FusedParams
 from cvstereo.matchers.fused.reference import fused_reference
@@ -66,3 +67,23 @@ def test_threads_and_packet_cuts_give_the_reference_matches(data, seed, n_cuts, 
     np.testing.assert_array_equal(got, expected)
     np.testing.assert_array_equal(unc, unc_expected)
 
+
+
+@pytest.mark.parametrize("stored_max", [0, 1 << 40], ids=["directions", "fused"])
+@settings(max_examples=6, deadline=None)
+@given(data=st.data(), seed=st.integers(0, 2**32 - 1))
+def test_one_thread_gives_the_reference_matches_either_way(stored_max, data, seed):
+    # One thread runs the fused passes where a window's planes fit the caches and the direction passes, one after
+    # the other, where they do not: both ways forced here, on every parameter axis.
+    params = FusedParams(**{k: data.draw(st.sampled_from(v), label=k) for k, v in PARAM_AXES.items()})
+    left, right, resolution = textured_pair(seed, size=(72, 20))
+    expected, unc_expected = fused_reference(left, right, params, resolution=resolution, with_uncertainty=True)
+    limit = _kernels.STORED_COSTS_MAX_BYTES
+    _kernels.STORED_COSTS_MAX_BYTES = stored_max
+    try:
+        got, unc = _matched(lambda: FusedMatcher(params, resolution=resolution), left, right, [], 1)
+    finally:
+        _kernels.STORED_COSTS_MAX_BYTES = limit
+    assert expected.size > 0
+    np.testing.assert_array_equal(got, expected)
+    np.testing.assert_array_equal(unc, unc_expected)

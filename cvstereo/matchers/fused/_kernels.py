@@ -52,7 +52,7 @@ from numba import prange
 
 from cvstereo.matchers.fused._answers import consistent_rows, fill_answers, row_answers
 from cvstereo.matchers.fused._parallel import COLUMN_BLOCK, chunk_count, serial_and_parallel, take_turn
-from cvstereo.matchers.fused._sgm import COST_RUN, DIRECTIONS, SPLIT, _column_run, _row_pass
+from cvstereo.matchers.fused._sgm import COST_RUN, DIRECTIONS, FUSED, SPLIT, _column_run, _row_pass
 
 __all__ = ["KernelParams", "KernelScratch", "kernel_params", "match_features", "match_features_parallel", "way_for"]
 
@@ -102,17 +102,26 @@ class KernelScratch(NamedTuple):
     index: np.ndarray
 
 
-def way_for(threads: int, paths: int) -> int:
-    """The way through the semi-global passes (:mod:`cvstereo.matchers.fused._sgm`) for a match on ``threads``
-    threads with ``paths`` paths: the two direction passes (one after the other on one thread, at once on two), and
-    the split passes (rows and column blocks in as many chunks as asked) on more, or without paths.
+#: A window's (active pixels x disparities) float32 plane up to this size: on one thread the fused passes, which
+#: store the costs once and read them back; above it the direction passes, which compute them twice. Between the
+#: sizes measured: 128x128 windows (1.5-2.6 MB) ran about 10 % faster with stored costs, 346x260 and 640x480 ones
+#: (18 and 28 MB) 5-11 % faster computing them again.
+STORED_COSTS_MAX_BYTES = 8 << 20
 
-    The split passes keep any number of cores busy, but move each (pixels x disparities) plane through memory
-    about twice as often as the direction passes, whose fused order keeps each pixel's costs and paths in the cache.
+
+def way_for(threads: int, paths: int, plane_bytes: int) -> int:
+    """The way through the semi-global passes (:mod:`cvstereo.matchers.fused._sgm`) for a match on ``threads``
+    threads with ``paths`` paths, whose (active pixels x disparities) planes take ``plane_bytes``: the two direction
+    passes (one after the other on one thread, at once on two; on one thread the fused passes where the plane fits
+    the caches, :data:`STORED_COSTS_MAX_BYTES`), and the split passes (rows and column blocks in as many chunks as
+    asked) on more, or without paths.
+
+    The split passes keep any number of cores busy, but move each plane through memory about twice as often as
+    the direction passes, whose fused order keeps each pixel's costs and paths in the cache.
     """
-    if threads == 1 or (threads == 2 and paths > 0):
-        return DIRECTIONS
-    return SPLIT
+    if threads == 1:
+        return FUSED if plane_bytes <= STORED_COSTS_MAX_BYTES else DIRECTIONS
+    return DIRECTIONS if threads == 2 and paths > 0 else SPLIT
 
 
 def _match_features(fl, fr, counts, active, recent, prior, prm, scratch, way, chunks):
@@ -133,9 +142,9 @@ def _match_features(fl, fr, counts, active, recent, prior, prm, scratch, way, ch
     prm : KernelParams
     scratch : KernelScratch
     way : int
-        The way through the passes (:func:`way_for`): :data:`~cvstereo.matchers.fused._sgm.DIRECTIONS` (the serial
-        build: one after the other) or ``SPLIT`` (rows and column blocks in parallel chunks); both give the same
-        answers (:mod:`cvstereo.matchers.fused._sgm`).
+        The way through the passes (:func:`way_for`): :data:`~cvstereo.matchers.fused._sgm.FUSED` (the serial build
+        only), ``DIRECTIONS`` (the serial build: one after the other) or ``SPLIT`` (rows and column blocks in
+        parallel chunks); all give the same answers (:mod:`cvstereo.matchers.fused._sgm`).
     chunks : int
         How many chunks the parallel loops split their rows, column blocks and answers into (at least 1; the
         answers do not depend on it).
@@ -192,12 +201,14 @@ def _match_features(fl, fr, counts, active, recent, prior, prm, scratch, way, ch
     ints = np.empty((3, n_anchor), np.int64)  # x, y, polarity per output slot
     reals = np.empty((2, n_anchor))  # disparity, uncertainty
     flags = np.zeros((2, n_anchor), np.bool_)  # left-right consistent, answered
-    if way == DIRECTIONS:
+    if way != SPLIT:
         # The forward pass (top to bottom, left to right: left + above, into total) and the backward pass (bottom to
         # top, right to left: right + below, into below, mirrored), each with path vectors and costs of its own: at
         # once on two threads, one after the other on one. A row's answers come from the pass that finishes it
         # second, while its own sums of the row are in the cache: with one thread, the backward pass, row by row.
+        # Fused (one thread): the forward pass stores the costs, the backward pass reads them and adds to total.
         passes = 2 if prm.paths > 0 else 1
+        stored = way == FUSED
         turns = np.zeros(h, np.int64)
         for task in prange(passes):
             step = 1 - 2 * task
@@ -212,15 +223,23 @@ def _match_features(fl, fr, counts, active, recent, prior, prm, scratch, way, ch
                 k0, k1 = row_start[yy], row_start[yy + 1]
                 if k0 == k1:
                     continue
-                if step > 0:
-                    _row_pass(fl, right_rev, prior, index, ax, yy, k0, k1, 1, prm, DIRECTIONS, total, ring, costs,
+                # Each call names its way and step: inlined with constants, the per-pixel loop of each is compiled
+                # for its case alone (with the way a variable, one loop for all cases ran a third slower).
+                if step > 0 and stored:
+                    _row_pass(fl, right_rev, prior, index, ax, yy, k0, k1, 1, prm, FUSED, total, costs, below,
                               own_vecs, own_cols, own_min, cur)
+                elif step > 0:
+                    _row_pass(fl, right_rev, prior, index, ax, yy, k0, k1, 1, prm, DIRECTIONS, total, ring, below,
+                              own_vecs, own_cols, own_min, cur)
+                elif stored:
+                    _row_pass(fl, right_rev, prior, index, ax, yy, k1 - 1, k0 - 1, -1, prm, FUSED, total, costs,
+                              below, own_vecs, own_cols, own_min, cur)
                 else:
                     _row_pass(fl, right_rev, prior, index, ax, yy, k1 - 1, k0 - 1, -1, prm, DIRECTIONS, below, ring,
                               costs, own_vecs, own_cols, own_min, cur)
                 cur = 1 - cur
                 if take_turn(turns, yy) == passes - 1 and slot_start[yy] < slot_start[yy + 1]:
-                    if passes == 2:
+                    if passes == 2 and not stored:
                         for k in range(k0, k1):
                             for d in range(nd):
                                 total[k, d] = total[k, d] + below[n - 1 - k, d]

@@ -1,8 +1,8 @@
 """The cost and the semi-global passes of the fused matcher (:func:`cvstereo.matchers.fused._kernels.match_features`
 runs them).
 
-Two ways (:data:`DIRECTIONS`, :data:`SPLIT`) through the same sums, float32 added in the same order,
-``(left + above) + (right + below)``, so that they are bit-identical:
+Three ways (:data:`FUSED`, :data:`DIRECTIONS`, :data:`SPLIT`) through the same sums, float32 added in the same
+order, ``(left + above) + (right + below)``, so that they are bit-identical:
 
 * *directions* (one or two threads): :func:`_row_pass` steps the row and the column path of each pixel in one loop
   over the disparities (the fused order). The forward pass (top to bottom, left to right) writes ``left + above``
@@ -11,6 +11,8 @@ Two ways (:data:`DIRECTIONS`, :data:`SPLIT`) through the same sums, float32 adde
   the backward pass follows the forward one (and answers every row). Each pass computes the costs it steps, into a
   ring of :data:`COST_RUN` pixels: computing them again costs less than storing them and reading them back from a
   plane that outgrows the caches.
+* *fused* (one thread, planes that fit the caches): the same two passes, but the forward pass stores the costs
+  and the backward pass reads them back and adds ``right + below`` to the sums in place.
 * *split* (more threads): row paths depend only on their row and column paths only on their column, so
   :func:`_column_run` first runs the column paths, columns in parallel, writing ``above`` into the sums and
   ``below`` into a plane of its own, then :func:`_row_pass` the row paths, rows in parallel: ``above + left``
@@ -35,8 +37,8 @@ from cvstereo.matchers.fused._constants import TEMPORAL_CAP_PX
 #: direction passes keep their costs in a ring of this many rows (pixel ``k`` at ``k % COST_RUN``).
 COST_RUN = 16
 
-#: The ways through the passes (module docstring): one or two threads, more.
-DIRECTIONS, SPLIT = 1, 2
+#: The ways through the passes (module docstring): one thread and small planes, one or two threads, more.
+FUSED, DIRECTIONS, SPLIT = 0, 1, 2
 
 
 @intrinsic
@@ -114,18 +116,20 @@ def _costs_of(fl, right_rev, prior, ax, yy, k0, k1, prm, costs, ring):
 def _row_pass(fl, right_rev, prior, index, ax, yy, k_first, k_stop, step, prm, way, total, costs, below, vecs,
               cols, cols_min, cur):
     """One row of one semi-global pass: ``step`` 1 is the forward pass (left to right; with the column path: from
-    above), -1 the backward one (right to left; from below). ``way``: :data:`DIRECTIONS` or :data:`SPLIT` (module
-    docstring).
+    above), -1 the backward one (right to left; from below). ``way``: :data:`FUSED`, :data:`DIRECTIONS` or
+    :data:`SPLIT` (module docstring).
 
-    Costs: the direction passes each compute theirs into the ring ``costs`` (:data:`COST_RUN` rows); the split
-    forward pass computes them into ``costs[k]`` (with 4 paths :func:`_column_run` did) and the backward pass reads
-    them back. The row path runs in ``vecs[0:2]`` (current and previous, taking turns), the column path (direction
-    passes) in ``cols[cur * W + x]`` with the previous row's in ``cols[(1 - cur) * W + x]``; disparity d is at
-    column d + 1 of them, between columns of inf. A path without a predecessor starts at the cost: it steps from
-    the zero row (``vecs[2]``, ``cols[2 * W]``) with minimum 0, which adds exactly 0 (``p1, p2 >= 0``).
+    Costs: the direction passes each compute theirs into the ring ``costs`` (:data:`COST_RUN` rows); the fused and
+    split forward passes compute them into ``costs[k]`` (split with 4 paths: :func:`_column_run` did) and the
+    backward pass reads them back. The row path runs in ``vecs[0:2]`` (current and previous, taking turns), the
+    column path (fused and direction passes) in ``cols[cur * W + x]`` with the previous row's in
+    ``cols[(1 - cur) * W + x]``; disparity d is at column d + 1 of them, between columns of inf. A path without a
+    predecessor starts at the cost: it steps from the zero row (``vecs[2]``, ``cols[2 * W]``) with minimum 0, which
+    adds exactly 0 (``p1, p2 >= 0``).
     Sums: the forward pass writes ``total[k] = left (+ above)`` (split with 4 paths: adds ``left`` to the ``above``
     there); the direction backward pass writes ``right (+ below)`` into ``total[n - 1 - k]`` of a plane of its own,
-    the split one adds ``right + below[k]`` to ``total[k]``. With 0 paths ``total[k]`` is the cost.
+    the fused one adds it to ``total[k]``, the split one adds ``right + below[k]``. With 0 paths ``total[k]`` is the
+    cost.
 
     Inlined, and every per-pixel loop written out here rather than in helpers that take arrays: each such call
     bound its arrays to new variables, and numba's two atomic reference-count updates per binding cost more than
@@ -139,7 +143,7 @@ def _row_pass(fl, right_rev, prior, index, ax, yy, k_first, k_stop, step, prm, w
     ring = way == DIRECTIONS
     own_costs = ring or (step > 0 and not split4)  # this pass computes the costs it steps
     # The sums start from total[k] (1) or zero (0).
-    sums_from = 1 if way == SPLIT and (step < 0 or split4) else 0
+    sums_from = 1 if (way == SPLIT and (step < 0 or split4)) or (way == FUSED and step < 0) else 0
     add_below = step < 0 and split4
     # The direction passes' backward sums are stored mirrored (pixel k at n - 1 - k), so that the pass, which
     # meets the pixels in descending order, writes its plane in ascending order of memory: a descending stream

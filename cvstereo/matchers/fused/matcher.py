@@ -427,7 +427,7 @@ class FusedMatcher(FrameMatcher):
         kernel = match_features_parallel if threads > 1 else match_features
         answers = kernel(buf.features[0], buf.features[1], buf.counts, buf.active, buf.recent,
                          state.prior_for(window.t_end, prm.window_us), self._kernel_params, buf.kernel_for(n_active),
-                         way_for(threads, prm.sgm_paths), chunks_for(threads))
+                         way_for(threads, prm.sgm_paths, n_active * (prm.max_disparity + 1) * 4), chunks_for(threads))
         matches, uncertainty = state.settle(window.t_end, answers, prm, threads)
         self._uncertainty.append(uncertainty)
         return matches
