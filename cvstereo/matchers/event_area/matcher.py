@@ -141,6 +141,12 @@ def _event_area_band(stream, bands, cuts, band, search, out_pos, out_disparity, 
         for c in (cam, other):
             if tick_due(clock[c, NEXT_TICK], clock[c, TOUCHED], t, period) or pending[c] >= SUM_REBUILD:
                 advance_due_summed(stored, scale, clock, sums, mass, pending, c, t, decay, period, half)
+        if y + r < keep_lo or y - r >= keep_hi:
+            # Another band's event whose splat misses the rows this band keeps: what the splat would do here
+            # (splat_summed with no rows), the count towards the rebuild and the frames marked touched, and no more.
+            pending[cam] += 1
+            clock[cam, TOUCHED] = 1
+            continue
         c1 = scale[cam]
         c2 = scale[other]
         own_event = first_row <= y < end_row  # the band's own event: its value and its search

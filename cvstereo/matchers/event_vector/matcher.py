@@ -107,6 +107,11 @@ def _event_vector_band(stream, bands, cuts, band, search, out_pos, out_disparity
         for cc in (cam, other):
             if tick_due(clock[cc, NEXT_TICK], clock[cc, TOUCHED], t, period):
                 advance_due_bounded(stored, scale, clock, bound, cc, t, decay, period)
+        if y + r < keep_lo or y - r >= keep_hi:
+            # Another band's event whose splat misses the rows this band keeps: what the splat would do here
+            # (splat_bounded with no rows), the frames marked touched, and no more.
+            clock[cam, TOUCHED] = 1
+            continue
         c1 = scale[cam]
         own_event = first_row <= y < end_row  # the band's own event: its value and its search
         # Another band's event is not read: its pixel lies on rows this band does not keep (a cache miss each).
