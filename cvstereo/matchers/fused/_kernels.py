@@ -16,11 +16,11 @@ events a second, about 26000 active pixels and 171 disparities.
   vector lanes): the sums of each pass direction. Each pass (:func:`~cvstereo.matchers.fused._sgm._row_pass`)
   keeps its row path in a vector, its column path in two sensor rows and the costs of its next pixels in a ring;
   the forward pass writes left + above, the backward pass right + below, in ascending order of memory (mirrored:
-  a descending stream of stores was slower by half), and adds the two where it answers the row. Cost, paths and
-  sums are float32 in the reference too, in the same order. Keeping the paths out of memory pays most where the
-  arrays outgrow the caches (the 346x260 and 640x480 windows); so does computing the costs in each pass rather than
-  storing them once and reading them back (at 640x480 the backward pass took longer reading them than the forward
-  pass computing them).
+  a descending stream of stores is slower), and adds the two where it answers the row. Cost, paths and sums are
+  float32 in the reference too, in the same order. Keeping the paths out of memory pays most where the arrays
+  outgrow the caches (the 346x260 and 640x480 windows); so does computing the costs in each pass rather than
+  storing them once and reading them back, which the fused passes still do where the planes fit the caches
+  (:data:`STORED_COSTS_MAX_BYTES`).
 * Each pixel's semi-global step is one plain loop over the disparities, which the compiler vectorises: it steps the
   row and the column path, adds them to the sums and takes their minima (a reduction the compiler vectorises too,
   :func:`~cvstereo.matchers.fused._sgm._least`: numba's ``min`` kept it scalar, one instruction per value, in a
@@ -103,9 +103,9 @@ class KernelScratch(NamedTuple):
 
 
 #: A window's (active pixels x disparities) float32 plane up to this size: on one thread the fused passes, which
-#: store the costs once and read them back; above it the direction passes, which compute them twice. Between the
-#: sizes measured: 128x128 windows (1.5-2.6 MB) ran about 10 % faster with stored costs, 346x260 and 640x480 ones
-#: (18 and 28 MB) 5-11 % faster computing them again.
+#: store the costs once and read them back; above it the direction passes, which compute them twice. Reading back
+#: is cheaper than computing while the plane stays in the caches, dearer once it outgrows them; the limit lies
+#: between the window sizes measured (bench/results/docstring-figures.md).
 STORED_COSTS_MAX_BYTES = 8 << 20
 
 
@@ -224,7 +224,7 @@ def _match_features(fl, fr, counts, active, recent, prior, prm, scratch, way, ch
                 if k0 == k1:
                     continue
                 # Each call names its way and step: inlined with constants, the per-pixel loop of each is compiled
-                # for its case alone (with the way a variable, one loop for all cases ran a third slower).
+                # for its case alone (with the way a variable, one loop serves all cases, with a test per value).
                 if step > 0 and stored:
                     _row_pass(fl, right_rev, prior, index, ax, yy, k0, k1, 1, prm, FUSED, total, costs, below,
                               own_vecs, own_cols, own_min, cur)

@@ -146,8 +146,8 @@ def _row_pass(fl, right_rev, prior, index, ax, yy, k_first, k_stop, step, prm, w
     sums_from = 1 if (way == SPLIT and (step < 0 or split4)) or (way == FUSED and step < 0) else 0
     add_below = step < 0 and split4
     # The direction passes' backward sums are stored mirrored (pixel k at n - 1 - k), so that the pass, which
-    # meets the pixels in descending order, writes its plane in ascending order of memory: a descending stream
-    # of stores took half as long again.
+    # meets the pixels in descending order, writes its plane in ascending order of memory, which the hardware's
+    # prefetch serves better than a descending stream of stores.
     mirror = ring and step < 0
     n_all = total.shape[0]
     inf = np.float32(np.inf)
