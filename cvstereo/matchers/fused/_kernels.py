@@ -102,6 +102,9 @@ class KernelScratch(NamedTuple):
     index: np.ndarray
 
 
+#: False here; True in the parallel build's globals (:func:`~cvstereo.matchers.fused._parallel.serial_and_parallel`).
+PARALLEL_BUILD = False
+
 #: A window's (active pixels x disparities) float32 plane up to this size: on one thread the fused passes, which
 #: store the costs once and read them back; above it the direction passes, which compute them twice. Reading back
 #: is cheaper than computing while the plane stays in the caches, dearer once it outgrows them; the limit lies
@@ -201,14 +204,14 @@ def _match_features(fl, fr, counts, active, recent, prior, prm, scratch, way, ch
     ints = np.empty((3, n_anchor), np.int64)  # x, y, polarity per output slot
     reals = np.empty((2, n_anchor))  # disparity, uncertainty
     flags = np.zeros((2, n_anchor), np.bool_)  # left-right consistent, answered
-    if way != SPLIT:
+    if way != SPLIT or not PARALLEL_BUILD:  # (the serial build runs the direction passes for the split ones)
         # The forward pass (top to bottom, left to right: left + above, into total) and the backward pass (bottom to
         # top, right to left: right + below, into below, mirrored), each with path vectors and costs of its own: at
         # once on two threads, one after the other on one. A row's answers come from the pass that finishes it
         # second, while its own sums of the row are in the cache: with one thread, the backward pass, row by row.
         # Fused (one thread): the forward pass stores the costs, the backward pass reads them and adds to total.
         passes = 2 if prm.paths > 0 else 1
-        stored = way == FUSED
+        stored = way == FUSED and not PARALLEL_BUILD  # (the parallel build runs the direction passes for the fused)
         turns = np.zeros(h, np.int64)
         for task in prange(passes):
             step = 1 - 2 * task
@@ -225,13 +228,15 @@ def _match_features(fl, fr, counts, active, recent, prior, prm, scratch, way, ch
                     continue
                 # Each call names its way and step: inlined with constants, the per-pixel loop of each is compiled
                 # for its case alone (with the way a variable, one loop serves all cases, with a test per value).
-                if step > 0 and stored:
+                # PARALLEL_BUILD (a constant) prunes the fused way's loops from the parallel build, and the split
+                # passes from the serial one, before they are compiled.
+                if step > 0 and stored and not PARALLEL_BUILD:
                     _row_pass(fl, right_rev, prior, index, ax, yy, k0, k1, 1, prm, FUSED, total, costs, below,
                               own_vecs, own_cols, own_min, cur)
                 elif step > 0:
                     _row_pass(fl, right_rev, prior, index, ax, yy, k0, k1, 1, prm, DIRECTIONS, total, ring, below,
                               own_vecs, own_cols, own_min, cur)
-                elif stored:
+                elif stored and not PARALLEL_BUILD:
                     _row_pass(fl, right_rev, prior, index, ax, yy, k1 - 1, k0 - 1, -1, prm, FUSED, total, costs,
                               below, own_vecs, own_cols, own_min, cur)
                 else:

@@ -32,10 +32,13 @@ def serial_and_parallel(fn):
 
     numba names a function's cache files after its qualified name and ignores ``parallel`` in the key, so the
     parallel build is compiled from a copy of ``fn`` under the name ``<name>_parallel``: the two builds never
-    read each other's cache.
+    read each other's cache. The copy sees the module's globals as they are when this is called, with
+    ``PARALLEL_BUILD = True`` added (a constant to numba: code under ``if PARALLEL_BUILD`` or ``if not
+    PARALLEL_BUILD`` is left out of the other build before it is compiled): call it after every name ``fn`` uses
+    is defined, at the end of its module.
     """
-    twin = types.FunctionType(fn.__code__, fn.__globals__, fn.__name__ + "_parallel", fn.__defaults__,
-                              fn.__closure__)
+    twin = types.FunctionType(fn.__code__, {**fn.__globals__, "PARALLEL_BUILD": True}, fn.__name__ + "_parallel",
+                              fn.__defaults__, fn.__closure__)
     twin.__qualname__ = fn.__qualname__ + "_parallel"
     twin.__doc__ = fn.__doc__
     twin.__module__ = fn.__module__
