@@ -18,7 +18,7 @@ import numba
 import numpy as np
 import scipy.fft as sfft
 
-from cvstereo.model.polarity import sign
+from cvstereo.frames.accumulate import signed_frame
 from cvstereo.rigcheck.params import RigCheckParams
 from cvstereo.rigcheck.peaks import contrast, fft_len, half_width, smooth_lags, subsample_peak, support
 
@@ -253,9 +253,7 @@ def _window_stack(ev, starts, width, height, window_us, blur_px):
     n = starts.size
     f = np.empty((n, height, width), np.float32)
     for i in range(n):
-        e = ev[lo[i]:hi[i]]
-        counts = np.bincount(e["y"].astype(np.int64) * width + e["x"], weights=sign(e["p"]), minlength=height * width)
-        f[i] = counts.reshape(height, width)
+        f[i] = signed_frame(ev[lo[i]:hi[i]], resolution=(width, height))
         # Smoothing makes the correlation peak broad enough to interpolate without locking to whole pixels.
         f[i] = cv2.GaussianBlur(f[i], (0, 0), blur_px, borderType=cv2.BORDER_CONSTANT)
     return f

@@ -8,9 +8,9 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
-from cvstereo.model.polarity import sign
+from cvstereo.frames.accumulate import signed_frame
 
-__all__ = ["WindowFrames", "signed_frame", "window_frames"]
+__all__ = ["WindowFrames", "window_frames"]
 
 
 class WindowFrames(NamedTuple):
@@ -24,20 +24,12 @@ class WindowFrames(NamedTuple):
     """(H, W) bool: pixels where the left camera had events."""
 
 
-def signed_frame(ev, width, height):
-    """(height, width) float32 sum of event signs (ON +1, OFF -1) per pixel."""
-    # bincount rather than np.add.at (several times faster); the sums are whole numbers, exact either way.
-    f = np.bincount(ev["y"].astype(np.int64) * width + ev["x"], weights=sign(ev["p"]), minlength=height * width)
-    return f.astype(np.float32).reshape(height, width)
-
-
 def window_frames(left, right, *, resolution, window_us, max_windows, min_events, blur_px) -> Iterator[WindowFrames]:
     """Yield :class:`WindowFrames` for windows of ``window_us`` with at least ``min_events`` events in each camera.
 
     At most ``max_windows`` windows, evenly spread over the recording; frames smoothed by a 3x3 Gaussian of sigma
     ``blur_px``.
     """
-    width, height = resolution
     t0 = min(int(left["t"][0]), int(right["t"][0]))
     t1 = max(int(left["t"][-1]), int(right["t"][-1])) + 1
     starts = np.arange(t0 - t0 % window_us, t1, window_us)
@@ -47,7 +39,8 @@ def window_frames(left, right, *, resolution, window_us, max_windows, min_events
     if busy.size > max_windows:
         busy = busy[np.linspace(0, busy.size - 1, max_windows).round().astype(int)]
     for k in busy:
-        frames = [signed_frame(ev[i[k]:i[k + 1]], width, height) for ev, i in ((left, idx[0]), (right, idx[1]))]
+        frames = [signed_frame(ev[i[k]:i[k + 1]], resolution=resolution)
+                  for ev, i in ((left, idx[0]), (right, idx[1]))]
         # A little smoothing so that events one pixel apart still overlay (jitter, distortion).
         gl, gr = (cv2.GaussianBlur(f, (3, 3), blur_px, borderType=cv2.BORDER_CONSTANT) for f in frames)
         yield WindowFrames(gl, gr, frames[0] != 0)
