@@ -21,10 +21,10 @@ from cvstereo.matchers.fused._constants import (
     SEGMENT_RADIUS,
     SEGMENT_STEP_PX,
     SEGMENT_TIER,
+    SEGMENT_WIDTH_PX,
     SUBPIXEL_MAX_SHIFT_PX,
     TEMPORAL_CAP_PX,
 )
-from cvstereo.matchers.fused._segments import segment_min_for
 from cvstereo.matchers.fused.params import BORDER_MIN_ANSWERS, PRIOR_MAX_UNCERTAINTY, FusedParams
 from cvstereo.matchers.fused.signal import signal_level
 from cvstereo.model.events import DEFAULT_RESOLUTION
@@ -216,7 +216,7 @@ def choose(total, active, counts, recent, prm: FusedParams):
     # Segment test (design part 11): the answers still consistent, grouped by flood fill over neighbours within
     # SEGMENT_RADIUS px of like disparity; a group smaller than the width's least count ranks between the others and
     # the inconsistent answers, but for its clear answers (below isolated_max_uncertainty, the noise filter's rule).
-    least = segment_min_for(prm, total.shape[1])
+    least = round(prm.segment_min_answers * total.shape[1] / SEGMENT_WIDTH_PX)
     if least > 0:  # three tiers: consistent, consistent of a small segment, inconsistent
         at = {(row[0], row[1]): row for row in out if row[4] <= CONSISTENT_MAX_UNCERTAINTY}
         group_of: dict = {}
