@@ -90,6 +90,7 @@ def test_levels_side_by_side_are_the_levels_one_after_the_other(rng):
                 seen[cam].append(v)
                 for lv in made:
                     lv.add(k, cam, v, part)
+    assert made[1].diagnostics() == made[0].diagnostics()  # the windows closed on two threads: the same trace
 
 
 def test_invalid_level_parameters_say_what_to_do():

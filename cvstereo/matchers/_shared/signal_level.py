@@ -149,9 +149,10 @@ class SignalLevel:
         self._best = (math.nan, math.nan)  # (value, threshold in force) of the best ratio
         self._trace: list[tuple[int, list[float]]] = []
         self._warm = (False,) * n_cameras  # which cameras had a level at the last trace entry
-        #: Compute the cameras' levels side by side, the second on :func:`~cvstereo._threads.side_thread` (the
-        #: sorts and selections of :mod:`~cvstereo.matchers._shared.sorted_runs` release the GIL): the same levels,
-        #: for a matcher on several threads, where they are a serial part of every window.
+        #: Close the cameras' windows and compute their levels side by side, the second on
+        #: :func:`~cvstereo._threads.side_thread` (the copies, sorts and selections of
+        #: :mod:`~cvstereo.matchers._shared.sorted_runs` release the GIL): the same levels and diagnostics, for a
+        #: matcher on several threads, where they are a serial part of every window.
         self.side_by_side = False
 
     # -- the level ---------------------------------------------------------------------------------------
@@ -163,15 +164,12 @@ class SignalLevel:
         """
         k = int(k)
         if k not in self._levels:
-            self._close_before(k)
-            if self.side_by_side and self.n_cameras == 2:
-                second = side_thread().submit(self._camera_levels, 1)
-                per_camera = [self._camera_levels(0), second.result()]
-            else:
-                per_camera = [self._camera_levels(cam) for cam in range(self.n_cameras)]
-            self._levels[k] = np.array([level for level, _ in per_camera])
+            closing = self._closing(k)
+            per_camera = self._each_camera(self._camera_step, closing, True)
+            self._close_diagnostics(closing, per_camera)
+            self._levels[k] = np.array([level for _, (level, _) in per_camera])
             if self.n_parts > 1:
-                self._part_levels[k] = np.stack([parts for _, parts in per_camera])
+                self._part_levels[k] = np.stack([parts for _, (_, parts) in per_camera])
         return self._levels[k]
 
     def part_levels(self, k: int) -> np.ndarray:
@@ -207,40 +205,76 @@ class SignalLevel:
             window = self._open[k] = [[[] for _ in range(self.n_parts)] for _ in range(self.n_cameras)]
         window[cam][part].append(v)
 
-    def _close_before(self, k: int) -> None:
-        """Move the complete windows < k into the history (in window order), with their diagnostics."""
-        p = self.params
-        for j in sorted(w for w in self._open if w < k):
-            window = self._open.pop(j)
-            # The history holds exactly the windows < j now: the level that was (or would have been) in force.
-            lv = self._levels.pop(j, None)
-            if lv is None:
-                # Absolute mode needs only which cameras are warm (the trace), not the level itself.
-                lv = self._current_levels() if p.relative else self._warm_levels()
-            thr = _scaled(lv, self.absolute, p.threshold_scale, p.level_floor * self.unit) if p.relative else \
-                np.full(self.n_cameras, self.absolute)
-            reached = False
-            for cam, by_part in enumerate(window):
-                if not any(by_part):
-                    continue
+    def _closing(self, k: int) -> list[tuple[int, list[list[list[np.ndarray]]], np.ndarray | None]]:
+        """Take the open windows < k out, in window order: (window, its values per camera and part, the levels that
+        were in force for it or None); forget the levels of windows < k."""
+        closing = [(j, self._open.pop(j), self._levels.pop(j, None)) for j in sorted(w for w in self._open if w < k)]
+        for j in [w for w in self._levels if w < k]:
+            del self._levels[j]
+        for j in [w for w in self._part_levels if w < k]:
+            del self._part_levels[j]
+        return closing
+
+    def _each_camera(self, step, closing, with_level: bool) -> list:
+        """``step(cam, closing, with_level)`` for every camera; side by side (the second camera's on
+        :func:`~cvstereo._threads.side_thread`) where :attr:`side_by_side` is set: the cameras' histories are
+        independent, and their sorts, selections and copies are a serial part of every window."""
+        if self.side_by_side and self.n_cameras == 2:
+            second = side_thread().submit(step, 1, closing, with_level)
+            return [step(0, closing, with_level), second.result()]
+        return [step(cam, closing, with_level) for cam in range(self.n_cameras)]
+
+    def _camera_step(self, cam: int, closing, with_level: bool):
+        """Move camera ``cam``'s values of the closing windows into its history, in window order, and then (with
+        ``with_level``) its levels in force after them (:meth:`_camera_levels`).
+
+        Returns
+        -------
+        (list of (level in force, highest value or None) per closing window, the levels or None)
+        """
+        relative = self.params.relative
+        warmup = self.params.level_warmup
+        seen = []
+        for _, window, known in closing:
+            # The history holds exactly the windows < this one now: the level that was (or would have been) in force.
+            if known is not None:
+                level = float(known[cam])
+            elif relative:
+                level = self._camera_levels(cam, with_parts=False)[0]
+            else:  # absolute mode needs only whether the camera is warm (the trace), not the level itself
+                level = 0.0 if self._history[cam].size >= warmup else math.nan
+            by_part = window[cam]
+            top = None
+            if any(by_part):
                 # add() copied the chunks: no need to again
                 runs = [np.concatenate(c) if len(c) > 1 else c[0] if c else _NONE for c in by_part]
                 self._remember(cam, runs)
                 top = max(float(v.max()) for v in runs if v.size)
+            seen.append((level, top))
+        return seen, self._camera_levels(cam) if with_level else None
+
+    def _close_diagnostics(self, closing, per_camera) -> None:
+        """The diagnostics of the windows :meth:`_camera_step` closed, in window order (camera order within one)."""
+        p = self.params
+        for j, (window, _, _) in enumerate(closing):
+            lv = np.array([seen[j][0] for seen, _ in per_camera])
+            thr = _scaled(lv, self.absolute, p.threshold_scale, p.level_floor * self.unit) if p.relative else \
+                np.full(self.n_cameras, self.absolute)
+            reached = False
+            for cam, (seen, _) in enumerate(per_camera):
+                top = seen[j][1]
+                if top is None:
+                    continue
                 reached |= bool(top >= thr[cam])
                 ratio = top / thr[cam] if thr[cam] > 0 else math.inf
                 if ratio > self._best_ratio:
                     self._best_ratio, self._best = ratio, (top, float(thr[cam]))
             warm = tuple(bool(x) for x in ~np.isnan(lv))
             if self._seen % _TRACE_EVERY == 0 or warm != self._warm:
-                self._trace.append((j, [round(float(x), 6) for x in thr]))
+                self._trace.append((window, [round(float(x), 6) for x in thr]))
                 self._warm = warm
             self._seen += 1
             self._with_candidates += reached
-        for j in [w for w in self._levels if w < k]:
-            del self._levels[j]
-        for j in [w for w in self._part_levels if w < k]:
-            del self._part_levels[j]
 
     def _remember(self, cam: int, runs: list[np.ndarray]) -> None:
         """Append a window's values (one run per part); forget the oldest windows beyond ``level_windows`` that are
@@ -254,32 +288,26 @@ class SignalLevel:
                                                    or len(hist) > g * MAX_HISTORY_FACTOR * p.level_windows):
             hist.popleft(g)
 
-    def _camera_levels(self, cam: int) -> tuple[float, np.ndarray | None]:
-        """Camera ``cam``'s level (NaN while warming up) and, with several parts, its parts' levels: the quantiles of
-        its history (= ``np.quantile`` of the history's values)."""
+    def _camera_levels(self, cam: int, *, with_parts: bool = True) -> tuple[float, np.ndarray | None]:
+        """Camera ``cam``'s level (NaN while warming up) and, with several parts (and ``with_parts``), its parts'
+        levels: the quantiles of its history (= ``np.quantile`` of the history's values)."""
         p = self.params
         hist = self._history[cam]
         warm = hist.size >= p.level_warmup
         level = hist.quantile(p.level_quantile) if warm else math.nan
-        if self.n_parts == 1:
+        if self.n_parts == 1 or not with_parts:
             return level, None
         parts = hist.part_quantiles(p.level_quantile, self.n_parts, p.level_warmup) if warm else \
             np.full(self.n_parts, np.nan)
         return level, parts
-
-    def _current_levels(self) -> np.ndarray:
-        return np.array([self._camera_levels(cam)[0] for cam in range(self.n_cameras)])
-
-    def _warm_levels(self) -> np.ndarray:
-        """What :meth:`_current_levels` would give, as far as NaN goes (warming up), with 0 for the levels."""
-        return np.where([h.size >= self.params.level_warmup for h in self._history], 0.0, np.nan)
 
     # -- diagnostics -------------------------------------------------------------------------------------
 
     def finish(self) -> None:
         """End of stream: close every open window (for the diagnostics)."""
         if self._open:
-            self._close_before(max(self._open) + 1)
+            closing = self._closing(max(self._open) + 1)
+            self._close_diagnostics(closing, self._each_camera(self._camera_step, closing, False))
 
     def diagnostics(self) -> dict:
         """Windows seen, windows with candidates, the highest value against its threshold, thresholds over time.
