@@ -117,9 +117,12 @@ def rows_by_matching(left: np.ndarray, right: np.ndarray, *, resolution, reach: 
 
     def count(rows) -> None:
         rows = [r for r in dict.fromkeys(rows) if abs(r) <= reach and r not in counts]
+        if threads <= 1 or len(rows) <= 1:
+            counts.update((row, answers(row)) for row in rows)
+            return
         # Each offset's run is independent and its kernels release the GIL: on several threads the runs go side by
         # side (the counts do not depend on it).
-        with ThreadPoolExecutor(max(1, min(threads, len(rows)))) as pool:
+        with ThreadPoolExecutor(min(threads, len(rows))) as pool:
             counts.update(zip(rows, pool.map(answers, rows), strict=True))
 
     count(range(-(reach - reach % 2), reach + 1, 2))
