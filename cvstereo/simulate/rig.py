@@ -357,6 +357,19 @@ class Rig:
         x = np.asarray(x, np.float64)
         return x - u_other if index == 0 else u_other - x
 
+    def right_row_shift(self) -> np.ndarray:
+        """The rows to add to each right-camera pixel's y to reach the left camera's row of the same ray (a
+        point at infinity), (H, W) float64: the vertical misalignment a whole-image row offset can only
+        approximate. ``-vertical_offset_px`` everywhere on a rig without roll, focal mismatch or distortion; a roll
+        makes it grow along x, a focal mismatch along y, different lenses towards the corners. A nearer point
+        moves along x only, so its row differs from this by the roll's and the distortion's cross terms alone.
+        """
+        w, h = self.resolution
+        right, left = self.camera(1), self.camera(0)
+        v, u = np.mgrid[0:h, 0:w].astype(np.float64)
+        _, v_left = left.distort(*right.undistort_pixels(u, v))
+        return v_left - v
+
     def describe(self) -> dict:
         """JSON-serialisable description for a recording's meta (roll, focal ratio and the right lens' own
         distortion only where they are set)."""

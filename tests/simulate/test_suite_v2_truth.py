@@ -85,6 +85,25 @@ def test_rig_projection_is_opencvs_camera_model():
         np.testing.assert_allclose(yn, points[:, 1] / points[:, 2], atol=1e-9)
 
 
+def test_right_row_shift_is_the_left_row_of_each_right_pixels_ray():
+    # By OpenCV: each right pixel's ray (undistorted, unrolled), far away, projected into the left camera.
+    w, h = CROOKED.resolution
+    v, u = np.mgrid[0:h:7, 0:w:5].astype(np.float64)
+    k, d, roll, _ = _opencv_camera(CROOKED, 1)
+    pts = np.stack([u.ravel(), v.ravel()], axis=1).reshape(-1, 1, 2)
+    norm = cv2.undistortPoints(pts, k, d, R=cv2.Rodrigues(-roll)[0],
+                               criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-14)).reshape(-1, 2)
+    far = np.stack([norm[:, 0], norm[:, 1], np.ones(len(norm))], axis=1) * 1e9
+    k2, d2, roll2, _ = _opencv_camera(CROOKED, 0)
+    left, _ = cv2.projectPoints(far, roll2, np.zeros(3), k2, d2)
+    expected = left.reshape(-1, 2)[:, 1] - v.ravel()
+    shift = CROOKED.right_row_shift()
+    np.testing.assert_allclose(shift[v.astype(int), u.astype(int)].ravel(), expected, atol=1e-6)
+    assert np.ptp(shift) > 1  # the crooked rig's rows do differ across the image
+    plain = dataclasses.replace(Rig(), vertical_offset_px=1.5, distortion_k1=0.0)
+    np.testing.assert_allclose(plain.right_row_shift(), -1.5, atol=1e-12)  # a shift alone: one row offset
+
+
 @pytest.mark.parametrize("distance_m", [0.8, 2.0])
 def test_fronto_parallel_plane_truth_under_every_rig_imperfection(distance_m):
     rec = simulate(_plane(distance_m), rig=CROOKED, seconds=0.06, seed=0, render_hz=500)
