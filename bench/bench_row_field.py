@@ -1,0 +1,234 @@
+"""Rows that differ across the image: what a per-pixel row correction would give, and can the rows be found per tile?
+
+Suite v2's rigs have a roll, a focal mismatch and two different lenses besides a row offset, as real uncalibrated
+rigs do; the rig check applies one row offset to the whole image. This measures, on one half of suite v2:
+
+- the **true row field**: the rows to add to each right pixel's y to reach the left camera's row of its ray
+  (:meth:`cvstereo.simulate.Rig.right_row_shift`), its span over the image, and how far the whole-image offset the
+  prefix check applies leaves it (RMS over the pixels);
+- **the oracle**: each method run on the recording as read (the default rig check) and on the recording with the
+  right camera's rows moved by the true field, rounded (rig check off): bad2 and coverage of fused, SGBM and
+  dv-semidense, and fused's bad2 at each peer's coverage (its most certain answers, as bench_fusedgen.py);
+- **a prototype estimator**, not in the package: frame-area (adaptive) on the prefix span the rows by matching use,
+  with the right camera moved by every second offset within +-8 rows of the check's overlay estimate; its answers
+  counted per tile (4 x 3), each tile's peak offset (parabola), a weighted least-squares fit of
+  ``shift = a + b u + c v + e v (u^2 + v^2)`` (u, v from the image centre over half the width: a row offset, a
+  roll, a focal mismatch, different lens distortion), tiles over 1.5 rows off refitted away twice; its RMS
+  against the true field beside the constant's, and the answers with the fitted field over those with the
+  constant (the only evidence a recording without truth would have).
+
+Run: ``.venv/bin/python bench/bench_row_field.py [--half tune] [--only NAME,...] [-o bench/results]``. Writes
+``row-field.md`` and ``row-field.json``. A measurement for the next step of issue 24, not a tuning script: it
+changes no constant (the tuning half by default, through ``require_tuning``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from bench_fused import most_certain
+
+from cvstereo.evaluation.metrics import evaluate
+from cvstereo.io.npz import read_recording_npz
+from cvstereo.matchers.registry import create_matcher
+from cvstereo.model.events import iter_stereo_packets
+from cvstereo.rigcheck.prefix import PrefixRigCheck
+from cvstereo.rigcheck.rows_by_matching import matching_span
+from cvstereo.run import match
+from cvstereo.simulate import Rig, require_tuning, suite_recordings
+
+PEERS = ("sgbm", "dv-semidense")
+#: Tiles of the prototype estimator (columns, rows), its reach and step in rows, least answers of a tile.
+TILES, REACH, STEP, MIN_ANSWERS = (4, 3), 8, 2, 20
+#: Rig fields of a recording's meta that make its Rig.
+RIG_FIELDS = ("baseline_m", "focal_px", "axis_offset_px", "vertical_offset_px", "distortion_k1", "roll_deg",
+              "focal_ratio", "right_distortion_k1")
+
+
+def true_shift(rec) -> np.ndarray:
+    """The suite rig's true row field of ``rec``, (H, W)."""
+    rig = Rig(resolution=tuple(rec.resolution), **{k: v for k, v in rec.meta["rig"].items() if k in RIG_FIELDS})
+    return rig.right_row_shift()
+
+
+def moved_rows(rec, shift: np.ndarray):
+    """``rec`` with each right event's row moved by ``shift`` at its pixel (rounded; off the sensor dropped)."""
+    right = rec.right
+    y = np.rint(right["y"] + shift[right["y"], right["x"]]).astype(np.int64)
+    keep = (y >= 0) & (y < rec.resolution[1])
+    moved = right[keep].copy()
+    moved["y"] = y[keep]
+    truth = None if rec.right_disparity is None else rec.right_disparity[keep]
+    return dataclasses.replace(rec, right=moved, right_disparity=truth)
+
+
+def figures(rec, **kw) -> dict:
+    """bad2 and coverage of fused (and its ranked result) and of the peers on ``rec``."""
+    out = {}
+    for peer in PEERS:
+        f = evaluate(rec, match(rec, method=peer, **kw))
+        out[peer] = {"coverage": f["coverage"], "bad2": f["bad2"]}
+    res = match(rec, method="fused", max_uncertainty=1.0, **kw)
+    unc = res.arrays["uncertainty"]
+    f = evaluate(rec, res.matches[unc <= 0.5], res.meta)
+    out["fused"] = {"coverage": f["coverage"], "bad2": f["bad2"]}
+    for peer in PEERS:
+        kept = most_certain(res.matches, unc, rec, res.meta, out[peer]["coverage"] or 0.0)
+        out[f"fused@{peer}"] = evaluate(rec, kept, res.meta)["bad2"]
+    return out
+
+
+def _design(x, y, w):
+    """The field's terms at columns ``x`` and rows ``y`` counted from the image centre."""
+    u, v = (x - (w - 1) / 2) / (w / 2), y / (w / 2)
+    return np.stack([np.ones_like(u), u, v, v * (u * u + v * v)], axis=-1)
+
+
+def _answers(left, right, rec, end, shift) -> np.ndarray:
+    """frame-area's matches on the span with the right rows moved by ``shift`` (scalar or (H, W))."""
+    moved = moved_rows(dataclasses.replace(rec, left=left, right=right, left_disparity=None, right_disparity=None),
+                       np.broadcast_to(np.asarray(shift, float), (rec.resolution[1], rec.resolution[0]))).right
+    m = create_matcher("frame-area", resolution=rec.resolution, threads=1)
+    return np.concatenate([m.feed(left, moved, until=end), m.flush()])
+
+
+def estimate(rec, centre: int) -> dict:
+    """The prototype: per-tile peaks of frame-area's answers over row offsets, and the fitted field."""
+    w, h = rec.resolution
+    end = matching_span(rec.left, rec.right, min_us=80_000, max_us=10_000_000, events=100_000)
+    left, right = rec.left[rec.left["t"] < end], rec.right[rec.right["t"] < end]
+    offsets = np.arange(centre - REACH, centre + REACH + 1, STEP)
+    counts = np.zeros((offsets.size, TILES[1], TILES[0]))
+    for i, off in enumerate(offsets):
+        out = _answers(left, right, rec, end, float(off))
+        # Each answer's pixel in the right camera's own rows (frame-area anchors on the right camera).
+        ry = np.where(out["camera"] == 1, out["y"].astype(int) - off, out["y"].astype(int))
+        rx = np.where(out["camera"] == 1, out["x"].astype(int), out["x"].astype(int) - np.rint(out["disparity"]))
+        np.add.at(counts[i], (np.clip(ry * TILES[1] // h, 0, TILES[1] - 1),
+                              np.clip(rx.astype(int) * TILES[0] // w, 0, TILES[0] - 1)), 1)
+    peaks, weights, cx, cy = [], [], [], []
+    for j in range(TILES[1]):
+        for k in range(TILES[0]):
+            prof = counts[:, j, k]
+            b = int(np.argmax(prof))
+            if prof[b] < MIN_ANSWERS:
+                continue
+            peak = float(offsets[b])
+            if 0 < b < offsets.size - 1 and prof[b - 1] - 2 * prof[b] + prof[b + 1] < 0:
+                peak += STEP * 0.5 * (prof[b - 1] - prof[b + 1]) / (prof[b - 1] - 2 * prof[b] + prof[b + 1])
+            peaks.append(peak)
+            weights.append(prof[b] * (1 - np.median(prof) / prof[b]))
+            cx.append((k + 0.5) * w / TILES[0])
+            cy.append((j + 0.5) * h / TILES[1] - (h - 1) / 2)
+    peaks, weights = np.array(peaks), np.array(weights)
+    a = _design(np.array(cx), np.array(cy), w)
+    use = np.ones(peaks.size, bool)
+    coef = np.array([float(centre), 0.0, 0.0, 0.0])
+    for _ in range(3):
+        if use.sum() < 4:
+            break
+        sw = np.sqrt(weights[use])
+        coef = np.linalg.lstsq(a[use] * sw[:, None], peaks[use] * sw, rcond=None)[0]
+        res = np.abs(a @ coef - peaks)
+        use = res <= max(1.5, 2.5 * float(np.median(res[use])))
+    yy, xx = np.mgrid[0:h, 0:w].astype(float)
+    field = _design(xx, yy - (h - 1) / 2, w) @ coef
+    n_field = _answers(left, right, rec, end, field).size
+    n_const = _answers(left, right, rec, end, float(centre)).size
+    return {"field": field, "tiles": int(peaks.size), "used": int(use.sum()),
+            "answers_ratio": n_field / max(n_const, 1)}
+
+
+def one(name: str, path: Path, half: str) -> dict:
+    if half == "tune":
+        require_tuning(path)
+    rec = read_recording_npz(path)
+    shift = true_shift(rec)
+    check = PrefixRigCheck(rec.resolution)
+    next(check.stream(iter_stereo_packets(rec.left, rec.right)))
+    applied = check.describe()["applied"]
+    rows = int(applied["row_offset"])
+    start = time.perf_counter()
+    as_read = figures(rec)
+    oracle = figures(moved_rows(rec, np.rint(shift)), rig_check=False)
+    est = estimate(rec, round(check.report.row_offset)) if check.report is not None else None
+    row = {"name": name, "sensor": f"{rec.resolution[0]}x{rec.resolution[1]}",
+           "field_min": float(shift.min()), "field_max": float(shift.max()), "applied_rows": rows,
+           "constant_rms": float(np.sqrt(np.mean((shift - rows) ** 2))), "as_read": as_read, "oracle": oracle,
+           "seconds": round(time.perf_counter() - start, 1)}
+    if est is not None:
+        row.update(estimate_rms=float(np.sqrt(np.mean((est["field"] - shift) ** 2))), tiles=est["tiles"],
+                   tiles_used=est["used"], answers_ratio=est["answers_ratio"])
+    return row
+
+
+def _fused_cell(f: dict) -> str:
+    return f"{f['fused']['bad2']:.3f} ({f['fused']['coverage']:.2f})"
+
+
+def table(rows: list[dict]) -> list[str]:
+    lines = ["| recording | true field rows | applied | RMS constant / prototype fit | fit: tiles used, answers "
+             "ratio | fused default, as read -> oracle | fused @ sgbm vs sgbm, as read -> oracle | fused @ dv vs dv, "
+             "as read -> oracle |", "|---|---|---:|---|---|---|---|---|"]
+    for r in rows:
+        a, o = r["as_read"], r["oracle"]
+        cells = []
+        for peer in PEERS:
+            cells.append(f"{a[f'fused@{peer}']:.3f} vs {a[peer]['bad2']:.3f} -> {o[f'fused@{peer}']:.3f} vs "
+                         f"{o[peer]['bad2']:.3f}")
+        fitted = f"{r['estimate_rms']:.2f}" if "estimate_rms" in r else "-"
+        fit = f"{r['constant_rms']:.2f} / {fitted}"
+        used = f"{r['tiles_used']}/{r['tiles']}, {r['answers_ratio']:.3f}" if "tiles" in r else "-"
+        lines.append(f"| {r['name']} | {r['field_min']:+.1f} .. {r['field_max']:+.1f} | {r['applied_rows']:+d} | "
+                     f"{fit} | {used} | {_fused_cell(a)} -> {_fused_cell(o)} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def beats(f: dict) -> bool:
+    return all(f[f"fused@{p}"] < (f[p]["bad2"] if f[p]["coverage"] else 1.0) for p in PEERS)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--half", choices=("tune", "eval"), default="tune")
+    parser.add_argument("--only", default=None, metavar="NAME,...")
+    parser.add_argument("-o", "--output", default="bench/results")
+    args = parser.parse_args()
+    only = set(args.only.split(",")) if args.only else None
+    load = os.getloadavg()[0]
+    rows = []
+    for name, path in suite_recordings("generalization", half=args.half):
+        if only and name not in only:
+            continue
+        rows.append(one(name, path, args.half))
+        r = rows[-1]
+        print(f"{name:26s} field {r['field_min']:+.1f}..{r['field_max']:+.1f} applied {r['applied_rows']:+d}  fused "
+              f"{_fused_cell(r['as_read'])} -> {_fused_cell(r['oracle'])}  beats both {beats(r['as_read'])} -> "
+              f"{beats(r['oracle'])}  ({r['seconds']} s)", flush=True)
+    lines = [f"# Rows that differ across the image: the oracle and a prototype ({args.half} half of suite v2)", "",
+             "Generated by `bench/bench_row_field.py` (its docstring says what each column is). Bad2 at a peer's "
+             "coverage: fused's most certain answers. 'as read': `match()` with the default rig check; 'oracle': "
+             "the right rows moved by the true field (rounded), rig check off.", "",
+             f"fused better than both peers at parity: as read {sum(beats(r['as_read']) for r in rows)} of "
+             f"{len(rows)}, oracle {sum(beats(r['oracle']) for r in rows)} of {len(rows)}.", "", *table(rows)]
+    out = Path(args.output)
+    out.mkdir(parents=True, exist_ok=True)
+    lines += ["", f"2 CPUs, 1-min load average {load:.1f} at the start and {os.getloadavg()[0]:.1f} at the end, "
+              f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}."]
+    (out / "row-field.md").write_text("\n".join(lines) + "\n")
+    (out / "row-field.json").write_text(json.dumps(rows, indent=1, default=float))
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
