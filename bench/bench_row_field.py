@@ -102,12 +102,14 @@ def _answers(left, right, rec, end, shift) -> np.ndarray:
     return np.concatenate([m.feed(left, moved, until=end), m.flush()])
 
 
-def estimate(rec, centre: int) -> dict:
-    """The prototype: per-tile peaks of frame-area's answers over row offsets, and the fitted field."""
+def tile_peaks(rec, centre: int, reach: int = REACH) -> dict:
+    """frame-area's answers over row offsets ``centre - reach .. centre + reach`` (every STEP-th), counted per
+    tile: each tile's peak offset (parabola), its weight (answers at the peak times the profile's prominence)
+    and its centre (x from the left, y from the image centre), for tiles with MIN_ANSWERS or more."""
     w, h = rec.resolution
     end = matching_span(rec.left, rec.right, min_us=80_000, max_us=10_000_000, events=100_000)
     left, right = rec.left[rec.left["t"] < end], rec.right[rec.right["t"] < end]
-    offsets = np.arange(centre - REACH, centre + REACH + 1, STEP)
+    offsets = np.arange(centre - reach, centre + reach + 1, STEP)
     counts = np.zeros((offsets.size, TILES[1], TILES[0]))
     for i, off in enumerate(offsets):
         out = _answers(left, right, rec, end, float(off))
@@ -130,23 +132,90 @@ def estimate(rec, centre: int) -> dict:
             weights.append(prof[b] * (1 - np.median(prof) / prof[b]))
             cx.append((k + 0.5) * w / TILES[0])
             cy.append((j + 0.5) * h / TILES[1] - (h - 1) / 2)
-    peaks, weights = np.array(peaks), np.array(weights)
-    a = _design(np.array(cx), np.array(cy), w)
+    return {"peaks": np.array(peaks), "weights": np.array(weights), "x": np.array(cx), "y": np.array(cy),
+            "end": end, "centre": centre}
+
+
+def fit_field(tiles: dict, resolution, *, terms: int = 4, ridge: float = 0.0, clip: bool = False,
+              gate: tuple[int, float] | None = None) -> tuple[np.ndarray | None, int]:
+    """The prototype's fit: weighted least squares of the first ``terms`` terms over the tiles, tiles over 1.5 rows
+    (or 2.5 median residuals) off dropped and refitted twice. Variants: ``ridge`` (the slope terms pulled towards 0
+    by ``ridge`` times the tiles' total weight), ``clip`` (the field kept within the used tiles' peaks +-1 row: no
+    extrapolation), ``gate`` = (least tiles used, largest weighted RMS residual, rows): None where it fails.
+    Fewer tiles than terms: the centre. Returns the field (H, W) or None, and the tiles used."""
+    w, h = resolution
+    peaks, weights = tiles["peaks"], tiles["weights"]
+    a = _design(tiles["x"], tiles["y"], w)[:, :terms]
     use = np.ones(peaks.size, bool)
-    coef = np.array([float(centre), 0.0, 0.0, 0.0])
+    coef = np.array([float(tiles["centre"])] + [0.0] * (terms - 1))
     for _ in range(3):
-        if use.sum() < 4:
+        if use.sum() < terms:
             break
         sw = np.sqrt(weights[use])
-        coef = np.linalg.lstsq(a[use] * sw[:, None], peaks[use] * sw, rcond=None)[0]
+        lhs, rhs = a[use] * sw[:, None], peaks[use] * sw
+        if ridge:
+            prior = np.sqrt(ridge * weights[use].sum()) * np.eye(terms)[1:]
+            lhs, rhs = np.vstack([lhs, prior]), np.concatenate([rhs, np.zeros(terms - 1)])
+        coef = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
         res = np.abs(a @ coef - peaks)
         use = res <= max(1.5, 2.5 * float(np.median(res[use])))
+    if gate is not None:
+        res = a @ coef - peaks
+        spread = float(np.sqrt(np.average(res[use] ** 2, weights=weights[use]))) if use.any() else np.inf
+        if use.sum() < gate[0] or spread > gate[1]:
+            return None, int(use.sum())
     yy, xx = np.mgrid[0:h, 0:w].astype(float)
-    field = _design(xx, yy - (h - 1) / 2, w) @ coef
+    field = _design(xx, yy - (h - 1) / 2, w)[..., :terms] @ coef
+    if clip and use.any():
+        field = np.clip(field, peaks[use].min() - 1, peaks[use].max() + 1)
+    return field, int(use.sum())
+
+
+#: The fits compared by ``--fits``: name -> fit_field's options.
+FITS = {"plain": {}, "clip": {"clip": True}, "affine + clip": {"terms": 3, "clip": True},
+        "ridge 0.1 + clip": {"ridge": 0.1, "clip": True},
+        "affine + clip, gate 5 tiles / 0.7 rows": {"terms": 3, "clip": True, "gate": (5, 0.7)}}
+#: How far ``--fits`` searches around the overlay's row estimate.
+FITS_REACH = 12
+
+
+def fits_table(half: str) -> list[str]:
+    """Every fit of FITS on every recording of ``half``: RMS against the true field beside the constant's."""
+    rows = []
+    for name, path in suite_recordings("generalization", half=half):
+        if half == "tune":
+            require_tuning(path)
+        rec = read_recording_npz(path)
+        check = PrefixRigCheck(rec.resolution)
+        next(check.stream(iter_stereo_packets(rec.left, rec.right)))
+        shift = true_shift(rec)
+        tiles = tile_peaks(rec, round(check.report.row_offset), FITS_REACH)
+        rms = {"constant": float(np.sqrt(np.mean((shift - check.describe()["applied"]["row_offset"]) ** 2)))}
+        for fit, options in FITS.items():
+            field = fit_field(tiles, rec.resolution, **options)[0]
+            rms[fit] = rms["constant"] if field is None else float(np.sqrt(np.mean((field - shift) ** 2)))
+        rows.append((name, rms))
+        print(name, {k: round(v, 2) for k, v in rms.items()}, flush=True)
+    lines = [f"## Fits of the prototype's tiles ({half} half, +-{FITS_REACH} rows around the overlay's estimate)", "",
+             "RMS over the pixels against the true field, rows; a gated fit that fails keeps the constant.", "",
+             "| recording | constant applied | " + " | ".join(FITS) + " |",
+             "|---|---:|" + "---:|" * len(FITS)]
+    lines += [f"| {name} | {r['constant']:.2f} | " + " | ".join(f"{r[f]:.2f}" for f in FITS) + " |" for name, r in rows]
+    lines.append("| better / worse than the constant by 0.1+ rows | | " + " | ".join(
+        f"{sum(r[f] < r['constant'] - 0.1 for _, r in rows)} / {sum(r[f] > r['constant'] + 0.1 for _, r in rows)}"
+        for f in FITS) + " |")
+    return lines
+
+
+def estimate(rec, centre: int) -> dict:
+    """The prototype on ``rec``: its fitted field, tiles, and the answers with it over those with the centre."""
+    tiles = tile_peaks(rec, centre)
+    field, used = fit_field(tiles, rec.resolution)
+    end = tiles["end"]
+    left, right = rec.left[rec.left["t"] < end], rec.right[rec.right["t"] < end]
     n_field = _answers(left, right, rec, end, field).size
     n_const = _answers(left, right, rec, end, float(centre)).size
-    return {"field": field, "tiles": int(peaks.size), "used": int(use.sum()),
-            "answers_ratio": n_field / max(n_const, 1)}
+    return {"field": field, "tiles": int(tiles["peaks"].size), "used": used, "answers_ratio": n_field / max(n_const, 1)}
 
 
 def one(name: str, path: Path, half: str) -> dict:
@@ -203,7 +272,16 @@ def main() -> None:
     parser.add_argument("--half", choices=("tune", "eval"), default="tune")
     parser.add_argument("--only", default=None, metavar="NAME,...")
     parser.add_argument("-o", "--output", default="bench/results")
+    parser.add_argument("--fits", action="store_true", help="only the fits of the prototype (row-field-fits.md)")
     args = parser.parse_args()
+    if args.fits:
+        lines = ["# Rows that differ across the image: fits of the prototype estimator", "",
+                 "Generated by `bench/bench_row_field.py --fits` (see its docstring and row-field.md).", "",
+                 *fits_table(args.half), "", f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}."]
+        Path(args.output).mkdir(parents=True, exist_ok=True)
+        (Path(args.output) / "row-field-fits.md").write_text("\n".join(lines) + "\n")
+        print("\n".join(lines))
+        return
     only = set(args.only.split(",")) if args.only else None
     load = os.getloadavg()[0]
     rows = []
