@@ -40,10 +40,10 @@ from bench_fused import most_certain
 
 from cvstereo.evaluation.metrics import evaluate
 from cvstereo.io.npz import read_recording_npz
-from cvstereo.matchers.registry import create_matcher
 from cvstereo.model.events import iter_stereo_packets
+from cvstereo.rigcheck.peaks import subsample_peak
 from cvstereo.rigcheck.prefix import PrefixRigCheck
-from cvstereo.rigcheck.rows_by_matching import matching_span
+from cvstereo.rigcheck.rows_by_matching import matching_span, span_matches
 from cvstereo.run import match
 from cvstereo.simulate import Rig, require_tuning, suite_recordings
 
@@ -61,13 +61,20 @@ def true_shift(rec) -> np.ndarray:
     return rig.right_row_shift()
 
 
-def moved_rows(rec, shift: np.ndarray):
-    """``rec`` with each right event's row moved by ``shift`` at its pixel (rounded; off the sensor dropped)."""
-    right = rec.right
-    y = np.rint(right["y"] + shift[right["y"], right["x"]]).astype(np.int64)
-    keep = (y >= 0) & (y < rec.resolution[1])
-    moved = right[keep].copy()
+def move_rows(events: np.ndarray, shift, height: int) -> tuple[np.ndarray, np.ndarray]:
+    """``events`` with each row moved by ``shift`` (a number, or (H, W) at each event's pixel), rounded; those
+    moved off the sensor dropped. Returns the moved events and which were kept."""
+    at = shift[events["y"], events["x"]] if np.ndim(shift) else shift
+    y = np.rint(events["y"] + at).astype(np.int64)
+    keep = (y >= 0) & (y < height)
+    moved = events[keep].copy()
     moved["y"] = y[keep]
+    return moved, keep
+
+
+def moved_rows(rec, shift: np.ndarray):
+    """``rec`` with each right event's row moved by ``shift`` at its pixel (:func:`move_rows`)."""
+    moved, keep = move_rows(rec.right, shift, rec.resolution[1])
     truth = None if rec.right_disparity is None else rec.right_disparity[keep]
     return dataclasses.replace(rec, right=moved, right_disparity=truth)
 
@@ -95,11 +102,9 @@ def _design(x, y, w):
 
 
 def _answers(left, right, rec, end, shift) -> np.ndarray:
-    """frame-area's matches on the span with the right rows moved by ``shift`` (scalar or (H, W))."""
-    moved = moved_rows(dataclasses.replace(rec, left=left, right=right, left_disparity=None, right_disparity=None),
-                       np.broadcast_to(np.asarray(shift, float), (rec.resolution[1], rec.resolution[0]))).right
-    m = create_matcher("frame-area", resolution=rec.resolution, threads=1)
-    return np.concatenate([m.feed(left, moved, until=end), m.flush()])
+    """frame-area's matches on the span with the right rows moved by ``shift`` (a number or (H, W))."""
+    moved = move_rows(right, shift, rec.resolution[1])[0]
+    return span_matches(left, moved, resolution=rec.resolution, end=end)
 
 
 def tile_peaks(rec, centre: int, reach: int = REACH) -> dict:
@@ -125,15 +130,14 @@ def tile_peaks(rec, centre: int, reach: int = REACH) -> dict:
             b = int(np.argmax(prof))
             if prof[b] < MIN_ANSWERS:
                 continue
-            peak = float(offsets[b])
-            if 0 < b < offsets.size - 1 and prof[b - 1] - 2 * prof[b] + prof[b + 1] < 0:
-                peak += STEP * 0.5 * (prof[b - 1] - prof[b + 1]) / (prof[b - 1] - 2 * prof[b] + prof[b + 1])
-            peaks.append(peak)
+            peaks.append(float(offsets[0]) + STEP * subsample_peak(prof, b))
             weights.append(prof[b] * (1 - np.median(prof) / prof[b]))
             cx.append((k + 0.5) * w / TILES[0])
             cy.append((j + 0.5) * h / TILES[1] - (h - 1) / 2)
+    # Every answer falls in a tile (clipped), so an offset's tiles sum to its run's answers.
+    answers = counts.sum(axis=(1, 2)).astype(int).tolist()
     return {"peaks": np.array(peaks), "weights": np.array(weights), "x": np.array(cx), "y": np.array(cy),
-            "end": end, "centre": centre}
+            "end": end, "centre": centre, "answers": dict(zip(offsets.tolist(), answers, strict=True))}
 
 
 def fit_field(tiles: dict, resolution, *, terms: int = 4, ridge: float = 0.0, clip: bool = False,
@@ -214,7 +218,7 @@ def estimate(rec, centre: int) -> dict:
     end = tiles["end"]
     left, right = rec.left[rec.left["t"] < end], rec.right[rec.right["t"] < end]
     n_field = _answers(left, right, rec, end, field).size
-    n_const = _answers(left, right, rec, end, float(centre)).size
+    n_const = tiles["answers"][centre]  # the centre is on the offsets' grid (REACH is a multiple of STEP)
     return {"field": field, "tiles": int(tiles["peaks"].size), "used": used, "answers_ratio": n_field / max(n_const, 1)}
 
 

@@ -27,9 +27,11 @@ from typing import NamedTuple
 import numpy as np
 
 from cvstereo.geometry.rigcorrect import RigCorrection
+from cvstereo.model.matches import concat_matches
 from cvstereo.rigcheck.peaks import subsample_peak
 
-__all__ = ["MATCHING_METHOD", "RowsByMatching", "matching_span", "rows_by_matching", "rows_from_counts"]
+__all__ = ["MATCHING_METHOD", "RowsByMatching", "matching_span", "rows_by_matching", "rows_from_counts",
+           "span_matches"]
 
 #: The matcher whose answers are counted (its ``adaptive`` default, one thread).
 MATCHING_METHOD = "frame-area"
@@ -77,6 +79,16 @@ def matching_span(left: np.ndarray, right: np.ndarray, *, min_us: int, max_us: i
     return min(last, t0 + max_us, max(t0 + min_us, full))
 
 
+def span_matches(left: np.ndarray, right: np.ndarray, *, resolution, end: int,
+                 method: str = MATCHING_METHOD) -> np.ndarray:
+    """``method``'s matches (its ``adaptive`` default, one thread) of ``left`` and ``right`` up to ``end`` (us):
+    one run of the rows by matching, with the right camera's events already moved."""
+    from cvstereo.matchers.registry import create_matcher
+
+    matcher = create_matcher(method, resolution=resolution, threads=1)
+    return concat_matches([matcher.feed(left, right, until=end), matcher.flush()])
+
+
 def rows_by_matching(left: np.ndarray, right: np.ndarray, *, resolution, reach: int, min_us: int = 80_000,
                      max_us: int = 10_000_000, events: int = 100_000, threads: int = 1) -> RowsByMatching:
     """Match ``left`` with ``right`` moved by row offsets from ``-reach`` to ``reach`` and count the answers.
@@ -103,8 +115,6 @@ def rows_by_matching(left: np.ndarray, right: np.ndarray, *, resolution, reach: 
     -------
     RowsByMatching
     """
-    from cvstereo.matchers.registry import create_matcher
-
     t0 = min(int(left["t"][0]), int(right["t"][0]))
     end = matching_span(left, right, min_us=min_us, max_us=max_us, events=events)
     left, right = (ev[:np.searchsorted(ev["t"], end)] for ev in (left, right))
@@ -112,8 +122,7 @@ def rows_by_matching(left: np.ndarray, right: np.ndarray, *, resolution, reach: 
 
     def answers(row: int) -> int:
         moved = RigCorrection(row, 0, resolution).correct_right(right)[0]
-        matcher = create_matcher(MATCHING_METHOD, resolution=resolution, threads=1)
-        return int(matcher.feed(left, moved, until=end).size + matcher.flush().size)
+        return span_matches(left, moved, resolution=resolution, end=end).size
 
     def count(rows) -> None:
         rows = [r for r in dict.fromkeys(rows) if abs(r) <= reach and r not in counts]

@@ -165,7 +165,7 @@ class SignalLevel:
         k = int(k)
         if k not in self._levels:
             closing = self._closing(k)
-            per_camera = self._each_camera(self._camera_step, closing, True)
+            per_camera = self._each_camera(closing, True)
             self._close_diagnostics(closing, per_camera)
             self._levels[k] = np.array([level for _, (level, _) in per_camera])
             if self.n_parts > 1:
@@ -215,14 +215,14 @@ class SignalLevel:
             del self._part_levels[j]
         return closing
 
-    def _each_camera(self, step, closing, with_level: bool) -> list:
-        """``step(cam, closing, with_level)`` for every camera; side by side (the second camera's on
+    def _each_camera(self, closing, with_level: bool) -> list:
+        """:meth:`_camera_step` for every camera; side by side (the second camera's on
         :func:`~cvstereo._threads.side_thread`) where :attr:`side_by_side` is set: the cameras' histories are
         independent, and their sorts, selections and copies are a serial part of every window."""
         if self.side_by_side and self.n_cameras == 2:
-            second = side_thread().submit(step, 1, closing, with_level)
-            return [step(0, closing, with_level), second.result()]
-        return [step(cam, closing, with_level) for cam in range(self.n_cameras)]
+            second = side_thread().submit(self._camera_step, 1, closing, with_level)
+            return [self._camera_step(0, closing, with_level), second.result()]
+        return [self._camera_step(cam, closing, with_level) for cam in range(self.n_cameras)]
 
     def _camera_step(self, cam: int, closing, with_level: bool):
         """Move camera ``cam``'s values of the closing windows into its history, in window order, and then (with
@@ -307,7 +307,7 @@ class SignalLevel:
         """End of stream: close every open window (for the diagnostics)."""
         if self._open:
             closing = self._closing(max(self._open) + 1)
-            self._close_diagnostics(closing, self._each_camera(self._camera_step, closing, False))
+            self._close_diagnostics(closing, self._each_camera(closing, False))
 
     def diagnostics(self) -> dict:
         """Windows seen, windows with candidates, the highest value against its threshold, thresholds over time.
