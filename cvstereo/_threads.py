@@ -16,8 +16,8 @@ where neither loads does numba fall back to ``workqueue``, and then parallel run
 (a lock) rather than crash.
 
 The side thread (:func:`side_thread`): one Python thread beside the caller, on which a matcher on several threads
-runs the second camera's half of a serial step (its signal level, fused's features) while the caller runs the
-first. A forked child makes its own.
+runs the second camera's half of a serial step (its signal level, fused's features: :func:`both_cameras`) while
+the caller runs the first. A forked child makes its own.
 """
 
 from __future__ import annotations
@@ -35,8 +35,8 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numba
 
-__all__ = ["MAX_THREADS", "NOT_A_PARAMETER", "THREADS_ENV", "available_cores", "check_threads", "default_threads",
-           "pool_size", "side_thread", "threading_layer", "using_threads"]
+__all__ = ["MAX_THREADS", "NOT_A_PARAMETER", "THREADS_ENV", "available_cores", "both_cameras", "check_threads",
+           "default_threads", "pool_size", "side_thread", "threading_layer", "using_threads"]
 
 #: The environment variable that sets the default of ``threads`` (read once, at the first use).
 THREADS_ENV = "CVSTEREO_THREADS"
@@ -74,6 +74,15 @@ def side_thread() -> ThreadPoolExecutor:
         if not _SIDE:
             _SIDE.append(ThreadPoolExecutor(max_workers=1, thread_name_prefix="cvstereo-side"))
         return _SIDE[0]
+
+
+def both_cameras(step, *args, side_by_side: bool) -> list:
+    """``[step(0, *args), step(1, *args)]``; with ``side_by_side`` the second on :func:`side_thread` while the caller
+    runs the first (the two calls must be independent, and release the GIL to gain)."""
+    if not side_by_side:
+        return [step(0, *args), step(1, *args)]
+    second = side_thread().submit(step, 1, *args)
+    return [step(0, *args), second.result()]
 
 
 def _forget_side_thread() -> None:

@@ -52,7 +52,7 @@ from typing import Literal
 
 import numpy as np
 
-from cvstereo._threads import side_thread
+from cvstereo._threads import both_cameras
 from cvstereo.matchers._shared.sorted_runs import SortedRuns
 from cvstereo.matchers.constraints import DeclaredParams, param
 
@@ -216,12 +216,11 @@ class SignalLevel:
         return closing
 
     def _each_camera(self, closing, with_level: bool) -> list:
-        """:meth:`_camera_step` for every camera; side by side (the second camera's on
-        :func:`~cvstereo._threads.side_thread`) where :attr:`side_by_side` is set: the cameras' histories are
+        """:meth:`_camera_step` for every camera; side by side (:func:`~cvstereo._threads.both_cameras`) where
+        :attr:`side_by_side` is set: the cameras' histories are
         independent, and their sorts, selections and copies are a serial part of every window."""
-        if self.side_by_side and self.n_cameras == 2:
-            second = side_thread().submit(self._camera_step, 1, closing, with_level)
-            return [self._camera_step(0, closing, with_level), second.result()]
+        if self.n_cameras == 2:
+            return both_cameras(self._camera_step, closing, with_level, side_by_side=self.side_by_side)
         return [self._camera_step(cam, closing, with_level) for cam in range(self.n_cameras)]
 
     def _camera_step(self, cam: int, closing, with_level: bool):

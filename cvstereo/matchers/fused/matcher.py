@@ -111,7 +111,7 @@ from typing import ClassVar
 import numpy as np
 from numba import njit
 
-from cvstereo._threads import side_thread
+from cvstereo._threads import both_cameras
 from cvstereo.frames.windows import FrameMatcher, Window
 from cvstereo.matchers.fused._constants import CONSISTENT_MAX_UNCERTAINTY, LR_PENALTY, RECENT_WINDOWS, SEGMENT_TIER
 from cvstereo.matchers.fused._features import (
@@ -398,12 +398,13 @@ class FusedMatcher(FrameMatcher):
         parts, self._uncertainty = self._uncertainty, []
         return np.concatenate(parts).astype(np.float32) if parts else np.zeros(0, np.float32)
 
-    def _camera_features(self, cam: int, events: np.ndarray, t_end: int) -> None:
-        """Camera ``cam``'s normalised features of the window ending at ``t_end`` (its ``events``), into its own
-        scratch and last-event times: the cameras' calls are independent."""
+    def _camera_features(self, cam: int, window: Window) -> None:
+        """Camera ``cam``'s normalised features of ``window``, into its own scratch and last-event times: the
+        cameras' calls are independent."""
         prm, buf = self.params, self._scratch
         f = buf.features[cam]
-        surface_features(events["t"], events["x"], events["y"], events["p"], self._state.last[cam], t_end,
+        events = window.left if cam == 0 else window.right
+        surface_features(events["t"], events["x"], events["y"], events["p"], self._state.last[cam], window.t_end,
                          prm.tau_us, prm.support_radius, buf.ts[cam], buf.rows[cam], f)
         n = nonzero_values(f, buf.values[cam], buf.value_at[cam])
         if n:
@@ -412,13 +413,8 @@ class FusedMatcher(FrameMatcher):
     def match_window(self, window: Window) -> np.ndarray:
         prm, state, buf = self.params, self._state, self._scratch
         threads = getattr(self, "threads", 1)
-        if threads > 1:  # each camera's features on a thread of its own (serial kernels that release the GIL)
-            right = side_thread().submit(self._camera_features, 1, window.right, window.t_end)
-            self._camera_features(0, window.left, window.t_end)
-            right.result()
-        else:
-            for cam, ev in enumerate((window.left, window.right)):
-                self._camera_features(cam, ev, window.t_end)
+        # With several threads each camera's features on a thread of its own (serial kernels that release the GIL).
+        both_cameras(self._camera_features, window, side_by_side=threads > 1)
         window_masks = window_masks_parallel if threads > 1 else window_masks_serial
         left = window.left
         n_active = window_masks(left["x"], left["y"], left["p"], state.last[0],
