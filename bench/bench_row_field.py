@@ -10,7 +10,7 @@ rigs do; the rig check applies one row offset to the whole image. This measures,
   right camera's rows moved by the true field, rounded (rig check off): bad2 and coverage of fused, SGBM and
   dv-semidense, and fused's bad2 at each peer's coverage (its most certain answers, as bench_fusedgen.py);
 - **a prototype estimator**, not in the package: frame-area (adaptive) on the prefix span the rows by matching use,
-  with the right camera moved by every second offset within +-8 rows of the check's overlay estimate; its answers
+  with the right camera moved by every second offset within +-8 rows of the row offset the check applies; its answers
   counted per tile (4 x 3), each tile's peak offset (parabola), a weighted least-squares fit of
   ``shift = a + b u + c v + e v (u^2 + v^2)`` (u, v from the image centre over half the width: a row offset, a
   roll, a focal mismatch, different lens distortion), tiles over 1.5 rows off refitted away twice; its RMS
@@ -40,7 +40,6 @@ from bench_fused import most_certain
 
 from cvstereo.evaluation.metrics import evaluate
 from cvstereo.io.npz import read_recording_npz
-from cvstereo.model.events import iter_stereo_packets
 from cvstereo.rigcheck.peaks import subsample_peak
 from cvstereo.rigcheck.prefix import PrefixRigCheck
 from cvstereo.rigcheck.rows_by_matching import matching_span, span_matches
@@ -77,6 +76,14 @@ def moved_rows(rec, shift: np.ndarray):
     moved, keep = move_rows(rec.right, shift, rec.resolution[1])
     truth = None if rec.right_disparity is None else rec.right_disparity[keep]
     return dataclasses.replace(rec, right=moved, right_disparity=truth)
+
+
+def applied_rows(rec) -> int | None:
+    """The row offset the prefix check of ``match()`` applies to ``rec`` (its 40 ms packets; the check runs before
+    the first one), None where it did not run."""
+    check = PrefixRigCheck(rec.resolution)
+    next(check.stream(rec.packets(40_000)))
+    return None if check.report is None else int(check.describe()["applied"]["row_offset"])
 
 
 def figures(rec, **kw) -> dict:
@@ -179,7 +186,7 @@ def fit_field(tiles: dict, resolution, *, terms: int = 4, ridge: float = 0.0, cl
 FITS = {"plain": {}, "clip": {"clip": True}, "affine + clip": {"terms": 3, "clip": True},
         "ridge 0.1 + clip": {"ridge": 0.1, "clip": True},
         "affine + clip, gate 5 tiles / 0.7 rows": {"terms": 3, "clip": True, "gate": (5, 0.7)}}
-#: How far ``--fits`` searches around the overlay's row estimate.
+#: How far ``--fits`` and ``--applied-fit`` search around the row offset the check applies.
 FITS_REACH = 12
 
 
@@ -190,17 +197,16 @@ def fits_table(half: str) -> list[str]:
         if half == "tune":
             require_tuning(path)
         rec = read_recording_npz(path)
-        check = PrefixRigCheck(rec.resolution)
-        next(check.stream(iter_stereo_packets(rec.left, rec.right)))
+        offset = applied_rows(rec)
         shift = true_shift(rec)
-        tiles = tile_peaks(rec, round(check.report.row_offset), FITS_REACH)
-        rms = {"constant": float(np.sqrt(np.mean((shift - check.describe()["applied"]["row_offset"]) ** 2)))}
+        tiles = tile_peaks(rec, offset, FITS_REACH)
+        rms = {"constant": float(np.sqrt(np.mean((shift - offset) ** 2)))}
         for fit, options in FITS.items():
             field = fit_field(tiles, rec.resolution, **options)[0]
             rms[fit] = rms["constant"] if field is None else float(np.sqrt(np.mean((field - shift) ** 2)))
         rows.append((name, rms))
         print(name, {k: round(v, 2) for k, v in rms.items()}, flush=True)
-    lines = [f"## Fits of the prototype's tiles ({half} half, +-{FITS_REACH} rows around the overlay's estimate)", "",
+    lines = [f"## Fits of the prototype's tiles ({half} half, +-{FITS_REACH} rows around the check's row offset)", "",
              "RMS over the pixels against the true field, rows; a gated fit that fails keeps the constant.", "",
              "| recording | constant applied | " + " | ".join(FITS) + " |",
              "|---|---:|" + "---:|" * len(FITS)]
@@ -227,14 +233,12 @@ def one(name: str, path: Path, half: str) -> dict:
         require_tuning(path)
     rec = read_recording_npz(path)
     shift = true_shift(rec)
-    check = PrefixRigCheck(rec.resolution)
-    next(check.stream(iter_stereo_packets(rec.left, rec.right)))
-    applied = check.describe()["applied"]
-    rows = int(applied["row_offset"])
+    checked = applied_rows(rec)
+    rows = checked or 0
     start = time.perf_counter()
     as_read = figures(rec)
     oracle = figures(moved_rows(rec, np.rint(shift)), rig_check=False)
-    est = estimate(rec, round(check.report.row_offset)) if check.report is not None else None
+    est = None if checked is None else estimate(rec, rows)
     row = {"name": name, "sensor": f"{rec.resolution[0]}x{rec.resolution[1]}",
            "field_min": float(shift.min()), "field_max": float(shift.max()), "applied_rows": rows,
            "constant_rms": float(np.sqrt(np.mean((shift - rows) ** 2))), "as_read": as_read, "oracle": oracle,
@@ -287,9 +291,7 @@ def applied_fit_table(half: str, output: Path) -> list[str]:
         if half == "tune":
             require_tuning(path)
         rec = read_recording_npz(path)
-        check = PrefixRigCheck(rec.resolution)
-        next(check.stream(iter_stereo_packets(rec.left, rec.right)))
-        tiles = tile_peaks(rec, round(check.report.row_offset), FITS_REACH)
+        tiles = tile_peaks(rec, applied_rows(rec), FITS_REACH)
         field = fit_field(tiles, rec.resolution, **FITS[APPLIED_FIT])[0]
         shift = true_shift(rec)
         if field is None:
