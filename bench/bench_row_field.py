@@ -42,13 +42,14 @@ from cvstereo.evaluation.metrics import evaluate
 from cvstereo.io.npz import read_recording_npz
 from cvstereo.rigcheck.peaks import subsample_peak
 from cvstereo.rigcheck.prefix import PrefixRigCheck
+from cvstereo.rigcheck.row_field import TILES, RowField, estimate_row_field
 from cvstereo.rigcheck.rows_by_matching import matching_span, span_matches
 from cvstereo.run import match
 from cvstereo.simulate import Rig, require_tuning, suite_recordings
 
 PEERS = ("sgbm", "dv-semidense")
-#: Tiles of the prototype estimator (columns, rows), its reach and step in rows, least answers of a tile.
-TILES, REACH, STEP, MIN_ANSWERS = (4, 3), 8, 2, 20
+#: The prototype estimator's reach and step in rows, least answers of a tile (its tiles: the package's).
+REACH, STEP, MIN_ANSWERS = 8, 2, 20
 #: Rig fields of a recording's meta that make its Rig.
 RIG_FIELDS = ("baseline_m", "focal_px", "axis_offset_px", "vertical_offset_px", "distortion_k1", "roll_deg",
               "focal_ratio", "right_distortion_k1")
@@ -115,21 +116,13 @@ def _answers(left, right, rec, end, shift) -> np.ndarray:
 
 
 def tile_peaks(rec, centre: int, reach: int = REACH) -> dict:
-    """frame-area's answers over row offsets ``centre - reach .. centre + reach`` (every STEP-th), counted per
-    tile: each tile's peak offset (parabola), its weight (answers at the peak times the profile's prominence)
-    and its centre (x from the left, y from the image centre), for tiles with MIN_ANSWERS or more."""
+    """The package's answers per tile over row offsets ``centre - reach .. centre + reach`` (every second;
+    :func:`cvstereo.rigcheck.row_field.estimate_row_field`), read with the prototype's rules: each tile's peak
+    offset (parabola), its weight (answers at the peak times the profile's prominence) and its centre (x from the
+    left, y from the image centre), for tiles with MIN_ANSWERS or more, wherever their peak lies."""
     w, h = rec.resolution
-    end = matching_span(rec.left, rec.right, min_us=80_000, max_us=10_000_000, events=100_000)
-    left, right = rec.left[rec.left["t"] < end], rec.right[rec.right["t"] < end]
+    _, _, counts = estimate_row_field(rec.left, rec.right, resolution=rec.resolution, centre=centre, reach=reach)
     offsets = np.arange(centre - reach, centre + reach + 1, STEP)
-    counts = np.zeros((offsets.size, TILES[1], TILES[0]))
-    for i, off in enumerate(offsets):
-        out = _answers(left, right, rec, end, float(off))
-        # Each answer's pixel in the right camera's own rows (frame-area anchors on the right camera).
-        ry = np.where(out["camera"] == 1, out["y"].astype(int) - off, out["y"].astype(int))
-        rx = np.where(out["camera"] == 1, out["x"].astype(int), out["x"].astype(int) - np.rint(out["disparity"]))
-        np.add.at(counts[i], (np.clip(ry * TILES[1] // h, 0, TILES[1] - 1),
-                              np.clip(rx.astype(int) * TILES[0] // w, 0, TILES[0] - 1)), 1)
     peaks, weights, cx, cy = [], [], [], []
     for j in range(TILES[1]):
         for k in range(TILES[0]):
@@ -143,6 +136,7 @@ def tile_peaks(rec, centre: int, reach: int = REACH) -> dict:
             cy.append((j + 0.5) * h / TILES[1] - (h - 1) / 2)
     # Every answer falls in a tile (clipped), so an offset's tiles sum to its run's answers.
     answers = counts.sum(axis=(1, 2)).astype(int).tolist()
+    end = matching_span(rec.left, rec.right, min_us=80_000, max_us=10_000_000, events=100_000)
     return {"peaks": np.array(peaks), "weights": np.array(weights), "x": np.array(cx), "y": np.array(cy),
             "end": end, "centre": centre, "answers": dict(zip(offsets.tolist(), answers, strict=True))}
 
@@ -315,6 +309,63 @@ def applied_fit_table(half: str, output: Path) -> list[str]:
     return lines
 
 
+def package_row(name: str, path: Path, half: str) -> dict:
+    """Each method with ``match()``'s default rig check and with ``row_field=True``; the field found (from the
+    meta entry) against the true field."""
+    if half == "tune":
+        require_tuning(path)
+    rec = read_recording_npz(path)
+    shift = true_shift(rec)
+    check = match(rec, method="frame-area", row_field=True).meta["rigcheck"]
+    applied = check["applied"]
+    found = check.get("row_field") or {}
+    rms_constant = float(np.sqrt(np.mean((shift - applied["row_offset"]) ** 2)))
+    if applied.get("row_field"):
+        fitted = RowField.from_description(found, rec.resolution)
+        rms_field = float(np.sqrt(np.mean((np.rint(fitted.rows()) - shift) ** 2)))
+        with_field = figures(rec, row_field=True)
+    else:
+        rms_field, with_field = None, None
+    as_read = figures(rec)
+    return {"name": name, "applied_rows": applied["row_offset"], "field": found, "constant_rms": rms_constant,
+            "field_rms": rms_field, "as_read": as_read, "with_field": with_field or as_read,
+            "field_seconds": found.get("seconds"), "check_seconds": check["seconds"]}
+
+
+def package_table(half: str) -> tuple[list[str], list[dict]]:
+    """package_row over ``half``: the lines of row-field-package-HALF.md and its rows."""
+    rows = []
+    for name, path in suite_recordings("generalization", half=half):
+        rows.append(package_row(name, path, half))
+        r = rows[-1]
+        field_rms = "none" if r["field_rms"] is None else f"{r['field_rms']:.2f}"
+        print(f"{name:26s} rms {r['constant_rms']:.2f} -> {field_rms}  fused {_fused_cell(r['as_read'])} -> "
+              f"{_fused_cell(r['with_field'])}", flush=True)
+    applied = [r for r in rows if r["field_rms"] is not None]
+    better = sum(r["field_rms"] < r["constant_rms"] - 0.1 for r in applied)
+    worse = sum(r["field_rms"] > r["constant_rms"] + 0.1 for r in applied)
+    lines = [f"## `match(row_field=True)` on the {half} half", "",
+             f"A field was found and applied on {len(applied)} of {len(rows)} recordings: closer to the true field "
+             f"than the whole-image offset (by 0.1+ rows RMS) on {better}, further on {worse}. fused better than both "
+             f"peers at parity: default check {sum(beats(r['as_read']) for r in rows)}, with the field "
+             f"{sum(beats(r['with_field']) for r in rows)} of {len(rows)}.", "",
+             "| recording | RMS rows: offset / field | field rows, tiles used / told | search s (check s) | "
+             "fused default: check / field | SGBM bad2: check / field | dv-semidense bad2: check / field | "
+             "fused @ SGBM, @ dv: check / field |", "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        f = r["field"]
+        fitted = f"{r['field_rms']:.2f}" if r["field_rms"] is not None else "none"
+        told = f"{f['rows'][0]:+d} .. {f['rows'][1]:+d}, {f['tiles_used']}/{f['tiles']}" if "rows" in f else \
+            f"-, 0/{f.get('tiles', 0)}"
+        seconds = f"{r['field_seconds']:.2f} ({r['check_seconds']:.2f})" if r["field_seconds"] is not None else "-"
+        peers = [" / ".join(f"{r[k][p]['bad2']:.3f}" for k in ("as_read", "with_field")) for p in PEERS]
+        parity = " / ".join(", ".join(f"{r[k][f'fused@{p}']:.3f}" for p in PEERS) for k in ("as_read", "with_field"))
+        lines.append(f"| {r['name']} | {r['constant_rms']:.2f} / {fitted} | {told} | {seconds} | "
+                     f"{_fused_cell(r['as_read'])} / {_fused_cell(r['with_field'])} | {peers[0]} | {peers[1]} | "
+                     f"{parity} |")
+    return lines, rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--half", choices=("tune", "eval"), default="tune")
@@ -323,7 +374,24 @@ def main() -> None:
     parser.add_argument("--fits", action="store_true", help="only the fits of the prototype (row-field-fits.md)")
     parser.add_argument("--applied-fit", action="store_true",
                         help="each method with APPLIED_FIT's field, beside row-field.json (row-field-applied.md)")
+    parser.add_argument("--package", action="store_true",
+                        help="every method with match(row_field=True) beside the default (row-field-package-HALF.md)")
     args = parser.parse_args()
+    if args.package:
+        load = os.getloadavg()[0]
+        body, rows = package_table(args.half)
+        lines = ["# Rows that differ across the image: the package's row field", "",
+                 "Generated by `bench/bench_row_field.py --package` (see its docstring; the estimator: "
+                 "`cvstereo.rigcheck.row_field`). 'check': `match()` with the default rig check (one row offset); "
+                 "'field': `match(row_field=True)`. RMS over the pixels against the true field of the rounded rows "
+                 "applied. A recording without a field keeps the check's figures.", "", *body, "",
+                 f"2 CPUs, 1-min load average {load:.1f} at the start and {os.getloadavg()[0]:.1f} at the end, "
+                 f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}."]
+        out = Path(args.output)
+        (out / f"row-field-package-{args.half}.md").write_text("\n".join(lines) + "\n")
+        (out / f"row-field-package-{args.half}.json").write_text(json.dumps(rows, indent=1, default=float))
+        print("\n".join(lines))
+        return
     if args.applied_fit:
         lines = ["# Rows that differ across the image: the prototype's field applied", "",
                  "Generated by `bench/bench_row_field.py --applied-fit` (see its docstring and row-field.md).", "",

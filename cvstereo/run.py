@@ -82,7 +82,7 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
           packet_us: int = DEFAULT_PACKET_US, progress: bool = False, row_offset: float | None = None,
           time_offset_us: int | None = None, rectification=None, param_set: str = "adaptive",
           rig_check: bool = True, columns: str | None = None, time_unit: str | None = None,
-          resolution: tuple[int, int] | None = None, threads: int | None = None,
+          resolution: tuple[int, int] | None = None, threads: int | None = None, row_field: bool = False,
           **params) -> MatchResult:
     """Run one matcher over a recording, streaming it packet by packet.
 
@@ -132,6 +132,10 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
         rectification or offsets given (they win: docs/guide/depth.md). False: the events as recorded. Where the
         cameras were exchanged the matches refer to them in the order used
         (:func:`cvstereo.geometry.source.as_matched` gives the recording in that order).
+    row_field : bool, keyword-only
+        With the rig check: also look for rows that differ across the image (a roll, focal lengths or lenses
+        that differ; :mod:`cvstereo.rigcheck.row_field`) and apply the field found instead of one row offset;
+        recorded in ``meta["rigcheck"]["row_field"]``. Refused where the check does not run.
     **params
         Parameter overrides (field names of the method's parameter dataclass, or their old names), on top of the
         set's values.
@@ -180,7 +184,10 @@ def match(recording, right=None, *, method: str = "frame", variant: str | None =
             and time_offset_us is None:
         from cvstereo.rigcheck.prefix import PrefixRigCheck
 
-        check = PrefixRigCheck(tuple(stream.resolution), threads=matcher.threads)
+        check = PrefixRigCheck(tuple(stream.resolution), threads=matcher.threads, row_field=row_field)
+    elif row_field:
+        raise ValueError("row_field needs the rig check, which does not run with rig_check=False, the thesis set, "
+                         "a rectification or offsets given.")
     if rectification is not None:
         if correction is not None:
             raise ValueError("give a calibration or row/time offsets, not both: rectification already aligns the rows.")

@@ -74,6 +74,9 @@ def add_parser(sub, name: str) -> argparse.ArgumentParser:
     g.add_argument("--no-rig-check", action="store_true",
                    help="match the events as recorded: no rig check on the first second of the stream (by default "
                    "it runs, unless a calibration, offsets, --auto or --param-set thesis say otherwise)")
+    g.add_argument("--row-field", action="store_true",
+                   help="the default rig check also looks for rows that differ across the image (a roll, focal "
+                   "lengths or lenses that differ) and applies the field it finds instead of one row offset")
     g.add_argument("--row-offset", type=int, default=None, metavar="ROWS",
                    help="add ROWS to the right camera's y before matching (overrides --auto's estimate)")
     g.add_argument("--time-offset-us", type=int, default=None, metavar="US",
@@ -137,9 +140,13 @@ def run(args: argparse.Namespace) -> int:
         if args.point_cloud is not None and geometry.depth is None:
             raise ValueError("--point-cloud needs a depth model: give --depth A C (or MODEL.json) or --calibration.")
         prepared = geometry.prepare(stream)
+        rig_check = geometry.rig_check_wanted and not args.no_rig_check
+        if args.row_field and not (rig_check and args.param_set != "thesis"):
+            raise ValueError("--row-field needs the default rig check: not with --no-rig-check, --auto, "
+                             "--param-set thesis, a calibration or offsets.")
         result = match(prepared, method=args.method, variant=args.variant, progress=progress_wanted(args),
                        packet_us=args.packet_us or DEFAULT_PACKET_US, param_set=args.param_set, threads=threads,
-                       rig_check=geometry.rig_check_wanted and not args.no_rig_check, **geometry.match_kwargs(),
+                       rig_check=rig_check, row_field=args.row_field, **geometry.match_kwargs(),
                        **overrides)
         geometry = geometry.matched(result.meta)  # with what the match's own rig check applied
         result = record_geometry(result, geometry)

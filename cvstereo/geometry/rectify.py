@@ -90,6 +90,29 @@ class Rectification:
         cams = (calibration.left, calibration.right)
         self.lut = tuple(_forward(c, self.resolution) for c in cams)
         self.inverse = tuple(_inverse(c, self.resolution) for c in cams)
+        self._description = None
+
+    @classmethod
+    def from_tables(cls, lut, inverse, resolution: tuple[int, int], description: dict) -> Rectification:
+        """A stage from lookup tables made elsewhere (a row field: :mod:`cvstereo.rigcheck.row_field`).
+
+        Parameters
+        ----------
+        lut, inverse : pairs of (H, W, 2) int16 ndarrays or None
+            As the attributes below; None for a camera whose pixels stay where they are (its events pass as
+            they are, and its matches need no mapping back).
+        resolution : (width, height)
+        description : dict
+            What :meth:`describe` returns.
+        """
+        self = cls.__new__(cls)
+        self.calibration, self.resolution, self._description = None, tuple(resolution), dict(description)
+        self.lut, self.inverse = tuple(lut), tuple(inverse)
+        return self
+
+    def moves(self, camera: int) -> bool:
+        """False where the camera's pixels stay where they are."""
+        return self.lut[camera] is not None
 
     def rectify(self, events: np.ndarray, camera: int) -> tuple[np.ndarray, np.ndarray]:
         """Move one camera's events to their rectified pixels; return ``(rectified, kept)``.
@@ -107,6 +130,8 @@ class Rectification:
         kept : (N,) bool ndarray
             False for events whose pixel leaves the rectified sensor.
         """
+        if not self.moves(camera):
+            return events, np.ones(events.size, bool)
         xy = self.lut[camera][events["y"].astype(np.intp), events["x"].astype(np.intp)]
         kept = xy[:, 0] != NONE
         out = events[kept].copy()
@@ -119,6 +144,8 @@ class Rectification:
 
     def unrectify_pixels(self, x: np.ndarray, y: np.ndarray, camera: int) -> tuple[np.ndarray, np.ndarray]:
         """Raw pixels of rectified pixels (through the inverse map; clipped to the sensor where it has none)."""
+        if not self.moves(camera):
+            return np.asarray(x).astype(np.int16), np.asarray(y).astype(np.int16)
         xy = self.inverse[camera][np.asarray(y, np.intp), np.asarray(x, np.intp)]
         none = xy[:, 0] == NONE
         rx, ry = xy[:, 0].astype(np.int16), xy[:, 1].astype(np.int16)
@@ -129,8 +156,8 @@ class Rectification:
         return rx, ry
 
     def describe(self) -> dict:
-        """The matches-file meta entry ``rectification``."""
-        return self.calibration.describe()
+        """The matches-file meta entry ``rectification`` (a row field's: its own, see :meth:`from_tables`)."""
+        return self.calibration.describe() if self._description is None else dict(self._description)
 
 
 class RectifiedStream(Iterator[StereoPacket]):
@@ -163,7 +190,7 @@ class RectifiedStream(Iterator[StereoPacket]):
                                             (packet.right, packet.right_disparity))):
             rect, kept = self.rectification.rectify(events, cam)
             self.dropped[cam] += int(events.size - rect.size)
-            if rect.size:
+            if rect.size and self.rectification.moves(cam):
                 if self._t0 is None:
                     self._t0 = int(rect["t"][0])
                 self._keys[cam].append(self._key(rect["t"], rect["x"], rect["y"], rect["p"]))
@@ -200,7 +227,7 @@ class RectifiedStream(Iterator[StereoPacket]):
             return out
         for cam in (0, 1):
             sel = np.flatnonzero(out["camera"] == cam)
-            if not sel.size:
+            if not sel.size or not self.rectification.moves(cam):
                 continue
             m = out[sel]
             rx, ry = self.rectification.unrectify_pixels(m["x"], m["y"], cam)

@@ -72,6 +72,9 @@ class Geometry:
         Source -> how the summary names it (``calibration cal.yaml``, ``the recording's rig``, ...).
     rigcheck : dict or None
         The rig check's report (``to_dict``) with what of it was applied, when it ran.
+    row_field : dict or None
+        The row field the match's check applied instead of :attr:`row_offset` (``match --row-field``:
+        :meth:`cvstereo.rigcheck.row_field.RowField.describe`), where it found one.
     in_match : bool
         The side, rows and time were found and applied by the match itself (the prefix check of
         :func:`cvstereo.run.match`): :meth:`prepare` and :meth:`match_kwargs` leave them to it.
@@ -86,6 +89,7 @@ class Geometry:
     sources: dict = field(default_factory=dict)
     labels: dict = field(default_factory=dict)
     rigcheck: dict | None = None
+    row_field: dict | None = None
     in_match: bool = False
 
     def prepare(self, recording):
@@ -117,9 +121,11 @@ class Geometry:
                 " (rows: none stood out)"
         sources = {**self.sources, **({} if found.get("skipped") else dict.fromkeys(("side", "rows", "time"),
                                                                                   "rigcheck"))}
+        row_field = found.get("row_field") if applied.get("row_field") else None
         return replace(self, swap=bool(applied["swap"]), row_offset=int(applied["row_offset"]),
                        time_offset_us=int(applied["time_offset_us"]), sources=sources,
-                       labels={**self.labels, "rigcheck": label}, rigcheck=dict(found), in_match=True)
+                       labels={**self.labels, "rigcheck": label}, rigcheck=dict(found), row_field=row_field,
+                       in_match=True)
 
     def match_kwargs(self) -> dict:
         """The keywords of :func:`cvstereo.run.match` that apply this geometry's rows and times."""
@@ -142,7 +148,7 @@ class Geometry:
                "time": {"source": self.sources.get("time", "none"), "time_offset_us": self.time_offset_us}}
         rows = {"source": self.sources.get("rows", "none")}
         out["rows"] = {**rows, "rectified": True} if self.rectification is not None else {
-            **rows, "row_offset": self.row_offset}
+            **rows, "row_offset": self.row_offset, **({} if self.row_field is None else {"row_field": self.row_field})}
         out["depth"] = {"source": self.sources.get("depth", "none"), **(self.depth.to_dict() if self.depth else {})}
         if self.intrinsics is not None:
             i = self.intrinsics
@@ -154,7 +160,7 @@ class Geometry:
         """One line: ``geometry: what from where; ...``."""
         items = {
             "side": "cameras swapped" if self.swap else "cameras in the given order",
-            "rows": "rows rectified" if self.rectification is not None else f"rows {self.row_offset:+d}",
+            "rows": self._rows_said(),
             "time": f"time offset {self.time_offset_us:+d} us",
             "depth": None if self.depth is None else f"depth d = {self.depth.a:.2f}/Z - {self.depth.c:.2f}",
             "intrinsics": None if self.intrinsics is None else f"focal length {self.intrinsics.focal_px:g} px",
@@ -170,6 +176,14 @@ class Geometry:
         if self.depth is None:
             parts.append("no depth model" + (f" ({self.labels['depth']})" if "depth" in self.labels else ""))
         return "geometry: " + "; ".join(parts)
+
+    def _rows_said(self) -> str:
+        if self.rectification is not None:
+            return "rows rectified"
+        if self.row_field is not None:
+            low, high = self.row_field["rows"]
+            return f"rows {low:+d} to {high:+d} across the image"
+        return f"rows {self.row_offset:+d}"
 
     def _label(self, source: str) -> str:
         if source == "options":

@@ -106,6 +106,9 @@ class PrefixRigCheck:
     threads : int
         Threads of the check's transforms and of the rows by matching (the match's ``threads``; the same result on
         any number).
+    row_field : bool
+        Also look for rows that differ across the image (:mod:`cvstereo.rigcheck.row_field`) around the row offset
+        found, and where a field is found apply it instead of that offset.
     """
 
     resolution: tuple[int, int]
@@ -117,6 +120,7 @@ class PrefixRigCheck:
     row_min_confidence: float = ROW_MIN_CONFIDENCE
     matching_min_prominence: float | None = MATCHING_MIN_PROMINENCE
     threads: int = 1
+    row_field: bool = False
     report: object = field(default=None, init=False)
     by_matching: object = field(default=None, init=False)  # the RowsByMatching, where they were tried
     skipped: str | None = field(default=None, init=False)
@@ -125,6 +129,10 @@ class PrefixRigCheck:
     seconds: float = field(default=0.0, init=False)
     prefix_us: int = field(default=0, init=False)  # the span checked, from the first event to the last packet's end
     corrected: object = field(default=None, init=False)  # the CorrectedStream, for its counts of dropped events
+    fitted_field: object = field(default=None, init=False)  # the RowField applied, where one was found
+    field_tiles: int | None = field(default=None, init=False)  # tiles that told their rows, where it was looked for
+    field_seconds: float = field(default=0.0, init=False)  # of `seconds`, the row field's search
+    fielded: object = field(default=None, init=False)  # the row field's stream, for its restore and dropped events
 
     def __post_init__(self):
         if not 0 < int(self.min_us) <= int(self.max_us) or int(self.min_events) < 0:
@@ -134,8 +142,11 @@ class PrefixRigCheck:
     def stream(self, packets: Iterable[StereoPacket]) -> Iterator[StereoPacket]:
         """The packets as the matcher gets them: those of the prefix held until it is checked, then all of them
         with the cameras exchanged and the offsets removed as found."""
+        from cvstereo.rigcheck.row_field import SPAN_EVENTS, SPAN_MAX_US
+
         packets = iter(packets)
         held = []
+        checked = None  # how many of the held packets the check reads
         t_first = None
         counts = np.zeros(2, np.int64)
         for packet in packets:
@@ -144,22 +155,36 @@ class PrefixRigCheck:
             if t_first is None:
                 starts = [int(ev["t"][0]) for ev in (packet.left, packet.right) if ev.size]
                 t_first = min(starts) if starts else None
-            if t_first is not None:
-                self.prefix_us = int(packet.until) - t_first
-                if self.prefix_us >= self.max_us or (self.prefix_us >= self.min_us and counts.min() >= self.min_events):
-                    break
-        self._check(held)
+            if t_first is None:
+                continue
+            span = int(packet.until) - t_first
+            if checked is None:
+                self.prefix_us = span
+                if span >= self.max_us or (span >= self.min_us and counts.min() >= self.min_events):
+                    checked = len(held)
+            # The row field's search matches more events than the check reads: it holds on for them.
+            if checked is not None and (not self.row_field or span >= SPAN_MAX_US or counts.min() >= SPAN_EVENTS):
+                break
+        self._check(held[:checked], held)
         out = _chained(held, packets)
         if self.applied["swap"]:
             out = map(swapped_packet, out)
-        correction = RigCorrection(self.applied["row_offset"], self.applied["time_offset_us"], self.resolution)
+        rows = 0 if self.fitted_field is not None else self.applied["row_offset"]
+        correction = RigCorrection(rows, self.applied["time_offset_us"], self.resolution)
         if not correction.is_identity:
             self.corrected = out = correction.stream(out)
+        if self.fitted_field is not None:
+            from cvstereo.rigcheck.row_field import row_field_stage
+
+            self.fielded = out = row_field_stage(self.fitted_field).stream(out)
         return (yield from out)
 
     def restore(self, matches: np.ndarray, *, anchor: str = "event") -> np.ndarray:
-        """Matches of the corrected stream in the recording's rows and clock (:meth:`RigCorrection.restore
-        <cvstereo.geometry.rigcorrect.RigCorrection.restore>`; ``anchor``: the matcher's)."""
+        """Matches of the corrected stream in the recording's rows and clock (the row field's restore, then
+        :meth:`RigCorrection.restore <cvstereo.geometry.rigcorrect.RigCorrection.restore>`; ``anchor``: the
+        matcher's)."""
+        if self.fielded is not None:
+            matches = self.fielded.restore(matches, anchor=anchor)
         return matches if self.corrected is None else self.corrected.correction.restore(matches, anchor=anchor)
 
     def describe(self) -> dict:
@@ -167,15 +192,21 @@ class PrefixRigCheck:
         ``seconds``, ``skipped`` (why it did not run, or None) and ``dropped_events`` (of the correction)."""
         out = {} if self.report is None else self.report.to_dict()
         dropped = 0 if self.corrected is None else self.corrected.dropped_rows + self.corrected.dropped_times
+        dropped += 0 if self.fielded is None else sum(self.fielded.dropped)
         found = self.by_matching
         by_matching = None if found is None else {
             "offset": found.offset, "prominence": round(found.prominence, 4), "span_us": found.span_us,
             "counts": {str(k): v for k, v in found.counts.items()}}
         out.update(scope="prefix", prefix_us=int(self.prefix_us), seconds=self.seconds, skipped=self.skipped,
                    applied=dict(self.applied), dropped_events=dropped, rows_by_matching=by_matching)
+        if self.row_field:
+            out["row_field"] = None if self.field_tiles is None else {
+                "tiles": self.field_tiles, "seconds": self.field_seconds,
+                **({} if self.fitted_field is None else self.fitted_field.describe())}
         return out
 
-    def _check(self, held: list[StereoPacket]) -> None:
+    def _check(self, held: list[StereoPacket], field_held: list[StereoPacket]) -> None:
+        """Check the rig on the packets ``held``; with ``row_field``, look for the field on ``field_held``."""
         from cvstereo.rigcheck.check import check_rig
 
         start = time.perf_counter()
@@ -201,6 +232,9 @@ class PrefixRigCheck:
                 rows = 0
             dt = round(report.time_offset_us) if report.time_offset_applicable() else 0
             self.applied = {"swap": swap, "row_offset": int(rows), "time_offset_us": sign * int(dt)}
+            if self.row_field:
+                pair = [np.concatenate([getattr(p, cam) for p in field_held]) for cam in ("left", "right")]
+                self._row_field(*(pair[::-1] if swap else pair))
         self.seconds = time.perf_counter() - start
 
     def _rows_by_matching(self, left: np.ndarray, right: np.ndarray) -> int:
@@ -211,6 +245,18 @@ class PrefixRigCheck:
         self.by_matching = found = rows_by_matching(left, right, resolution=self.resolution, reach=reach,
                                                     threads=self.threads)
         return found.offset if found.prominence >= self.matching_min_prominence else 0
+
+
+    def _row_field(self, left: np.ndarray, right: np.ndarray) -> None:
+        """Look for a row field around the row offset found (in the cameras' order used); apply it where found."""
+        from cvstereo.rigcheck.row_field import estimate_row_field
+
+        start = time.perf_counter()
+        self.fitted_field, tiles, _ = estimate_row_field(left, right, resolution=self.resolution,
+                                                  centre=self.applied["row_offset"], threads=self.threads)
+        self.field_tiles = int(tiles.peaks.size)
+        self.applied["row_field"] = self.fitted_field is not None
+        self.field_seconds = time.perf_counter() - start
 
 
 def _chained(held: list[StereoPacket], rest: Iterator[StereoPacket]) -> Iterator[StereoPacket]:

@@ -30,8 +30,8 @@ from cvstereo.geometry.rigcorrect import RigCorrection
 from cvstereo.model.matches import concat_matches
 from cvstereo.rigcheck.peaks import subsample_peak
 
-__all__ = ["MATCHING_METHOD", "RowsByMatching", "matching_span", "rows_by_matching", "rows_from_counts",
-           "span_matches"]
+__all__ = ["MATCHING_METHOD", "RowsByMatching", "matching_span", "over_offsets", "rows_by_matching",
+           "rows_from_counts", "span_matches"]
 
 #: The matcher whose answers are counted (its ``adaptive`` default, one thread).
 MATCHING_METHOD = "frame-area"
@@ -89,6 +89,17 @@ def span_matches(left: np.ndarray, right: np.ndarray, *, resolution, end: int,
     return concat_matches([matcher.feed(left, right, until=end), matcher.flush()])
 
 
+def over_offsets(run, offsets, threads: int = 1) -> list:
+    """``[run(offset) for offset in offsets]``, on up to ``threads`` threads: each offset's run is independent and
+    its kernels release the GIL, so on several threads the runs go side by side (the results do not depend on
+    it)."""
+    offsets = list(offsets)
+    if threads <= 1 or len(offsets) <= 1:
+        return [run(off) for off in offsets]
+    with ThreadPoolExecutor(min(threads, len(offsets))) as pool:
+        return list(pool.map(run, offsets))
+
+
 def rows_by_matching(left: np.ndarray, right: np.ndarray, *, resolution, reach: int, min_us: int = 80_000,
                      max_us: int = 10_000_000, events: int = 100_000, threads: int = 1) -> RowsByMatching:
     """Match ``left`` with ``right`` moved by row offsets from ``-reach`` to ``reach`` and count the answers.
@@ -126,13 +137,7 @@ def rows_by_matching(left: np.ndarray, right: np.ndarray, *, resolution, reach: 
 
     def count(rows) -> None:
         rows = [r for r in dict.fromkeys(rows) if abs(r) <= reach and r not in counts]
-        if threads <= 1 or len(rows) <= 1:
-            counts.update((row, answers(row)) for row in rows)
-            return
-        # Each offset's run is independent and its kernels release the GIL: on several threads the runs go side by
-        # side (the counts do not depend on it).
-        with ThreadPoolExecutor(min(threads, len(rows))) as pool:
-            counts.update(zip(rows, pool.map(answers, rows), strict=True))
+        counts.update(zip(rows, over_offsets(answers, rows, threads), strict=True))
 
     count(range(-(reach - reach % 2), reach + 1, 2))
     best = _most_answers(counts)
