@@ -42,7 +42,7 @@ from cvstereo.evaluation.metrics import evaluate
 from cvstereo.io.npz import read_recording_npz
 from cvstereo.rigcheck.peaks import subsample_peak
 from cvstereo.rigcheck.prefix import PrefixRigCheck
-from cvstereo.rigcheck.row_field import TILES, RowField, estimate_row_field
+from cvstereo.rigcheck.row_field import MIN_GAIN, TILES, RowField, estimate_row_field
 from cvstereo.rigcheck.rows_by_matching import matching_span, span_matches
 from cvstereo.run import match
 from cvstereo.simulate import Rig, require_tuning, suite_recordings
@@ -121,7 +121,7 @@ def tile_peaks(rec, centre: int, reach: int = REACH) -> dict:
     offset (parabola), its weight (answers at the peak times the profile's prominence) and its centre (x from the
     left, y from the image centre), for tiles with MIN_ANSWERS or more, wherever their peak lies."""
     w, h = rec.resolution
-    _, _, counts = estimate_row_field(rec.left, rec.right, resolution=rec.resolution, centre=centre, reach=reach)
+    counts = estimate_row_field(rec.left, rec.right, resolution=rec.resolution, centre=centre, reach=reach).counts
     offsets = np.arange(centre - reach, centre + reach + 1, STEP)
     peaks, weights, cx, cy = [], [], [], []
     for j in range(TILES[1]):
@@ -366,6 +366,72 @@ def package_table(half: str) -> tuple[list[str], list[dict]]:
     return lines, rows
 
 
+#: Seeds added to each tuning recording's for the extra tuning recordings (the halves' seeds are 1xxx and 2xxx).
+EXTRA_SEED_SHIFTS = (2000, 3000)
+
+
+def extra_tuning_recordings() -> list[tuple[str, Path]]:
+    """Suite v2's tuning recordings drawn again with other seeds (EXTRA_SEED_SHIFTS): the same families, sensors
+    and tuning photos, other scenes, sensors and rigs; generated once into the simulator's cache. Tuning data:
+    their half is ``tune``, and the evaluation half's seeds and photos stay unseen."""
+    import tomllib
+
+    from cvstereo.io.npz import write_recording_npz
+    from cvstereo.simulate.generalization import parse_family_suite
+    from cvstereo.simulate.presets import default_cache_dir
+
+    source = Path(__file__).resolve().parent.parent / "cvstereo/simulate/suites/generalization_v2.toml"
+    data = tomllib.loads(source.read_text())
+    data["recording"] = [{**e, "name": e["name"].replace("-tune-", f"-tunx{k}-"), "seed": e["seed"] + shift}
+                         for e in data["recording"] if e["half"] == "tune"
+                         for k, shift in enumerate(EXTRA_SEED_SHIFTS)]
+    folder = default_cache_dir() / "row-field-extra"
+    folder.mkdir(parents=True, exist_ok=True)
+    out = []
+    for rec in parse_family_suite(data, where="row-field extra").recordings:
+        path = folder / f"{rec.name}-{rec.seed}.npz"
+        if not path.exists():
+            write_recording_npz(path, rec.simulate())
+        out.append((rec.name, path))
+    return out
+
+
+def estimator_table() -> list[str]:
+    """The package's estimator on the tuning half and the extra tuning recordings: the fit and the field applied
+    (after the answers' check) against the true field, beside the whole-image offset."""
+    rows = []
+    for name, path in [*suite_recordings("generalization", half="tune"), *extra_tuning_recordings()]:
+        require_tuning(path)
+        rec = read_recording_npz(path)
+        centre = applied_rows(rec)
+        if centre is None:
+            continue
+        found = estimate_row_field(rec.left, rec.right, resolution=rec.resolution, centre=centre)
+        shift = true_shift(rec)
+
+        def rms(field, shift=shift, centre=centre):
+            rows_applied = centre if field is None else np.rint(field.rows())
+            return float(np.sqrt(np.mean((rows_applied - shift) ** 2)))
+
+        gain = None if found.answers is None else found.answers / max(found.best_offset_answers, 1)
+        rows.append((name, rms(None), rms(found.fitted), rms(found.field), gain))
+        print(name, [round(v, 2) for v in rows[-1][1:4]], gain, flush=True)
+
+    def tally(k):
+        return (f"{sum(r[k] < r[1] - 0.1 for r in rows)} / {sum(r[k] > r[1] + 0.1 for r in rows)} "
+                f"(worst {max(r[k] - r[1] for r in rows):+.2f})")
+
+    lines = [f"## The estimator on {len(rows)} tuning recordings (suite v2's tuning half and "
+             f"{len(EXTRA_SEED_SHIFTS)} more draws of each)", "",
+             "RMS over the pixels against the true field of the whole rows applied: the check's offset, the fit of "
+             "step 3, the field applied after step 5 (the answers with the fit over those of the best offset: "
+             f"kept at {MIN_GAIN} or more). Closer / further than the offset by 0.1+ rows: fit {tally(2)}, applied "
+             f"{tally(3)}.", "", "| recording | offset | fit | applied | answers fit / best offset |",
+             "|---|---:|---:|---:|---:|"]
+    lines += [f"| {n} | {c:.2f} | {f:.2f} | {a:.2f} | {'-' if g is None else f'{g:.3f}'} |" for n, c, f, a, g in rows]
+    return lines
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--half", choices=("tune", "eval"), default="tune")
@@ -376,7 +442,18 @@ def main() -> None:
                         help="each method with APPLIED_FIT's field, beside row-field.json (row-field-applied.md)")
     parser.add_argument("--package", action="store_true",
                         help="every method with match(row_field=True) beside the default (row-field-package-HALF.md)")
+    parser.add_argument("--estimator", action="store_true",
+                        help="the package's estimator on the tuning half and extra tuning draws "
+                        "(row-field-estimator.md)")
     args = parser.parse_args()
+    if args.estimator:
+        lines = ["# Rows that differ across the image: the package's estimator on tuning recordings", "",
+                 "Generated by `bench/bench_row_field.py --estimator` (`cvstereo.rigcheck.row_field`; the extra "
+                 "recordings: `extra_tuning_recordings`).", "", *estimator_table(), "",
+                 f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}."]
+        (Path(args.output) / "row-field-estimator.md").write_text("\n".join(lines) + "\n")
+        print("\n".join(lines))
+        return
     if args.package:
         load = os.getloadavg()[0]
         body, rows = package_table(args.half)

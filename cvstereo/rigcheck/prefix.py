@@ -130,7 +130,7 @@ class PrefixRigCheck:
     prefix_us: int = field(default=0, init=False)  # the span checked, from the first event to the last packet's end
     corrected: object = field(default=None, init=False)  # the CorrectedStream, for its counts of dropped events
     fitted_field: object = field(default=None, init=False)  # the RowField applied, where one was found
-    field_tiles: int | None = field(default=None, init=False)  # tiles that told their rows, where it was looked for
+    field_search: object = field(default=None, init=False)  # the RowFieldSearch, where the field was looked for
     field_seconds: float = field(default=0.0, init=False)  # of `seconds`, the row field's search
     fielded: object = field(default=None, init=False)  # the row field's stream, for its restore and dropped events
 
@@ -200,9 +200,8 @@ class PrefixRigCheck:
         out.update(scope="prefix", prefix_us=int(self.prefix_us), seconds=self.seconds, skipped=self.skipped,
                    applied=dict(self.applied), dropped_events=dropped, rows_by_matching=by_matching)
         if self.row_field:
-            out["row_field"] = None if self.field_tiles is None else {
-                "tiles": self.field_tiles, "seconds": self.field_seconds,
-                **({} if self.fitted_field is None else self.fitted_field.describe())}
+            out["row_field"] = None if self.field_search is None else {
+                "seconds": self.field_seconds, **self.field_search.describe()}
         return out
 
     def _check(self, held: list[StereoPacket], field_held: list[StereoPacket]) -> None:
@@ -252,10 +251,10 @@ class PrefixRigCheck:
         from cvstereo.rigcheck.row_field import estimate_row_field
 
         start = time.perf_counter()
-        self.fitted_field, tiles, _ = estimate_row_field(left, right, resolution=self.resolution,
-                                                  centre=self.applied["row_offset"], threads=self.threads)
-        self.field_tiles = int(tiles.peaks.size)
-        self.applied["row_field"] = self.fitted_field is not None
+        self.field_search = found = estimate_row_field(left, right, resolution=self.resolution,
+                                                       centre=self.applied["row_offset"], threads=self.threads)
+        self.fitted_field = found.field
+        self.applied["row_field"] = found.field is not None
         self.field_seconds = time.perf_counter() - start
 
 

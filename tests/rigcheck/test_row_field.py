@@ -164,3 +164,18 @@ def test_row_field_needs_the_rig_check(crooked_plane, tmp_path, capsys):
     assert cli_main(["match", str(path), "--row-field", "--no-rig-check", "-o", str(tmp_path / "m")]) != 0
     assert "--row-field needs the default rig check" in capsys.readouterr().err
     assert not (tmp_path / "m.npz").exists()
+
+
+def test_a_fit_that_answers_no_more_than_one_offset_is_not_applied(crooked_plane, monkeypatch):
+    import cvstereo.rigcheck.row_field as row_field
+
+    _, rec = crooked_plane
+    found = row_field.estimate_row_field(rec.left, rec.right, resolution=rec.resolution, centre=-3)
+    assert found.field is found.fitted is not None
+    assert found.answers >= row_field.MIN_GAIN * found.best_offset_answers
+    assert found.best_offset_answers == found.counts.sum(axis=(1, 2)).max()
+    # Asked for more answers than the field gives, the search keeps the fit apart and applies nothing.
+    monkeypatch.setattr(row_field, "MIN_GAIN", found.answers / found.best_offset_answers + 0.01)
+    refused = row_field.estimate_row_field(rec.left, rec.right, resolution=rec.resolution, centre=-3)
+    assert refused.field is None and refused.fitted is not None and refused.answers == found.answers
+    assert "rows" not in refused.describe() and refused.describe()["answers"] == found.answers
