@@ -179,3 +179,43 @@ def test_a_fit_that_answers_no_more_than_one_offset_is_not_applied(crooked_plane
     refused = row_field.estimate_row_field(rec.left, rec.right, resolution=rec.resolution, centre=-3)
     assert refused.field is None and refused.fitted is not None and refused.answers == found.answers
     assert "rows" not in refused.describe() and refused.describe()["answers"] == found.answers
+
+
+def _keys(result) -> list:
+    m = result.matches
+    return sorted(zip(m["t"].tolist(), m["x"].tolist(), m["y"].tolist(), m["camera"].tolist(),
+                      m["disparity"].tolist(), strict=True))
+
+
+@pytest.mark.parametrize("method", ["event-area", "frame-area"])
+def test_the_same_matches_however_the_stream_is_cut_and_on_any_number_of_threads(crooked_plane, method):
+    _, rec = crooked_plane
+    base = match(rec, method=method, row_field=True, threads=1)
+    assert base.meta["rigcheck"]["applied"]["row_field"] is True
+    for kwargs in ({"packet_us": 7_000, "threads": 1}, {"threads": 2}):
+        other = match(rec, method=method, row_field=True, **kwargs)
+        assert other.meta["rigcheck"]["row_field"]["coefficients"] == base.meta["rigcheck"]["row_field"]["coefficients"]
+        assert _keys(other) == _keys(base)
+
+
+def test_no_field_is_sought_while_the_camera_order_is_in_doubt(crooked_plane):
+    from cvstereo.rigcheck.prefix import PrefixRigCheck
+    from tests.rigcheck.test_rigcheck import with_rig_errors
+
+    _, rec = crooked_plane
+    swapped = with_rig_errors(rec, swap=True)
+    # The check sees the exchange, but (a swap threshold no confidence reaches) does not undo it.
+    check = PrefixRigCheck(rec.resolution, row_field=True, swap_min_confidence=1.01)
+    packets = list(check.stream(swapped.packets(40_000)))
+    found = check.describe()
+    assert found["swap"] is True and found["applied"]["swap"] is False and found["applied"]["row_field"] is False
+    assert found["row_field"] == {"skipped": "no field sought: the check found the cameras exchanged at confidence "
+                                             f"{found['swap_confidence']:.2f}, too little to exchange them"}
+    assert check.fielded is None and sum(p.right.size for p in packets) > 0
+    # Where it undoes the exchange, the field is sought in the order used.
+    undone = PrefixRigCheck(rec.resolution, row_field=True, swap_min_confidence=0.0)
+    list(undone.stream(swapped.packets(40_000)))
+    assert undone.describe()["applied"]["swap"] is True
+    as_recorded = PrefixRigCheck(rec.resolution, row_field=True)
+    list(as_recorded.stream(rec.packets(40_000)))
+    assert undone.describe()["row_field"]["coefficients"] == as_recorded.describe()["row_field"]["coefficients"]
