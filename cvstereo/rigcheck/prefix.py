@@ -131,7 +131,6 @@ class PrefixRigCheck:
     corrected: object = field(default=None, init=False)  # the CorrectedStream, for its counts of dropped events
     fitted_field: object = field(default=None, init=False)  # the RowField applied, where one was found
     field_search: object = field(default=None, init=False)  # the RowFieldSearch, where the field was looked for
-    field_skipped: str | None = field(default=None, init=False)  # why no field was sought, where the check ran
     field_seconds: float = field(default=0.0, init=False)  # of `seconds`, the row field's search
     fielded: object = field(default=None, init=False)  # the row field's stream, for its restore and dropped events
 
@@ -201,8 +200,8 @@ class PrefixRigCheck:
         out.update(scope="prefix", prefix_us=int(self.prefix_us), seconds=self.seconds, skipped=self.skipped,
                    applied=dict(self.applied), dropped_events=dropped, rows_by_matching=by_matching)
         if self.row_field:
-            out["row_field"] = {"skipped": self.field_skipped} if self.field_skipped else None \
-                if self.field_search is None else {"seconds": self.field_seconds, **self.field_search.describe()}
+            out["row_field"] = None if self.field_search is None else {
+                "seconds": self.field_seconds, **self.field_search.describe()}
         return out
 
     def _check(self, held: list[StereoPacket], field_held: list[StereoPacket]) -> None:
@@ -232,13 +231,7 @@ class PrefixRigCheck:
                 rows = 0
             dt = round(report.time_offset_us) if report.time_offset_applicable() else 0
             self.applied = {"swap": swap, "row_offset": int(rows), "time_offset_us": sign * int(dt)}
-            if self.row_field and swap != bool(report.swap):
-                # The matcher's answers say little with the cameras the wrong way round: a field found on them
-                # would be noise that passes the answers' check by chance.
-                self.applied["row_field"] = False
-                self.field_skipped = (f"no field sought: the check found the cameras exchanged at confidence "
-                                      f"{report.swap_confidence:.2f}, too little to exchange them")
-            elif self.row_field:
+            if self.row_field:
                 pair = [np.concatenate([getattr(p, cam) for p in field_held]) for cam in ("left", "right")]
                 self._row_field(*(pair[::-1] if swap else pair))
         self.seconds = time.perf_counter() - start
