@@ -119,6 +119,9 @@ class Geometry:
         if by_matching is not None:  # the overlay was unsure of the rows (docs/guide/rigcheck.md)
             label += " (rows by matching)" if by_matching["offset"] == applied["row_offset"] else \
                 " (rows: none stood out)"
+        side = found.get("side_by_matching")
+        if side is not None and side["swap"]:  # the overlay was unsure of the order; the matcher's answers told it
+            label += " (side by matching)"
         sources = {**self.sources, **({} if found.get("skipped") else dict.fromkeys(("side", "rows", "time"),
                                                                                   "rigcheck"))}
         row_field = found.get("row_field") if applied.get("row_field") else None

@@ -8,7 +8,10 @@ camera has :data:`PREFIX_EVENTS` events, or until :data:`PREFIX_MAX_US` have pas
 whole of a short one). What it found is applied to the whole stream:
 
 - the cameras are exchanged when the check says so with confidence :attr:`PrefixRigCheck.swap_min_confidence`
-  or more (a swap in error ruins every match, one not made is obvious from the negative disparities);
+  or more (a swap in error ruins every match, one not made is obvious from the negative disparities); below it,
+  when the side by matching (:mod:`cvstereo.rigcheck.side_by_matching`: ``frame-area`` on the prefix's first
+  80 ms, or 100,000 events per camera, in both orders) answers at least three times as often with the cameras
+  exchanged;
 - the row offset when its confidence reaches :attr:`PrefixRigCheck.row_min_confidence`; below it, the rows by
   matching (:mod:`cvstereo.rigcheck.rows_by_matching`: the offset, of -8 to 8, at which a matcher answers most on
   the prefix's first 80 ms, or 100,000 events per camera where they take longer) when their profile's prominence
@@ -20,7 +23,8 @@ whole of a short one). What it found is applied to the whole stream:
 A prefix too short or too sparse for the check (fewer than ``min_events`` events in a camera) leaves the stream
 as recorded, and says why. :meth:`PrefixRigCheck.describe` is the matches-file meta entry ``rigcheck`` of
 docs/formats.md: the report's fields, ``applied``, ``scope`` (``"prefix"``), ``prefix_us``,
-``rows_by_matching`` (when they were tried: offset, prominence, answers per offset, the span matched) and
+``rows_by_matching`` (when they were tried: offset, prominence, answers per offset, the span matched),
+``side_by_matching`` (when it was tried: ``swap``, the answers ``given`` and ``exchanged``, ``span_us``) and
 ``seconds`` (the check's own cost, left out of the run's ``elapsed_s``).
 
 >>> import numpy as np
@@ -106,6 +110,9 @@ class PrefixRigCheck:
     threads : int
         Threads of the check's transforms and of the rows by matching (the match's ``threads``; the same result on
         any number).
+    side_by_matching : bool
+        Where the overlay's side is below ``swap_min_confidence``, let the matcher's answers in both orders decide
+        (:mod:`cvstereo.rigcheck.side_by_matching`).
     row_field : bool
         Also look for rows that differ across the image (:mod:`cvstereo.rigcheck.row_field`) around the row offset
         found, and where a field is found apply it instead of that offset.
@@ -121,7 +128,9 @@ class PrefixRigCheck:
     matching_min_prominence: float | None = MATCHING_MIN_PROMINENCE
     threads: int = 1
     row_field: bool = False
+    side_by_matching: bool = True
     report: object = field(default=None, init=False)
+    side_found: object = field(default=None, init=False)  # the SideByMatching, where it was tried
     by_matching: object = field(default=None, init=False)  # the RowsByMatching, where they were tried
     skipped: str | None = field(default=None, init=False)
     applied: dict = field(default_factory=lambda: {"swap": False, "row_offset": 0, "time_offset_us": 0},
@@ -198,7 +207,8 @@ class PrefixRigCheck:
             "offset": found.offset, "prominence": round(found.prominence, 4), "span_us": found.span_us,
             "counts": {str(k): v for k, v in found.counts.items()}}
         out.update(scope="prefix", prefix_us=int(self.prefix_us), seconds=self.seconds, skipped=self.skipped,
-                   applied=dict(self.applied), dropped_events=dropped, rows_by_matching=by_matching)
+                   applied=dict(self.applied), dropped_events=dropped, rows_by_matching=by_matching,
+                   side_by_matching=None if self.side_found is None else self.side_found._asdict())
         if self.row_field:
             out["row_field"] = None if self.field_search is None else {
                 "seconds": self.field_seconds, **self.field_search.describe()}
@@ -221,6 +231,8 @@ class PrefixRigCheck:
             self.skipped = f"not checked on the first {self.prefix_us / 1000:g} ms: {reason}"
         else:
             swap = bool(report.swap and report.swap_confidence >= self.swap_min_confidence)
+            if report.swap_confidence < self.swap_min_confidence and self.side_by_matching:
+                swap = self._side_by_matching(left, right, report)
             # The report's offsets refer to the cameras after its swap: negated, they are the given order's.
             sign = 1 if swap == report.swap else -1
             if report.row_offset_confidence >= self.row_min_confidence:
@@ -235,6 +247,15 @@ class PrefixRigCheck:
                 pair = [np.concatenate([getattr(p, cam) for p in field_held]) for cam in ("left", "right")]
                 self._row_field(*(pair[::-1] if swap else pair))
         self.seconds = time.perf_counter() - start
+
+    def _side_by_matching(self, left: np.ndarray, right: np.ndarray, report) -> bool:
+        """The camera order by matching (:mod:`cvstereo.rigcheck.side_by_matching`), the overlay's rows applied."""
+        from cvstereo.rigcheck.side_by_matching import side_by_matching
+
+        rows = (-1 if report.swap else 1) * round(report.row_offset)  # in the given order
+        self.side_found = found = side_by_matching(left, right, resolution=self.resolution, rows=rows,
+                                                   threads=self.threads)
+        return found.swap
 
     def _rows_by_matching(self, left: np.ndarray, right: np.ndarray) -> int:
         """The rows by matching (in the cameras' order used) where they stand out, else 0."""

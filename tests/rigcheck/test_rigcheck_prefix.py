@@ -213,3 +213,22 @@ def test_evaluate_scores_a_swapped_run_on_the_cameras_it_used():
     assert as_read == evaluate(as_matched(swapped, result.meta), result)
     assert wired["bad2"] < 0.2 and abs(as_read["bad2"] - wired["bad2"]) < 0.02
     assert abs(as_read["coverage"] - wired["coverage"]) < 0.02
+
+
+@pytest.mark.parametrize(("swap", "rows"), [(False, 0), (True, 0), (True, 2)])
+def test_side_by_matching_tells_the_order_where_the_overlay_is_not_trusted(patches, swap, rows):
+    # A swap threshold no overlay confidence reaches hands every decision to the matcher's answers in both orders.
+    check = PrefixRigCheck(patches.resolution, swap_min_confidence=1.01)
+    list(check.stream(with_rig_errors(patches, rows=rows, swap=swap).packets(40_000)))
+    found = check.describe()
+    assert found["applied"]["swap"] is swap and found["applied"]["row_offset"] == -rows
+    side = found["side_by_matching"]
+    right_order, wrong_order = (side["exchanged"], side["given"]) if swap else (side["given"], side["exchanged"])
+    assert right_order >= 3 * wrong_order > 0
+
+
+def test_side_by_matching_is_not_run_where_the_overlay_is_sure(patches):
+    result = match(with_rig_errors(patches, swap=True), method=METHOD)
+    check = result.meta["rigcheck"]
+    assert check["swap_confidence"] >= 0.8 and check["applied"]["swap"] is True
+    assert check["side_by_matching"] is None
