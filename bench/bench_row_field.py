@@ -19,7 +19,14 @@ rigs do; the rig check applies one row offset to the whole image. This measures,
 
 Run: ``.venv/bin/python bench/bench_row_field.py [--half tune] [--only NAME,...] [-o bench/results]``. Writes
 ``row-field.md`` and ``row-field.json``. A measurement for the next step of issue 24, not a tuning script: it
-changes no constant (the tuning half by default, through ``require_tuning``).
+changes no constant (the tuning half by default, through ``require_tuning``). Other modes:
+
+- ``--fits``, ``--applied-fit``: the prototype's fits compared, and the chosen one applied (row-field-fits.md,
+  row-field-applied.md);
+- ``--estimator``: the package's estimator (:mod:`cvstereo.rigcheck.row_field`) on the tuning half and on 48 more
+  tuning draws (:func:`extra_tuning_recordings`), where its constants were chosen (row-field-estimator.md);
+- ``--package [--half eval]``: every method with ``match(row_field=True)`` beside the default
+  (row-field-package-HALF.md).
 """
 
 from __future__ import annotations

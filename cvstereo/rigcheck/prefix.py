@@ -138,7 +138,6 @@ class PrefixRigCheck:
     seconds: float = field(default=0.0, init=False)
     prefix_us: int = field(default=0, init=False)  # the span checked, from the first event to the last packet's end
     corrected: object = field(default=None, init=False)  # the CorrectedStream, for its counts of dropped events
-    fitted_field: object = field(default=None, init=False)  # the RowField applied, where one was found
     field_search: object = field(default=None, init=False)  # the RowFieldSearch, where the field was looked for
     field_seconds: float = field(default=0.0, init=False)  # of `seconds`, the row field's search
     fielded: object = field(default=None, init=False)  # the row field's stream, for its restore and dropped events
@@ -178,14 +177,15 @@ class PrefixRigCheck:
         out = _chained(held, packets)
         if self.applied["swap"]:
             out = map(swapped_packet, out)
-        rows = 0 if self.fitted_field is not None else self.applied["row_offset"]
+        applied_field = None if self.field_search is None else self.field_search.field
+        rows = 0 if applied_field is not None else self.applied["row_offset"]
         correction = RigCorrection(rows, self.applied["time_offset_us"], self.resolution)
         if not correction.is_identity:
             self.corrected = out = correction.stream(out)
-        if self.fitted_field is not None:
+        if applied_field is not None:
             from cvstereo.rigcheck.row_field import row_field_stage
 
-            self.fielded = out = row_field_stage(self.fitted_field).stream(out)
+            self.fielded = out = row_field_stage(applied_field).stream(out)
         return (yield from out)
 
     def restore(self, matches: np.ndarray, *, anchor: str = "event") -> np.ndarray:
@@ -274,7 +274,6 @@ class PrefixRigCheck:
         start = time.perf_counter()
         self.field_search = found = estimate_row_field(left, right, resolution=self.resolution,
                                                        centre=self.applied["row_offset"], threads=self.threads)
-        self.fitted_field = found.field
         self.applied["row_field"] = found.field is not None
         self.field_seconds = time.perf_counter() - start
 
