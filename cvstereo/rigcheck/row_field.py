@@ -46,9 +46,8 @@ from typing import NamedTuple
 import numpy as np
 
 from cvstereo.geometry.rectify import NONE, Rectification
-from cvstereo.geometry.rigcorrect import RigCorrection
 from cvstereo.rigcheck.peaks import subsample_peak
-from cvstereo.rigcheck.rows_by_matching import matching_span, over_offsets, span_matches
+from cvstereo.rigcheck.rows_by_matching import moved_matches, over_offsets, span_matches, span_of
 
 __all__ = ["MIN_ANSWERS", "MIN_GAIN", "MIN_PROMINENCE", "MIN_TILES", "REACH", "SPAN_EVENTS", "SPAN_MAX_US",
            "SPAN_MIN_US", "TILES", "TOLERANCE", "RowField", "RowFieldSearch", "TileRows", "estimate_row_field",
@@ -252,13 +251,11 @@ def estimate_row_field(left: np.ndarray, right: np.ndarray, *, resolution, centr
     RowFieldSearch
     """
     w, h = resolution
-    end = matching_span(left, right, min_us=min_us, max_us=max_us, events=events)
-    left, right = (ev[:np.searchsorted(ev["t"], end)] for ev in (left, right))
+    span = span_of(left, right, min_us=min_us, max_us=max_us, events=events)
     offsets = np.arange(centre - reach, centre + reach + 1, 2)
 
     def per_tile(off: int) -> np.ndarray:
-        moved = RigCorrection(off, 0, resolution).correct_right(right)[0]
-        found = span_matches(left, moved, resolution=resolution, end=end)
+        found = moved_matches(span, off, resolution=resolution)
         # Each answer at the right camera's own pixel: frame-area anchors on either camera.
         on_right = found["camera"] == 1
         ry = np.where(on_right, found["y"].astype(np.int64) - off, found["y"].astype(np.int64))
@@ -273,8 +270,8 @@ def estimate_row_field(left: np.ndarray, right: np.ndarray, *, resolution, centr
     best = int(counts.sum(axis=(1, 2)).max())  # every answer falls in a tile
     if fitted is None:
         return RowFieldSearch(None, None, tiles, counts, None, best)
-    moved = row_field_stage(fitted).rectify(right, 1)[0]
-    answers = int(span_matches(left, moved, resolution=resolution, end=end).size)
+    moved = row_field_stage(fitted).rectify(span.right, 1)[0]
+    answers = int(span_matches(span.left, moved, resolution=resolution, end=span.end).size)
     field = fitted if answers >= MIN_GAIN * best else None
     return RowFieldSearch(field, fitted, tiles, counts, answers, best)
 

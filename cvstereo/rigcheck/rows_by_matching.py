@@ -30,8 +30,8 @@ from cvstereo.geometry.rigcorrect import RigCorrection
 from cvstereo.model.matches import concat_matches
 from cvstereo.rigcheck.peaks import subsample_peak
 
-__all__ = ["MATCHING_METHOD", "RowsByMatching", "matching_span", "over_offsets", "rows_by_matching",
-           "rows_from_counts", "span_matches"]
+__all__ = ["MATCHING_METHOD", "RowsByMatching", "Span", "matching_span", "moved_matches", "over_offsets",
+           "rows_by_matching", "rows_from_counts", "span_matches", "span_of"]
 
 #: The matcher whose answers are counted (its ``adaptive`` default, one thread).
 MATCHING_METHOD = "frame-area"
@@ -89,6 +89,30 @@ def span_matches(left: np.ndarray, right: np.ndarray, *, resolution, end: int,
     return concat_matches([matcher.feed(left, right, until=end), matcher.flush()])
 
 
+class Span(NamedTuple):
+    """The events a run by matching reads: each camera's up to ``end`` (us, exclusive), from ``t0``."""
+
+    left: np.ndarray
+    right: np.ndarray
+    end: int
+    t0: int
+
+
+def span_of(left: np.ndarray, right: np.ndarray, *, min_us: int, max_us: int, events: int) -> Span:
+    """The events of :func:`matching_span` of ``left`` and ``right``."""
+    t0 = min(int(left["t"][0]), int(right["t"][0]))
+    end = matching_span(left, right, min_us=min_us, max_us=max_us, events=events)
+    return Span(*(ev[:np.searchsorted(ev["t"], end)] for ev in (left, right)), end, t0)
+
+
+def moved_matches(span: Span, rows: int, *, resolution, exchanged: bool = False) -> np.ndarray:
+    """:func:`span_matches` of the span with the right camera's rows moved by ``rows`` (events moved off the
+    sensor dropped); ``exchanged``: the cameras the other way round (the span's right camera as the left)."""
+    first, second = (span.right, span.left) if exchanged else (span.left, span.right)
+    moved = RigCorrection(rows, 0, resolution).correct_right(second)[0]
+    return span_matches(first, moved, resolution=resolution, end=span.end)
+
+
 def over_offsets(run, offsets, threads: int = 1) -> list:
     """``[run(offset) for offset in offsets]``, on up to ``threads`` threads: each offset's run is independent and
     its kernels release the GIL, so on several threads the runs go side by side (the results do not depend on
@@ -126,14 +150,11 @@ def rows_by_matching(left: np.ndarray, right: np.ndarray, *, resolution, reach: 
     -------
     RowsByMatching
     """
-    t0 = min(int(left["t"][0]), int(right["t"][0]))
-    end = matching_span(left, right, min_us=min_us, max_us=max_us, events=events)
-    left, right = (ev[:np.searchsorted(ev["t"], end)] for ev in (left, right))
+    span = span_of(left, right, min_us=min_us, max_us=max_us, events=events)
     counts = {}
 
     def answers(row: int) -> int:
-        moved = RigCorrection(row, 0, resolution).correct_right(right)[0]
-        return span_matches(left, moved, resolution=resolution, end=end).size
+        return moved_matches(span, row, resolution=resolution).size
 
     def count(rows) -> None:
         rows = [r for r in dict.fromkeys(rows) if abs(r) <= reach and r not in counts]
@@ -142,4 +163,4 @@ def rows_by_matching(left: np.ndarray, right: np.ndarray, *, resolution, reach: 
     count(range(-(reach - reach % 2), reach + 1, 2))
     best = _most_answers(counts)
     count((best - 1, best + 1))
-    return rows_from_counts(counts, end - t0)
+    return rows_from_counts(counts, span.end - span.t0)

@@ -18,8 +18,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from cvstereo.geometry.rigcorrect import RigCorrection
-from cvstereo.rigcheck.rows_by_matching import matching_span, over_offsets, span_matches
+from cvstereo.rigcheck.rows_by_matching import moved_matches, over_offsets, span_of
 
 __all__ = ["SIDE_MIN_ANSWERS", "SIDE_MIN_RATIO", "SideByMatching", "side_by_matching"]
 
@@ -70,15 +69,11 @@ def side_by_matching(left: np.ndarray, right: np.ndarray, *, resolution, rows: i
     -------
     SideByMatching
     """
-    t0 = min(int(left["t"][0]), int(right["t"][0]))
-    end = matching_span(left, right, min_us=min_us, max_us=max_us, events=events)
-    left, right = (ev[:np.searchsorted(ev["t"], end)] for ev in (left, right))
+    span = span_of(left, right, min_us=min_us, max_us=max_us, events=events)
 
     def answers(exchanged: bool) -> int:
-        first, second, shift = (right, left, -rows) if exchanged else (left, right, rows)
-        moved = RigCorrection(shift, 0, resolution).correct_right(second)[0]
-        return int(span_matches(first, moved, resolution=resolution, end=end).size)
+        return int(moved_matches(span, -rows if exchanged else rows, resolution=resolution, exchanged=exchanged).size)
 
     given, exchanged = over_offsets(answers, [False, True], threads)
     swap = exchanged >= max(SIDE_MIN_RATIO * given, SIDE_MIN_ANSWERS)
-    return SideByMatching(bool(swap), given, exchanged, end - t0)
+    return SideByMatching(bool(swap), given, exchanged, span.end - span.t0)
