@@ -150,8 +150,12 @@ class PrefixRigCheck:
     def stream(self, packets: Iterable[StereoPacket]) -> Iterator[StereoPacket]:
         """The packets as the matcher gets them: those of the prefix held until it is checked, then all of them
         with the cameras exchanged and the offsets removed as found."""
-        from cvstereo.rigcheck.row_field import SPAN_EVENTS, SPAN_MAX_US
+        if self.row_field:  # its search matches more events than the check reads: the prefix is held on for them
+            from cvstereo.rigcheck.row_field import SPAN_EVENTS, SPAN_MAX_US
 
+            hold_us, hold_events = SPAN_MAX_US, SPAN_EVENTS
+        else:
+            hold_us = hold_events = 0
         packets = iter(packets)
         held = []
         checked = None  # how many of the held packets the check reads
@@ -170,10 +174,9 @@ class PrefixRigCheck:
                 self.prefix_us = span
                 if span >= self.max_us or (span >= self.min_us and counts.min() >= self.min_events):
                     checked = len(held)
-            # The row field's search matches more events than the check reads: it holds on for them.
-            if checked is not None and (not self.row_field or span >= SPAN_MAX_US or counts.min() >= SPAN_EVENTS):
+            if checked is not None and (span >= hold_us or counts.min() >= hold_events):
                 break
-        self._check(held[:checked], held)
+        self._check(held, len(held) if checked is None else checked)
         out = _chained(held, packets)
         if self.applied["swap"]:
             out = map(swapped_packet, out)
@@ -214,12 +217,16 @@ class PrefixRigCheck:
                 "seconds": self.field_seconds, **self.field_search.describe()}
         return out
 
-    def _check(self, held: list[StereoPacket], field_held: list[StereoPacket]) -> None:
-        """Check the rig on the packets ``held``; with ``row_field``, look for the field on ``field_held``."""
+    def _check(self, held: list[StereoPacket], checked: int) -> None:
+        """Check the rig on the first ``checked`` of the packets ``held``; with ``row_field``, look for the field on
+        all of them."""
         from cvstereo.rigcheck.check import check_rig
 
         start = time.perf_counter()
-        left, right = (np.concatenate([getattr(p, cam) for p in held]) if held else None for cam in ("left", "right"))
+        # Each camera's held events once; the check reads their first part (the packets are time slices).
+        pair = [np.concatenate([getattr(p, cam) for p in held]) if held else None for cam in ("left", "right")]
+        left, right = (None if whole is None else whole[:sum(getattr(p, cam).size for p in held[:checked])]
+                       for whole, cam in zip(pair, ("left", "right"), strict=True))
         try:
             if left is None:
                 raise ValueError("the stream has no events")
@@ -244,7 +251,6 @@ class PrefixRigCheck:
             dt = round(report.time_offset_us) if report.time_offset_applicable() else 0
             self.applied = {"swap": swap, "row_offset": int(rows), "time_offset_us": sign * int(dt)}
             if self.row_field:
-                pair = [np.concatenate([getattr(p, cam) for p in field_held]) for cam in ("left", "right")]
                 self._row_field(*(pair[::-1] if swap else pair))
         self.seconds = time.perf_counter() - start
 
@@ -265,7 +271,6 @@ class PrefixRigCheck:
         self.by_matching = found = rows_by_matching(left, right, resolution=self.resolution, reach=reach,
                                                     threads=self.threads)
         return found.offset if found.prominence >= self.matching_min_prominence else 0
-
 
     def _row_field(self, left: np.ndarray, right: np.ndarray) -> None:
         """Look for a row field around the row offset found (in the cameras' order used); apply it where found."""
