@@ -26,14 +26,15 @@ HALVES = ("tune", "eval")
 GOAL_BAD2, GOAL_COVERAGE = 0.15, 0.05
 
 
-def cell(path, name: str, method: str) -> dict:
-    """One recording x method: coverage and bad2 of the default under the default set (silence: bad2 = 1)."""
+def cell(path, name: str, method: str, **params) -> dict:
+    """One recording x method: coverage and bad2 of the default under the default set (silence: bad2 = 1);
+    ``params`` on top, as ``match()`` takes them."""
     from cvstereo.evaluation.metrics import evaluate
     from cvstereo.io.npz import read_recording_npz
     from cvstereo.run import match
 
     rec = read_recording_npz(path)
-    result = match(rec, method=method)
+    result = match(rec, method=method, **params)
     figures = evaluate(rec, result)
     coverage, bad2 = figures["coverage"], figures["bad2"]
     silent = not coverage or bad2 is None or bad2 != bad2

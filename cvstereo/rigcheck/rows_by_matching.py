@@ -30,11 +30,14 @@ from cvstereo.geometry.rigcorrect import RigCorrection
 from cvstereo.model.matches import concat_matches
 from cvstereo.rigcheck.peaks import subsample_peak
 
-__all__ = ["MATCHING_METHOD", "RowsByMatching", "Span", "matching_span", "moved_matches", "over_offsets",
-           "rows_by_matching", "rows_from_counts", "span_matches", "span_of"]
+__all__ = ["MATCHING_METHOD", "MATCHING_PARAMS", "RowsByMatching", "Span", "matching_span", "moved_matches",
+           "over_offsets", "rows_by_matching", "rows_from_counts", "span_matches", "span_of"]
 
-#: The matcher whose answers are counted (its ``adaptive`` default, one thread).
+#: The matcher whose answers are counted (its ``adaptive`` default, one thread, with MATCHING_PARAMS on top).
 MATCHING_METHOD = "frame-area"
+#: What the counting matcher keeps of its own: no uniqueness check. The check's thresholds (answers, ratios, gains)
+#: were chosen on frame-area's answers without it, and a rival's answer still tells that the rows fit somewhere.
+MATCHING_PARAMS = {"uniqueness": 0.0}
 
 
 class RowsByMatching(NamedTuple):
@@ -81,11 +84,12 @@ def matching_span(left: np.ndarray, right: np.ndarray, *, min_us: int, max_us: i
 
 def span_matches(left: np.ndarray, right: np.ndarray, *, resolution, end: int,
                  method: str = MATCHING_METHOD) -> np.ndarray:
-    """``method``'s matches (its ``adaptive`` default, one thread) of ``left`` and ``right`` up to ``end`` (us):
-    one run of the rows by matching, with the right camera's events already moved."""
+    """``method``'s matches (its ``adaptive`` default with :data:`MATCHING_PARAMS`, one thread) of ``left`` and
+    ``right`` up to ``end`` (us): one run of the rows by matching, with the right camera's events already moved."""
     from cvstereo.matchers.registry import create_matcher
 
-    matcher = create_matcher(method, resolution=resolution, threads=1)
+    matcher = create_matcher(method, resolution=resolution, threads=1,
+                             **(MATCHING_PARAMS if method == MATCHING_METHOD else {}))
     return concat_matches([matcher.feed(left, right, until=end), matcher.flush()])
 
 

@@ -23,24 +23,30 @@ def numpy_sad(ref, oth, y, x, x2, r=2):
                   - oth[y - r:y + r + 1, x2 - r:x2 + r + 1]).sum()
 
 
-def algorithm2(ref, oth, *, threshold, max_disparity, reference_camera=1, r=2):
-    """Algorithm 2 as the thesis writes it (with the running minimum, 0 a valid disparity), pure Python."""
+def algorithm2(ref, oth, *, threshold, max_disparity, reference_camera=1, r=2, uniqueness=0.0):
+    """Algorithm 2 as the thesis writes it (with the running minimum, 0 a valid disparity), pure Python; with
+    ``uniqueness`` > 0 a search whose winner has a rival (> 1 px away, SAD <= (1 + uniqueness) x its own) writes
+    NaN into its block."""
     h, w = ref.shape
     disp = np.full((h, w), np.nan, np.float32)
+    written = np.zeros((h, w), bool)  # an ambiguous search writes its block too, with NaN
     step = 1 if reference_camera == 1 else -1
     for y in range(r, h - r):
         for x in range(r, w - r):
-            if abs(ref[y, x]) < threshold or not np.isnan(disp[y, x]):
+            if abs(ref[y, x]) < threshold or written[y, x]:
                 continue
-            minimum, best = np.inf, None
+            minimum, best, sads = np.inf, None, {}
             for d in range(max_disparity + 1):
                 x2 = x + step * d
                 if not r <= x2 < w - r:
                     continue
-                sad = numpy_sad(ref, oth, y, x, x2, r)
+                sad = sads[d] = numpy_sad(ref, oth, y, x, x2, r)
                 if sad < minimum:
                     minimum, best = sad, d
+            if uniqueness and any(abs(d - best) > 1 and sad <= minimum * (1 + uniqueness) for d, sad in sads.items()):
+                best = np.nan
             disp[y - r:y + r + 1, x - r:x + r + 1] = best
+            written[y - r:y + r + 1, x - r:x + r + 1] = True
     return disp
 
 
@@ -61,16 +67,18 @@ def test_sad_volume_equals_numpy_sad(rng, reference_camera):
 
 @pytest.mark.parametrize("reference_camera", [0, 1])
 @pytest.mark.parametrize("integer", [False, True])
-def test_fast_scan_equals_algorithm2(rng, reference_camera, integer):
+@pytest.mark.parametrize("uniqueness", [0.0, 0.1])
+def test_fast_scan_equals_algorithm2(rng, reference_camera, integer, uniqueness):
     for _ in range(3):
         ref, oth = rng.normal(size=(2, 20, 40)) * 3
         if integer:  # frames without the Gaussian: many exact ties
             ref, oth = np.round(ref), np.round(oth)
-        expected = algorithm2(ref, oth, threshold=2.0, max_disparity=15, reference_camera=reference_camera)
-        fast = scan_sad(ref, oth, threshold=2.0, max_disparity=15, reference_camera=reference_camera)
+        kw = {"threshold": 2.0, "uniqueness": uniqueness}
+        expected = algorithm2(ref, oth, max_disparity=15, reference_camera=reference_camera, **kw)
+        fast = scan_sad(ref, oth, max_disparity=15, reference_camera=reference_camera, **kw)
         volume = scan_disparity_map(ref, sad_volume(ref, oth, max_disparity=15, reference_camera=reference_camera),
-                                    threshold=2.0)
-        assert np.isfinite(expected).sum() > 50
+                                    **kw)
+        assert np.isfinite(expected).sum() > (50 if not uniqueness else 10)
         np.testing.assert_array_equal(fast, expected)
         np.testing.assert_array_equal(volume, expected)
 
@@ -102,6 +110,27 @@ def test_ties_go_to_the_smaller_disparity_and_zero_is_a_disparity():
     np.testing.assert_array_equal(disp[np.isfinite(disp)], 0)
     disp = scan_sad(frame, np.roll(frame, 1, axis=1), threshold=2.0, max_disparity=12)
     np.testing.assert_array_equal(disp[np.isfinite(disp)], 1)
+
+
+def test_uniqueness_leaves_a_periodic_texture_unanswered_and_keeps_a_unique_one(rng):
+    # Period 4: disparities 0, 4, 8 fit exactly: ambiguous at any uniqueness > 0, answered (0) without the check,
+    # where disparity 4 still lies inside the sensor (x <= 33; the blocks written reach 2 px further).
+    frame = np.tile(np.tile([0.0, 0.0, 5.0, 0.0], 10), (7, 1))
+    assert np.isfinite(scan_sad(frame, frame, threshold=2.0, max_disparity=12)[:, :30]).any()
+    assert not np.isfinite(scan_sad(frame, frame, threshold=2.0, max_disparity=12, uniqueness=0.01)[:, :30]).any()
+    # Random texture shifted by 5: the true disparity's SAD is 0, any other > 0, so it stands at any ratio.
+    left = rng.normal(size=(9, 60)) * 3
+    right = np.zeros_like(left)
+    right[:, :55] = left[:, 5:]
+    disp = scan_sad(right, left, threshold=2.0, max_disparity=12, uniqueness=5.0)
+    assert np.isfinite(disp[:, :40]).sum() > 100
+    np.testing.assert_array_equal(disp[:, :40][np.isfinite(disp[:, :40])], 5)
+    # A block of the other frame with no content is one SAD at every empty disparity: the first empty candidate
+    # and the later ones are rivals alike (the sparse scan skips the later ones), so a lone pixel is ambiguous.
+    lone = np.zeros((9, 30))
+    lone[4, 10] = 9
+    assert not np.isfinite(scan_sad(lone, np.zeros_like(lone), threshold=2.0, max_disparity=6,
+                                    uniqueness=0.1)).any()
 
 
 def test_winner_overwrites_the_neighbourhood_and_border_is_not_searched():

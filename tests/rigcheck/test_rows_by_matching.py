@@ -100,3 +100,32 @@ def test_a_scene_without_vertical_structure_gives_a_flat_profile():
     found = rows_by_matching(*cams, resolution=(128, 128), reach=8)
     assert found.prominence < MATCHING_MIN_PROMINENCE
     assert max(found.counts.values()) <= 1.15 * min(found.counts.values())
+
+
+def test_the_counting_matcher_keeps_the_answers_the_check_was_tuned_on():
+    """The rows by matching count frame-area's answers without its uniqueness check (MATCHING_PARAMS): the
+    check's thresholds were chosen on those answers, and on a repeating texture the default's check drops them."""
+    from cvstereo.matchers.registry import create_matcher
+    from cvstereo.model.matches import concat_matches
+    from cvstereo.rigcheck.rows_by_matching import span_matches
+
+    # Vertical bars every 6 px sliding right one pixel per ms, each bar's pixels firing as it arrives; the right
+    # camera sees them 4 px further left: disparities 4, 10, 16, ... fit alike.
+    t = np.arange(0, 300_000, 1000)
+    ts, xs, ys = [], [], []
+    for k, tk in enumerate(t):
+        x = np.arange(10 + k % 6, 110, 6)
+        xx, yy = np.meshgrid(x, np.arange(30, 90))
+        ts.append(np.full(xx.size, tk)), xs.append(xx.ravel()), ys.append(yy.ravel())
+    t, x, y = (np.concatenate(a) for a in (ts, xs, ys))
+    left, right = make_events(t, x, y, np.ones(t.size, int)), make_events(t, x - 4, y, np.ones(t.size, int))
+    resolution, end = (128, 128), int(t[-1]) + 1
+
+    def answers(**params):
+        matcher = create_matcher("frame-area", resolution=resolution, threads=1, **params)
+        return concat_matches([matcher.feed(left, right, until=end), matcher.flush()])
+
+    counted = span_matches(left, right, resolution=resolution, end=end)
+    assert counted.size > 1000
+    np.testing.assert_array_equal(counted, answers(uniqueness=0.0))
+    assert answers().size < counted.size / 5  # the default's uniqueness check leaves the bars unanswered

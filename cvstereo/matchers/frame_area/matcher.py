@@ -9,7 +9,9 @@ disparity map, overwriting, so that those pixels are not searched again. With ``
 the thesis': its frame is ``shared``) each camera has an OFF and an ON frame, and each pair is scanned and
 matched on its own, so that ON and OFF events of one window cannot cancel each other. With ``lr_check`` (not
 the thesis') the other camera's frame is scanned as well and a disparity stands only where both scans agree
-(:func:`cvstereo.matchers._shared.support.lr_consistent`).
+(:func:`cvstereo.matchers._shared.support.lr_consistent`). With ``uniqueness`` > 0 (not the thesis') a search whose
+winner has a rival (:mod:`cvstereo.matchers._shared.uniqueness`) still fills its block, with no disparity, so
+the scan visits the same pixels.
 
 The scan is one numba kernel (:func:`scan_sad`) that computes the SAD only for the pixels it actually searches
 (each search fills a whole block of the disparity map, so most above-threshold pixels are never searched). On
@@ -45,6 +47,7 @@ from cvstereo.matchers._shared.frame_gains import FrameGains
 from cvstereo.matchers._shared.signal_level import SignalLevel
 from cvstereo.matchers._shared.sparse_frames import SparseFrames, band_of_rows, bit_positions
 from cvstereo.matchers._shared.support import lr_consistent
+from cvstereo.matchers._shared.uniqueness import ambiguous
 from cvstereo.matchers.frame_area.params import FrameAreaParams
 from cvstereo.model.matches import empty_matches, make_matches
 from cvstereo.model.polarity import slot_of_p
@@ -53,7 +56,7 @@ __all__ = ["FrameAreaMatcher", "scan_sad"]
 
 
 def scan_sad(reference: np.ndarray, other: np.ndarray, *, threshold: float, max_disparity: int, block: int = 5,
-             reference_camera: int = 1, gain: float = 1.0) -> np.ndarray:
+             reference_camera: int = 1, gain: float = 1.0, uniqueness: float = 0.0) -> np.ndarray:
     """Algorithm 2 with the SAD computed only for the pixels the scan actually searches (numba).
 
     Same result as the reference ``scan_disparity_map(reference, sad_volume(reference, other, ...), ...)``
@@ -67,6 +70,9 @@ def scan_sad(reference: np.ndarray, other: np.ndarray, *, threshold: float, max_
         See :class:`FrameAreaParams`.
     gain : float, keyword-only
         ``other`` is multiplied by it (in float64) before the SAD (``value_units`` of :class:`FrameAreaParams`).
+    uniqueness : float, keyword-only
+        0: off (the thesis). Otherwise an ambiguous search (:mod:`cvstereo.matchers._shared.uniqueness`) writes
+        NaN into its block.
 
     Returns
     -------
@@ -81,14 +87,16 @@ def scan_sad(reference: np.ndarray, other: np.ndarray, *, threshold: float, max_
     inner[r: h - r, r: w - r] = True
     ys, xs = np.nonzero((np.abs(ref) >= threshold) & inner)
     step = 1 if reference_camera == 1 else -1
-    return _scan_sad_kernel(ref, oth, ys, xs, int(max_disparity), r, step)
+    return _scan_sad_kernel(ref, oth, ys, xs, int(max_disparity), r, step, float(uniqueness))
 
 
 @numba.njit(cache=True, nogil=True)
-def _scan_sad_kernel(ref, oth, ys, xs, max_disparity, r, step):  # pragma: no cover - compiled
+def _scan_sad_kernel(ref, oth, ys, xs, max_disparity, r, step, uniqueness):  # pragma: no cover - compiled
     h, w = ref.shape
     disp = np.full((h, w), np.nan, dtype=np.float32)
     done = np.zeros((h, w), dtype=np.bool_)
+    cand_d = np.empty(max_disparity + 1, np.int64)  # every candidate's SAD, for the uniqueness check
+    cand_sad = np.empty(max_disparity + 1)
     for k in range(ys.size):
         y = ys[k]
         x = xs[k]
@@ -96,6 +104,7 @@ def _scan_sad_kernel(ref, oth, ys, xs, max_disparity, r, step):  # pragma: no co
             continue
         best = np.inf
         best_d = 0
+        n_cand = 0
         for d in range(max_disparity + 1):
             xo = x + step * d
             if xo - r < 0 or xo + r >= w:
@@ -104,12 +113,19 @@ def _scan_sad_kernel(ref, oth, ys, xs, max_disparity, r, step):  # pragma: no co
             for j in range(-r, r + 1):
                 for i in range(-r, r + 1):
                     sad += abs(ref[y + j, x + i] - oth[y + j, xo + i])
+            cand_d[n_cand] = d
+            cand_sad[n_cand] = sad
+            n_cand += 1
             if sad < best:  # strict: ties go to the smaller disparity
                 best = sad
                 best_d = d
+        # An ambiguous search still fills its block (the scan order stays the thesis'), with no disparity.
+        value = np.float32(best_d)
+        if uniqueness > 0 and ambiguous(cand_d, cand_sad, n_cand, best_d, best, 1.0 + uniqueness):
+            value = np.float32(np.nan)
         for j in range(y - r, y + r + 1):
             for i in range(x - r, x + r + 1):
-                disp[j, i] = best_d
+                disp[j, i] = value
                 done[j, i] = True
     return disp
 
@@ -148,15 +164,17 @@ def _plan_sparse(above, ref_plane, r, done, owner, searched):  # pragma: no cove
 
 @numba.njit(cache=True, nogil=True)
 def _search_needed(values, support, ref_plane, oth_plane, max_disparity, r, step, searched, need,
-                   gain):  # pragma: no cover - compiled
-    """The disparity each needed search of :func:`_plan_sparse` finds (-1 for the others), as
-    :func:`_scan_sad_kernel` does (the other plane's values times ``gain``): the same float64 sums in the same
-    order, but
+                   gain, uniqueness):  # pragma: no cover - compiled
+    """The disparity each needed search of :func:`_plan_sparse` finds (-1 for the others and for an ambiguous
+    one), as :func:`_scan_sad_kernel` does (the other plane's values times ``gain``): the same float64 sums in the
+    same order, but
     - a block of the other frame that holds no support pixel is all zeros, so its SAD is the same number for
-      every such disparity: only the first of them can win (ties go to the smaller disparity), the rest are
-      skipped;
-    - a sum stops once it reaches the best so far: its terms are >= 0 and rounding is monotonic, so it could
-      only end >= best, and only a strictly smaller sum wins.
+      every such disparity: only the first of them is summed (ties go to the smaller disparity, so only it can
+      win; the others count as rivals of the uniqueness check with its SAD);
+    - a sum stops once it exceeds the largest SAD that still matters: the best so far (reaching it is enough
+      without the uniqueness check), or ``1 + uniqueness`` times it (a rival,
+      :mod:`cvstereo.matchers._shared.uniqueness`): its terms are >= 0 and rounding is monotonic, so it could only
+      end above that.
     """
     w = values.shape[2]
     ref = values[ref_plane]
@@ -164,6 +182,9 @@ def _search_needed(values, support, ref_plane, oth_plane, max_disparity, r, step
     found = np.full(need.size, -1, np.int64)
     band = np.zeros(0, np.uint64)
     band_y = -1
+    rival = 1.0 + uniqueness
+    cand_d = np.empty(max_disparity + 1, np.int64)  # the candidates within the limit, for the uniqueness check
+    cand_sad = np.empty(max_disparity + 1)
     for s in range(need.size):
         if not need[s]:
             continue  # no pixel with events keeps this search's disparity
@@ -174,7 +195,10 @@ def _search_needed(values, support, ref_plane, oth_plane, max_disparity, r, step
             band_y = y
         best = np.inf
         best_d = 0
+        limit = np.inf
+        zero_sad = np.inf  # the SAD of an empty block (inf until summed, or where it ran past the limit)
         zero_block_seen = False
+        n_cand = 0
         for d in range(max_disparity + 1):
             xo = x + step * d
             if xo - r < 0 or xo + r >= w:
@@ -182,6 +206,10 @@ def _search_needed(values, support, ref_plane, oth_plane, max_disparity, r, step
             empty = not (band[xo >> 6] >> np.uint64(xo & 63)) & np.uint64(1)
             if empty:
                 if zero_block_seen:
+                    if uniqueness > 0 and zero_sad <= limit:
+                        cand_d[n_cand] = d
+                        cand_sad[n_cand] = zero_sad
+                        n_cand += 1
                     continue
                 zero_block_seen = True
             sad = 0.0
@@ -189,11 +217,20 @@ def _search_needed(values, support, ref_plane, oth_plane, max_disparity, r, step
                 for k in range(-r, r + 1):
                     a = np.float64(ref[y + j, x + k])
                     sad += abs(a - np.float64(oth[y + j, xo + k]) * gain) if not empty else abs(a - 0.0)
-                if sad >= best:
+                if sad > limit or (uniqueness == 0 and sad >= best):
                     break
+            if empty and sad <= limit:
+                zero_sad = sad
+            if uniqueness > 0 and sad <= limit:
+                cand_d[n_cand] = d
+                cand_sad[n_cand] = sad
+                n_cand += 1
             if sad < best:  # strict: ties go to the smaller disparity
                 best = sad
                 best_d = d
+                limit = best * rival
+        if uniqueness > 0 and ambiguous(cand_d, cand_sad, n_cand, best_d, best, rival):
+            continue
         found[s] = best_d
     return found
 
@@ -209,7 +246,7 @@ def _unmark(done, searched, n_searched, r):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, nogil=True)
 def _scan_sparse(values, support, touched, above, ref_plane, oth_plane, lr_check, max_disparity, r, step, capacity,
-                 done, owner, searched, gains):  # pragma: no cover - compiled
+                 done, owner, searched, gains, uniqueness):  # pragma: no cover - compiled
     """One frame pair's matches on sparse planes: Algorithm 2's scan of ``ref_plane`` and, with ``lr_check``,
     the scan of ``oth_plane`` the other way (each plane's pixels at or above its camera's threshold marked in
     ``above``) and
@@ -242,18 +279,19 @@ def _scan_sparse(values, support, touched, above, ref_plane, oth_plane, lr_check
                     need[owner[0, y, x]] = True
                     n += 1
     found = _search_needed(values, support, ref_plane, oth_plane, max_disparity, r, step, searched[0], need,
-                           gains[0])
+                           gains[0], uniqueness)
     n_back = 0
     found_back = found  # replaced below with lr_check
     if lr_check:
         n_back = _plan_sparse(above, oth_plane, r, done[1], owner[1], searched[1])
         need_back = np.zeros(n_back, np.bool_)
         for m in range(n):
-            xo = out_x[m] + step * found[owner[0, out_y[m], out_x[m]]]
-            if 0 <= xo < w and done[1, out_y[m], xo]:
+            d = found[owner[0, out_y[m], out_x[m]]]
+            xo = out_x[m] + step * d
+            if d >= 0 and 0 <= xo < w and done[1, out_y[m], xo]:
                 need_back[owner[1, out_y[m], xo]] = True
         found_back = _search_needed(values, support, oth_plane, ref_plane, max_disparity, r, -step, searched[1],
-                                    need_back, gains[1])
+                                    need_back, gains[1], uniqueness)
     ref = values[ref_plane]
     out_p = np.empty(n, np.int8)
     out_d = np.empty(n, np.float32)
@@ -261,9 +299,14 @@ def _scan_sparse(values, support, touched, above, ref_plane, oth_plane, lr_check
     for m in range(n):
         x, y = out_x[m], out_y[m]
         d = found[owner[0, y, x]]
+        if d < 0:
+            continue  # its search was ambiguous
         if lr_check:  # the other scan at the pixel d names holds a disparity within 1 px (lr_consistent)
             xo = x + step * d
-            if xo < 0 or xo >= w or not done[1, y, xo] or not abs(found_back[owner[1, y, xo]] - d) <= 1:
+            if xo < 0 or xo >= w or not done[1, y, xo]:
+                continue
+            back = found_back[owner[1, y, xo]]
+            if back < 0 or not abs(back - d) <= 1:
                 continue
         out_x[kept] = x
         out_y[kept] = y
@@ -351,11 +394,12 @@ class FrameAreaMatcher(FrameMatcher):
                 continue  # no reference events: nothing above threshold, no pixel to report at
             gain, back_gain = gains[ref_cam, slot], gains[1 - ref_cam, slot]
             disp = scan_sad(ref, oth, threshold=threshold, max_disparity=prm.max_disparity, block=prm.block,
-                            reference_camera=ref_cam, gain=gain)
+                            reference_camera=ref_cam, gain=gain, uniqueness=prm.uniqueness)
             keep = ~np.isnan(disp)
             if prm.lr_check:
                 back = scan_sad(oth, ref, threshold=thresholds[1 - ref_cam], max_disparity=prm.max_disparity,
-                                block=prm.block, reference_camera=1 - ref_cam, gain=back_gain)
+                                block=prm.block, reference_camera=1 - ref_cam, gain=back_gain,
+                                uniqueness=prm.uniqueness)
                 keep = lr_consistent(disp, back, reference_camera=ref_cam)
             y, x = np.nonzero(event_mask(ref_counts, channel=ch) & keep)
             parts.append(make_matches(window.t_end, x, y, (ref[y, x] > 0).astype(np.int8), ref_cam, disp[y, x]))
@@ -386,7 +430,8 @@ class FrameAreaMatcher(FrameMatcher):
                 x, y, p, disp = _scan_sparse(
                     sf.values, sf.support, sf.touched, sf.above, ref_plane, oth_plane, bool(prm.lr_check),
                     int(prm.max_disparity), prm.block // 2, 1 if ref_cam == 1 else -1, ref_ev.size, self._done,
-                    self._owner, self._searched, (gains[ref_cam, slot], gains[1 - ref_cam, slot]))
+                    self._owner, self._searched, (gains[ref_cam, slot], gains[1 - ref_cam, slot]),
+                    float(prm.uniqueness))
                 parts.append(make_matches(window.t_end, x, y, p, ref_cam, disp))
         finally:
             sf.clear()

@@ -48,6 +48,11 @@ class FrameAreaParams(BorderParams, SignalLevelParams, WindowFrameParams):
         the two cameras' thresholds in force; ``polarity``: one per frame (OFF and ON apart with separate frames),
         the ratio of the thresholds each frame's own signal level implies
         (:class:`~cvstereo.matchers._shared.frame_gains.FrameGains`).
+    uniqueness : float
+        0 (the thesis): off. Otherwise a search whose winner has a rival, a candidate more than 1 px away with a
+        SAD at most ``1 + uniqueness`` times the winner's, writes no disparity into its block (ambiguous: a
+        repeating texture, a horizontal edge), as event-area's check of the same name and OpenCV's
+        ``uniquenessRatio`` / 100 (:mod:`cvstereo.matchers._shared.uniqueness`).
     """
 
     adaptive: ClassVar[AdaptiveDefaults] = AdaptiveDefaults(
@@ -59,9 +64,13 @@ class FrameAreaParams(BorderParams, SignalLevelParams, WindowFrameParams):
             "camera's units, one gain per frame (sensors of other contrast thresholds, which differ by polarity; "
             "bench/results/thesis-generalization.md); the no-gaussian variant has the same scale (the level "
             "is that of its own unfiltered values; at 1.6 x it kept 556 estimates on movingPersons against the thesis "
-            "set's 4613, now 3720, of which 3670 within 1 px of 13: 111 % of the thesis set's 3320)",
+            "set's 4613, now 3720, of which 3670 within 1 px of 13: 111 % of the thesis set's 3320); it drops a search "
+            "whose winner has a rival within 1.2 x its SAD more than 1 px away (uniqueness, as event-area: a "
+            "repeating texture or a horizontal edge fits many disparities), which on suite v2's tuning recordings "
+            "dropped about half of the wrong answers for a fifth of the right ones; 0.2 is the largest ratio tried "
+            "that kept every family's median coverage above 5 % (bench/results/uniqueness-frame-area.md)",
         params={**ADAPTIVE_THESIS, "threshold_scale": 0.6, "polarity": "separate", "lr_check": True,
-                "value_units": "polarity"},
+                "value_units": "polarity", "uniqueness": 0.2},
     )
 
     threshold: float = param(2.0, gt=0, note="the thesis uses 2, or 4 without the Gaussian")
@@ -71,3 +80,4 @@ class FrameAreaParams(BorderParams, SignalLevelParams, WindowFrameParams):
     polarity: Polarity = "shared"
     lr_check: bool = False
     value_units: Literal["own", "camera", "polarity"] = "own"
+    uniqueness: float = param(0.0, ge=0, note="0: off, the thesis")

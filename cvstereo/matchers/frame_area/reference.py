@@ -75,7 +75,7 @@ def sad_volume(reference: np.ndarray, other: np.ndarray, *, max_disparity: int, 
 
 
 def scan_disparity_map(reference: np.ndarray, volume: np.ndarray, *, threshold: float,
-                       block: int = 5) -> np.ndarray:
+                       block: int = 5, uniqueness: float = 0.0) -> np.ndarray:
     """Algorithm 2's scan: row by row, x ascending; search unset pixels above threshold; write the block.
 
     Parameters
@@ -86,6 +86,9 @@ def scan_disparity_map(reference: np.ndarray, volume: np.ndarray, *, threshold: 
         SAD per disparity (:func:`sad_volume`).
     threshold : float, keyword-only
     block : int, keyword-only
+    uniqueness : float, keyword-only
+        0: off. Otherwise a search whose winner has a candidate more than 1 px away with a SAD at most
+        ``1 + uniqueness`` times its own writes NaN into its block.
 
     Returns
     -------
@@ -101,7 +104,12 @@ def scan_disparity_map(reference: np.ndarray, volume: np.ndarray, *, threshold: 
     if ys.size == 0:
         return disp
     # argmin returns the first minimum: ties go to the smaller disparity, as a strict < scan does.
-    best = np.argmin(volume[:, ys, xs], axis=0).astype(np.float32)
+    costs = volume[:, ys, xs]
+    best = np.argmin(costs, axis=0).astype(np.float32)
+    if uniqueness > 0:
+        least = costs[best.astype(int), np.arange(ys.size)]
+        far = np.abs(np.arange(costs.shape[0])[:, None] - best[None, :]) > 1
+        best[(far & (costs <= least * (1.0 + uniqueness))).any(axis=0)] = np.nan
     done = np.zeros((h, w), dtype=bool)
     for y, x, d in zip(ys.tolist(), xs.tolist(), best.tolist(), strict=True):
         if done[y, x]:
@@ -152,14 +160,14 @@ def frame_area_reference(left: np.ndarray, right: np.ndarray, params: FrameAreaP
                 continue
             volume = sad_volume(ref, np.asarray(oth, np.float64) * gain, max_disparity=prm.max_disparity,
                                 block=prm.block, reference_camera=prm.reference_camera)
-            disp = scan_disparity_map(ref, volume, threshold=threshold, block=prm.block)
+            disp = scan_disparity_map(ref, volume, threshold=threshold, block=prm.block, uniqueness=prm.uniqueness)
             keep = ~np.isnan(disp)
             if prm.lr_check:  # the other camera scanned as the reference, and both maps compared
                 back_volume = sad_volume(oth, np.asarray(ref, np.float64) * back_gain,
                                          max_disparity=prm.max_disparity, block=prm.block,
                                          reference_camera=1 - prm.reference_camera)
                 back = scan_disparity_map(oth, back_volume, threshold=thresholds[1 - prm.reference_camera],
-                                          block=prm.block)
+                                          block=prm.block, uniqueness=prm.uniqueness)
                 keep = lr_consistent(disp, back, reference_camera=prm.reference_camera)
             seen = np.zeros(ref.shape, bool)
             seen[sel_ref["y"], sel_ref["x"]] = True
