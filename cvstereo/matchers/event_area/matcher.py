@@ -73,6 +73,7 @@ from cvstereo.matchers._shared.frame_bounds import (
 )
 from cvstereo.matchers._shared.merge_order import stream_event
 from cvstereo.matchers._shared.row_bands import BandedState, band_rows, compile_twice, emit_at, splat_rows
+from cvstereo.matchers._shared.uniqueness import ambiguous
 from cvstereo.matchers.event_area.params import EventAreaParams
 
 __all__ = ["EventAreaMatcher"]
@@ -279,11 +280,8 @@ def _event_area_band(stream, bands, cuts, band, search, out_pos, out_disparity, 
                 while k <= last and (bound[k] > cut or k == first):
                     k += 1
                 e = k if k <= last else -1
-            if uniqueness > 0 and best >= 0:
-                for m in range(n_done):
-                    if abs(done_d[m] - best) > 1 and done_sad[m] <= best_sad * rival:
-                        best = -1
-                        break
+            if uniqueness > 0 and best >= 0 and ambiguous(done_d, done_sad, n_done, best, best_sad, rival):
+                best = -1
             n = emit_at(out_pos, out_disparity, n, j, best)
         splat_summed(stored, scale, clock, sums, mass, pending, half, cam, slot, x, y, polarity_sign(p), kernel,
                      splat_rows(y, r, keep_lo, keep_hi))
