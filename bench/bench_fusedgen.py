@@ -3,6 +3,7 @@
 Run::
 
     .venv/bin/python bench/bench_fusedgen.py --half tune --sizes 128x128,240x180 --tag try1 --set p1=2
+    .venv/bin/python bench/bench_fusedgen.py --half tune --extra --tag extra   # 48 more tuning draws
     .venv/bin/python bench/bench_fusedgen.py --half eval --tag final      # once per candidate, at the end
     .venv/bin/python bench/bench_fusedgen.py --table "eval=OUT/fusedgen-eval-final.json"   # markdown tables
 
@@ -135,6 +136,9 @@ def main() -> None:
     parser.add_argument("--sizes", default=None, metavar="WxH,...", help="only these sensor sizes")
     parser.add_argument("--only", default=None, metavar="NAME,...", help="only these recordings")
     parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="fused parameter")
+    parser.add_argument("--extra", action="store_true",
+                        help="the extra tuning draws of bench_row_field.py (48 more tuning recordings) instead of "
+                             "the suite's tuning half")
     parser.add_argument("--tag", default="run")
     parser.add_argument("-o", "--output", default="bench/results")
     parser.add_argument("--table", nargs="+", metavar="TITLE=RUN.json[+RUN.json]", default=None,
@@ -151,14 +155,21 @@ def main() -> None:
     out = Path(args.output)
     out.mkdir(parents=True, exist_ok=True)
     params = parse_param_strings(FusedParams, args.set)
-    suite = load_suite("generalization")
-    spec = {r.name: r for r in suite.recordings}
-    wanted = [n for n, s in spec.items() if s.half == args.half
-              and (args.sizes is None or n.rsplit("-", 1)[1] in args.sizes.split(","))
+    if args.extra and args.half != "tune":
+        parser.error("--extra draws are tuning recordings: --half tune")
+    if args.extra:
+        from bench_row_field import extra_tuning_recordings
+
+        paths = dict(extra_tuning_recordings())
+        family = {n: n.split("-")[0] for n in paths}
+    else:
+        family = {r.name: r.family for r in load_suite("generalization").recordings if r.half == args.half}
+    wanted = [n for n in family if (args.sizes is None or n.rsplit("-", 1)[1] in args.sizes.split(","))
               and (args.only is None or n in args.only.split(","))]
-    source = tuning_recordings if args.half == "tune" else suite_recordings
-    paths = dict(source("generalization", only=wanted) if args.half == "tune"
-                 else source("generalization", half="eval", only=wanted))
+    if not args.extra:
+        source = tuning_recordings if args.half == "tune" else suite_recordings
+        paths = dict(source("generalization", only=wanted) if args.half == "tune"
+                     else source("generalization", half="eval", only=wanted))
     peers_path = out / "fusedgen-peers.json"
     cache = json.loads(peers_path.read_text()) if peers_path.exists() else {}
     rows = []
@@ -167,7 +178,7 @@ def main() -> None:
         if args.half == "tune":
             require_tuning(paths[name])
         rec = read_recording_npz(paths[name])
-        row = {"name": name, "family": spec[name].family, **peer_figures(name, rec, cache)}
+        row = {"name": name, "family": family[name], **peer_figures(name, rec, cache)}
         peers_path.write_text(json.dumps(cache, indent=1))
         f = fused_figures(rec, params)
         res = f.pop("result")
