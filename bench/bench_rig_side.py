@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import statistics
 import sys
 import time
 from pathlib import Path
@@ -49,7 +50,9 @@ def check_both_ways(rec: Recording) -> list[dict]:
         both = overlay if report.swap_confidence >= SWAP_MIN_CONFIDENCE else side.swap
         out.append({"exchanged": exchanged, "overlay_swap": bool(report.swap),
                     "overlay_confidence": float(report.swap_confidence), "given": side.given,
-                    "answers_exchanged": side.exchanged, "applied_overlay": overlay, "applied_both": both})
+                    "answers_exchanged": side.exchanged, "applied_overlay": overlay, "applied_both": both,
+                    "side_seconds": check.side_seconds, "check_seconds": check.seconds,
+                    "resolution": list(rec.resolution)})
     return out
 
 
@@ -97,6 +100,14 @@ def main() -> None:
         lines.append(f"| {r['name']} | {'exchanged' if r['exchanged'] else 'as simulated'} | "
                      f"{'exchange' if r['overlay_swap'] else 'keep'} ({r['overlay_confidence']:.2f}) | {r['given']} / "
                      f"{r['answers_exchanged']} | {r['applied_overlay']} -> {r['applied_both']} |")
+    lines += ["", "What the side by matching costs (its two runs of the matcher, one thread, on the prefix's span), by "
+              "sensor: median (largest) seconds, beside the whole prefix check's with it:", "",
+              "| sensor | recordings x orders | side by matching s | whole check s |", "|---|---:|---:|---:|"]
+    for size in sorted({tuple(r["resolution"]) for r in rows}):
+        sel = [r for r in rows if tuple(r["resolution"]) == size]
+        side_s, check_s = ([r[k] for r in sel] for k in ("side_seconds", "check_seconds"))
+        lines.append(f"| {size[0]}x{size[1]} | {len(sel)} | {statistics.median(side_s):.2f} ({max(side_s):.2f}) | "
+                     f"{statistics.median(check_s):.2f} ({max(check_s):.2f}) |")
     lines += ["", f"2 CPUs, 1-min load average {load:.1f} at the start and {os.getloadavg()[0]:.1f} at the end, "
               f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}."]
     out = Path(args.output)

@@ -23,9 +23,10 @@ whole of a short one). What it found is applied to the whole stream:
 A prefix too short or too sparse for the check (fewer than ``min_events`` events in a camera) leaves the stream
 as recorded, and says why. :meth:`PrefixRigCheck.describe` is the matches-file meta entry ``rigcheck`` of
 docs/formats.md: the report's fields, ``applied``, ``scope`` (``"prefix"``), ``prefix_us``,
-``rows_by_matching`` (when they were tried: offset, prominence, answers per offset, the span matched),
-``side_by_matching`` (when it was tried: ``swap``, the answers ``given`` and ``exchanged``, ``span_us``) and
-``seconds`` (the check's own cost, left out of the run's ``elapsed_s``).
+``rows_by_matching`` (when they were tried: offset, prominence, answers per offset, the span matched, their
+``seconds``), ``side_by_matching`` (when it was tried: ``swap``, the answers ``given`` and ``exchanged``,
+``span_us``, its ``seconds``) and ``seconds`` (the check's own cost, theirs included, left out of the run's
+``elapsed_s``).
 
 >>> import numpy as np
 >>> from cvstereo.model.events import make_events, StereoPacket
@@ -140,6 +141,8 @@ class PrefixRigCheck:
     corrected: object = field(default=None, init=False)  # the CorrectedStream, for its counts of dropped events
     field_search: object = field(default=None, init=False)  # the RowFieldSearch, where the field was looked for
     field_seconds: float = field(default=0.0, init=False)  # of `seconds`, the row field's search
+    side_seconds: float = field(default=0.0, init=False)  # of `seconds`, the side by matching
+    rows_seconds: float = field(default=0.0, init=False)  # of `seconds`, the rows by matching
     fielded: object = field(default=None, init=False)  # the row field's stream, for its restore and dropped events
 
     def __post_init__(self):
@@ -208,10 +211,11 @@ class PrefixRigCheck:
         found = self.by_matching
         by_matching = None if found is None else {
             "offset": found.offset, "prominence": round(found.prominence, 4), "span_us": found.span_us,
-            "counts": {str(k): v for k, v in found.counts.items()}}
+            "counts": {str(k): v for k, v in found.counts.items()}, "seconds": self.rows_seconds}
         out.update(scope="prefix", prefix_us=int(self.prefix_us), seconds=self.seconds, skipped=self.skipped,
                    applied=dict(self.applied), dropped_events=dropped, rows_by_matching=by_matching,
-                   side_by_matching=None if self.side_found is None else self.side_found._asdict())
+                   side_by_matching=None if self.side_found is None else {**self.side_found._asdict(),
+                                                                           "seconds": self.side_seconds})
         if self.row_field:
             out["row_field"] = None if self.field_search is None else {
                 "seconds": self.field_seconds, **self.field_search.describe()}
@@ -258,18 +262,22 @@ class PrefixRigCheck:
         """The camera order by matching (:mod:`cvstereo.rigcheck.side_by_matching`), the overlay's rows applied."""
         from cvstereo.rigcheck.side_by_matching import side_by_matching
 
+        start = time.perf_counter()
         rows = (-1 if report.swap else 1) * round(report.row_offset)  # in the given order
         self.side_found = found = side_by_matching(left, right, resolution=self.resolution, rows=rows,
                                                    threads=self.threads)
+        self.side_seconds = time.perf_counter() - start
         return found.swap
 
     def _rows_by_matching(self, left: np.ndarray, right: np.ndarray) -> int:
         """The rows by matching (in the cameras' order used) where they stand out, else 0."""
         from cvstereo.rigcheck.rows_by_matching import rows_by_matching
 
+        start = time.perf_counter()
         reach = min(self.params.max_row_offset, self.resolution[1] - 1)
         self.by_matching = found = rows_by_matching(left, right, resolution=self.resolution, reach=reach,
                                                     threads=self.threads)
+        self.rows_seconds = time.perf_counter() - start
         return found.offset if found.prominence >= self.matching_min_prominence else 0
 
     def _row_field(self, left: np.ndarray, right: np.ndarray) -> None:

@@ -225,6 +225,7 @@ def test_side_by_matching_tells_the_order_where_the_overlay_is_not_trusted(patch
     side = found["side_by_matching"]
     right_order, wrong_order = (side["exchanged"], side["given"]) if swap else (side["given"], side["exchanged"])
     assert right_order >= 3 * wrong_order > 0
+    assert 0 < side["seconds"] <= found["seconds"]  # its two runs are part of the check's own time
 
 
 def test_side_by_matching_is_not_run_where_the_overlay_is_sure(patches):
