@@ -7,8 +7,8 @@ of the winner are its own cost valley, not rivals. ``uniqueness = 0`` switches t
 
 A search need not compute every candidate's SAD in full to apply it: a candidate whose partial sum already exceeds
 ``1 + uniqueness`` times the best SAD found so far can be neither the winner nor a rival (sums never decrease, the
-best only falls), so the kernels keep the candidates at or below that limit (:func:`rival_limit`) and test them at
-the end (:func:`ambiguous`).
+best only falls), so the kernels keep the candidates at or below that limit and test them at the end
+(:func:`ambiguous`).
 
 >>> import numpy as np
 >>> d = np.array([3, 4, 9]); sad = np.array([10.0, 10.5, 11.5])
