@@ -183,15 +183,13 @@ class PrefixRigCheck:
         out = _chained(held, packets)
         if self.applied["swap"]:
             out = map(swapped_packet, out)
-        applied_field = None if self.field_search is None else self.field_search.field
-        rows = 0 if applied_field is not None else self.applied["row_offset"]
+        field_stage = None if self.field_search is None else self.field_search.stage
+        rows = 0 if field_stage is not None else self.applied["row_offset"]
         correction = RigCorrection(rows, self.applied["time_offset_us"], self.resolution)
         if not correction.is_identity:
             self.corrected = out = correction.stream(out)
-        if applied_field is not None:
-            from cvstereo.rigcheck.row_field import row_field_stage
-
-            self.fielded = out = row_field_stage(applied_field).stream(out)
+        if field_stage is not None:
+            self.fielded = out = field_stage.stream(out)
         return (yield from out)
 
     def restore(self, matches: np.ndarray, *, anchor: str = "event") -> np.ndarray:

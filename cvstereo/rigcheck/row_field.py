@@ -220,6 +220,8 @@ class RowFieldSearch(NamedTuple):
     """Answers with the fitted field applied (None without a fit)."""
     best_offset_answers: int
     """Most answers with one row offset for the whole image, of those tried."""
+    stage: Rectification | None = None
+    """The stage that applies ``field`` (:func:`row_field_stage`, the one its answers were counted with), or None."""
 
     def describe(self) -> dict:
         """The meta entry's findings: tiles, answers, and the field applied (:meth:`RowField.describe`)."""
@@ -270,10 +272,12 @@ def estimate_row_field(left: np.ndarray, right: np.ndarray, *, resolution, centr
     best = int(counts.sum(axis=(1, 2)).max())  # every answer falls in a tile
     if fitted is None:
         return RowFieldSearch(None, None, tiles, counts, None, best)
-    moved = row_field_stage(fitted).rectify(span.right, 1)[0]
+    stage = row_field_stage(fitted)
+    moved = stage.rectify(span.right, 1)[0]
     answers = int(span_matches(span.left, moved, resolution=resolution, end=span.end).size)
-    field = fitted if answers >= MIN_GAIN * best else None
-    return RowFieldSearch(field, fitted, tiles, counts, answers, best)
+    if answers < MIN_GAIN * best:
+        return RowFieldSearch(None, fitted, tiles, counts, answers, best)
+    return RowFieldSearch(fitted, fitted, tiles, counts, answers, best, stage)
 
 
 def row_field_stage(field: RowField) -> Rectification:
