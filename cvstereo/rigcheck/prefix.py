@@ -260,33 +260,35 @@ class PrefixRigCheck:
         """The camera order by matching (:mod:`cvstereo.rigcheck.side_by_matching`), the overlay's rows applied."""
         from cvstereo.rigcheck.side_by_matching import side_by_matching
 
-        start = time.perf_counter()
         rows = (-1 if report.swap else 1) * round(report.row_offset)  # in the given order
-        self.side_found = found = side_by_matching(left, right, resolution=self.resolution, rows=rows,
-                                                   threads=self.threads)
-        self.side_seconds = time.perf_counter() - start
-        return found.swap
+        self.side_found, self.side_seconds = _timed(side_by_matching, left, right, resolution=self.resolution,
+                                                    rows=rows, threads=self.threads)
+        return self.side_found.swap
 
     def _rows_by_matching(self, left: np.ndarray, right: np.ndarray) -> int:
         """The rows by matching (in the cameras' order used) where they stand out, else 0."""
         from cvstereo.rigcheck.rows_by_matching import rows_by_matching
 
-        start = time.perf_counter()
         reach = min(self.params.max_row_offset, self.resolution[1] - 1)
-        self.by_matching = found = rows_by_matching(left, right, resolution=self.resolution, reach=reach,
-                                                    threads=self.threads)
-        self.rows_seconds = time.perf_counter() - start
+        self.by_matching, self.rows_seconds = _timed(rows_by_matching, left, right, resolution=self.resolution,
+                                                     reach=reach, threads=self.threads)
+        found = self.by_matching
         return found.offset if found.prominence >= self.matching_min_prominence else 0
 
     def _row_field(self, left: np.ndarray, right: np.ndarray) -> None:
         """Look for a row field around the row offset found (in the cameras' order used); apply it where found."""
         from cvstereo.rigcheck.row_field import estimate_row_field
 
-        start = time.perf_counter()
-        self.field_search = found = estimate_row_field(left, right, resolution=self.resolution,
+        self.field_search, self.field_seconds = _timed(estimate_row_field, left, right, resolution=self.resolution,
                                                        centre=self.applied["row_offset"], threads=self.threads)
-        self.applied["row_field"] = found.field is not None
-        self.field_seconds = time.perf_counter() - start
+        self.applied["row_field"] = self.field_search.field is not None
+
+
+def _timed(run, *args, **kwargs):
+    """``run(*args, **kwargs)`` and the seconds it took (a stage's own share of the check's ``seconds``)."""
+    start = time.perf_counter()
+    out = run(*args, **kwargs)
+    return out, time.perf_counter() - start
 
 
 def _chained(held: list[StereoPacket], rest: Iterator[StereoPacket]) -> Iterator[StereoPacket]:
